@@ -1,0 +1,39 @@
+# One entry point for people and CI. Everything installs into .venv from pinned versions.
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+PACKAGES := ros2_ws/src/ant_controller ros2_ws/src/blueprint_server ros2_ws/src/excavation_sim evolution
+DEMO_OUT ?= demo_out
+# The test suite runs in a network namespace with only loopback where unshare works (CI runs
+# as root), which also proves that nothing in it talks to the outside.
+NETNS := $(shell unshare -n true 2>/dev/null && echo "unshare -n")
+
+.PHONY: setup lint test demo clean
+
+$(STAMP): requirements.lock $(addsuffix /setup.py,$(filter ros2_ws/%,$(PACKAGES))) evolution/pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements.lock 2>&1 | grep -v "^WARNING: Location" || true
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps $(addprefix -e ,$(PACKAGES)) 2>&1 | grep -v "^WARNING: Location" || true
+	$(BIN)/python -c "import rclpy, numba, ant_controller, blueprint_server, excavation_sim, ant_evolution"
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+lint: setup
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+test: setup lint
+ifeq ($(NETNS),)
+	$(BIN)/python -m pytest -q tests ros2_ws/src
+else
+	unshare -n sh -c 'ip link set lo up 2>/dev/null; exec $(BIN)/python -m pytest -q tests ros2_ws/src'
+endif
+
+demo: setup
+	$(BIN)/ant-eval --hand-coded --robots 4 --scenarios 100 --seed 0 --snapshots $(DEMO_OUT)/hand_coded
+	@echo "Terrain snapshots: $(DEMO_OUT)/hand_coded/strip.png"
+
+clean:
+	rm -rf $(VENV) ros2_ws/build ros2_ws/install ros2_ws/log $(DEMO_OUT)

@@ -1,0 +1,1 @@
+"""Offline evaluation and evolution of ANT excavation controllers (imports no rclpy)."""

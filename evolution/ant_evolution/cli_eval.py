@@ -1,0 +1,206 @@
+"""``ant-eval``: score a genome or the hand-coded controller on seeded scenarios.
+
+Examples::
+
+    ant-eval --hand-coded --robots 4 --scenarios 100 --seed 0
+    ant-eval --genome genomes/best.json --blueprint my_site.yaml --json
+    ant-eval --hand-coded --snapshots out/snapshots --snapshot-steps 0,50,100,300
+
+Exit codes: 0 success, 2 bad arguments or input file (the message names the file, the
+field and the value).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ant_controller.errors import GenomeFormatError
+from ant_evolution.evaluate import (
+    DEFAULT_ROBOTS,
+    DEFAULT_STEPS,
+    Controller,
+    advance,
+    evaluate,
+    scenario_worlds,
+)
+from blueprint_server.blueprint import resolve_blueprint
+from blueprint_server.errors import BlueprintError
+from excavation_sim.world import PlacementError
+
+DEFAULT_SNAPSHOT_STEPS = (0, 50, 75, 100, 170)
+"""The paper's snapshot figure shows these timesteps; the last step is always added."""
+
+
+def _positive(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{v} must be at least 1")
+    return v
+
+
+def _steps_list(text: str) -> list[int]:
+    try:
+        steps = sorted({int(s) for s in text.split(",") if s.strip()})
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list") from None
+    if not steps or steps[0] < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: steps must be 0 or more")
+    return steps
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command-line interface."""
+    p = argparse.ArgumentParser(prog="ant-eval", description=__doc__.split("\n\n")[0])
+    who = p.add_mutually_exclusive_group(required=True)
+    who.add_argument("--genome", metavar="FILE", help="ant-genome/1 JSON file")
+    who.add_argument("--hand-coded", action="store_true", help="the paper's hand-coded rules")
+    p.add_argument(
+        "--robots",
+        type=_positive,
+        default=None,
+        help=f"robots per scenario (default: the genome's N gene, else {DEFAULT_ROBOTS})",
+    )
+    p.add_argument(
+        "--blueprint",
+        default="default",
+        metavar="FILE|default",
+        help="blueprint YAML, or 'default' (8 x 8 pit in 16 x 16)",
+    )
+    p.add_argument(
+        "--depth",
+        type=_positive,
+        default=1,
+        help="goal depth of the default blueprint (soil units, default 1)",
+    )
+    p.add_argument("--scenarios", type=_positive, default=100, help="scenarios (default 100)")
+    p.add_argument(
+        "--steps",
+        type=_positive,
+        default=DEFAULT_STEPS,
+        help=f"timesteps per scenario (default {DEFAULT_STEPS})",
+    )
+    p.add_argument("--seed", type=int, default=0, help="scenario seed (default 0)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--snapshots", metavar="DIR", help="write terrain PNGs of scenario 0 here")
+    p.add_argument(
+        "--snapshot-steps",
+        type=_steps_list,
+        default=list(DEFAULT_SNAPSHOT_STEPS),
+        metavar="T1,T2,...",
+        help="timesteps to snapshot (default 0,50,75,100,170)",
+    )
+    return p
+
+
+def write_snapshots(
+    controller: Controller,
+    blueprint,
+    n_robots: int,
+    steps: int,
+    seed: int,
+    out_dir: Path,
+    at: list[int],
+) -> list[Path]:
+    """Replay scenario 0 of ``seed`` and write a PNG at each step in ``at`` plus a strip."""
+    from excavation_sim.snapshots import save_snapshot, save_strip
+
+    world = scenario_worlds(blueprint, n_robots, 1, seed)[0]
+    wanted = sorted({s for s in at if s <= steps} | {steps})
+    frames = []
+    paths = []
+    done = 0
+    for s in wanted:
+        advance(world, controller, s - done)
+        done = s
+        frames.append((s, world.heights.copy(), world.robots.copy()))
+        paths.append(
+            save_snapshot(
+                out_dir / f"step_{s:05d}.png",
+                world.heights,
+                world.zones,
+                world.robots,
+                world.active,
+                f"{controller.name}: t = {s}, fitness {world.fitness():.3f}",
+            )
+        )
+    paths.append(
+        save_strip(
+            out_dir / "strip.png",
+            frames,
+            world.zones,
+            world.active,
+            f"{controller.name}, {n_robots} robots, {blueprint.name}",
+        )
+    )
+    return paths
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``ant-eval``."""
+    args = build_parser().parse_args(argv)
+    try:
+        controller = (
+            Controller.hand_coded() if args.hand_coded else Controller.from_file(args.genome)
+        )
+        blueprint = resolve_blueprint(args.blueprint, args.depth)
+        n_robots = args.robots or controller.robots or DEFAULT_ROBOTS
+        result = evaluate(controller, blueprint, n_robots, args.scenarios, args.steps, args.seed)
+        snaps = []
+        if args.snapshots:
+            snaps = write_snapshots(
+                controller,
+                blueprint,
+                n_robots,
+                args.steps,
+                args.seed,
+                Path(args.snapshots),
+                args.snapshot_steps,
+            )
+    except (GenomeFormatError, BlueprintError, PlacementError) as exc:
+        print(f"ant-eval: error: {exc}", file=sys.stderr)
+        return 2
+    summary = result.summary()
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "controller": controller.name,
+                    "blueprint": blueprint.name,
+                    "robots": n_robots,
+                    "scenarios": args.scenarios,
+                    "steps": args.steps,
+                    "seed": args.seed,
+                    **summary,
+                    "scores": [float(v) for v in result.scores],
+                    "snapshots": [str(p) for p in snaps],
+                },
+                indent=1,
+            )
+        )
+    else:
+        print(
+            f"{controller.name} | {blueprint.name} | {n_robots} robots | "
+            f"{args.scenarios} scenarios x {args.steps} steps | seed {args.seed}"
+        )
+        print(
+            "fitness: mean {mean:.4f}  std {std:.4f}  min {min:.4f}  max {max:.4f}".format(
+                **summary
+            )
+        )
+        start = float(np.mean(result.curves[:, 0]))
+        print(f"(start of each scenario: {start:.4f})")
+        if snaps:
+            print(f"snapshots: {len(snaps)} PNG files in {args.snapshots}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

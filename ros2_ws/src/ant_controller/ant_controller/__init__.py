@@ -1,0 +1,37 @@
+"""ANT controller: genome, tissue network, sensing and behaviours (no rclpy in the core).
+
+Importing the package points numba's on-disk cache at a folder keyed by a hash of the
+sources of every package whose kernels call each other (ant_controller, excavation_sim,
+ant_evolution). numba checks only the file of the function it caches, so without this a
+kernel compiled against an older version of a kernel in another file would be reused.
+Set ``NUMBA_CACHE_DIR`` to choose the folder yourself.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+from pathlib import Path
+
+import numba
+
+_KERNEL_PACKAGES = ("ant_controller", "excavation_sim", "ant_evolution")
+
+
+def _source_hash() -> str:
+    digest = hashlib.sha256(numba.__version__.encode())
+    for name in _KERNEL_PACKAGES:
+        spec = importlib.util.find_spec(name) if name != __name__ else __spec__
+        if spec is None or not spec.submodule_search_locations:
+            continue
+        for location in spec.submodule_search_locations:
+            for path in sorted(Path(location).glob("*.py")):
+                digest.update(path.name.encode())
+                digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+if not os.environ.get("NUMBA_CACHE_DIR"):
+    _base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
+    numba.config.CACHE_DIR = str(_base / "ant-excavation" / "numba" / _source_hash())

@@ -1,0 +1,24 @@
+"""Errors raised by the ANT controller core."""
+
+from __future__ import annotations
+
+
+class GenomeFormatError(ValueError):
+    """A genome file (or mapping) is malformed.
+
+    Attributes:
+        path: File at fault.
+        field: Field path inside it (``cells[3].sensor_weights[2]``).
+        value: Offending value (``None`` when missing).
+        reason: What is wrong.
+    """
+
+    def __init__(self, path: str, field: str, value: object, reason: str) -> None:
+        self.path = str(path)
+        self.field = field
+        self.value = value
+        self.reason = reason
+        shown = repr(value)
+        if len(shown) > 80:
+            shown = shown[:77] + "..."
+        super().__init__(f"{self.path}: {field} = {shown}: {reason}")

@@ -1,0 +1,1 @@
+"""Excavation blueprints (zones, goal depths) and the blueprint server node."""

@@ -1,0 +1,1 @@
+"""Simulated worksite: soil, robots, blade model, fitness and snapshots."""

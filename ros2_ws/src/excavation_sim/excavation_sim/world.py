@@ -1,0 +1,448 @@
+"""The simulated worksite: soil heights, bulldozer robots and the blade model (paper, 4.1-4.2).
+
+The world is a grid of integer soil heights (ground level 0). Each robot covers 2 x 2
+cells and carries a blade across the two cells in front of it. One timestep:
+
+1. every robot senses the same snapshot of the world (``sense_all``);
+2. each controller turns its sensor vector into a behaviour bit mask;
+3. robots apply their masks one after another in index order (robot 0 first), each
+   running its selected behaviours in Table 2 order (``apply_behaviours``).
+
+Soil moves only through ``try_forward`` and only between two cells, so the total is
+conserved exactly. ``docs/world-model.md`` states every rule and the choices taken where
+the paper is silent.
+
+State lives in plain arrays so that numba kernels (and later the batched evaluator) can
+run whole episodes without Python in the loop:
+
+* ``heights``: ``int32 [rows, cols]`` soil height in soil units.
+* ``robots``: ``int64 [n, ROBOT_FIELDS]`` per-robot state (columns ``ROW`` .. ``STUCK``).
+* ``active``: ``bool [n]`` robots taking part (a disabled robot is invisible and idle).
+* ``rng``: ``uint64 [1]`` xorshift64* state for the random turn.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from ant_controller.layout import (
+    BIT_CLEAR,
+    BIT_SET,
+    BLADE_ABOVE,
+    BLADE_ABOVE_CMD,
+    BLADE_BELOW,
+    BLADE_BELOW_CMD,
+    BLADE_HOME,
+    BLADE_HOME_CMD,
+    BLADE_LEVEL,
+    BLADE_LEVEL_CMD,
+    MOVE_BACKWARD,
+    MOVE_FORWARD,
+    N_SENSORS,
+    RANDOM_TURN,
+    THROTTLE_UP,
+    TURN_LEFT,
+    TURN_RIGHT,
+)
+from ant_controller.sensing import (
+    FORWARD,
+    MAX_LOAD,
+    blade_offset,
+    blade_volume,
+    front_cell,
+    front_wheel,
+    in_grid,
+    is_tilted_down,
+    occupied_by_other,
+    rear_wheel,
+    sense,
+)
+
+# Robot state columns. The first three are the pose (row, col, heading).
+ROW, COL, HEADING, BLADE, MEMORY, STUCK = range(6)
+ROBOT_FIELDS = 6
+
+NORMAL_LOAD = 12
+"""Soil units a robot can push in the default drive mode."""
+THROTTLE_LOAD = MAX_LOAD
+"""Soil units a robot can push in high-power mode (Throttle Up): the paper's 24."""
+NORMAL_CLIMB = 1
+"""Highest step (soil units) the wheels climb in the default drive mode."""
+THROTTLE_CLIMB = 2
+"""Highest step the wheels climb in high-power mode."""
+
+
+@dataclass(frozen=True)
+class WorldParams:
+    """Physical parameters of the robot model.
+
+    Attributes:
+        normal_load: Push capacity without throttle-up, soil units.
+        throttle_load: Push capacity with throttle-up, soil units.
+        normal_climb: Largest upward step the wheels take without throttle-up.
+        throttle_climb: Largest upward step with throttle-up.
+    """
+
+    normal_load: int = NORMAL_LOAD
+    throttle_load: int = THROTTLE_LOAD
+    normal_climb: int = NORMAL_CLIMB
+    throttle_climb: int = THROTTLE_CLIMB
+
+    def as_array(self) -> np.ndarray:
+        """Pack for the numba kernels: ``[normal_load, throttle_load, normal_climb, ...]``."""
+        return np.array(
+            [self.normal_load, self.throttle_load, self.normal_climb, self.throttle_climb],
+            dtype=np.int64,
+        )
+
+
+DEFAULT_PARAMS = WorldParams()
+
+
+# --- random numbers ------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def next_random(rng):
+    """Advance a xorshift64* generator held in ``rng[0]``; returns 64 random bits."""
+    x = rng[0]
+    x ^= x >> np.uint64(12)
+    x ^= x << np.uint64(25)
+    x ^= x >> np.uint64(27)
+    rng[0] = x
+    return x * np.uint64(0x2545F4914F6CDD1D)
+
+
+def seed_state(seed_bits: int) -> np.ndarray:
+    """A non-zero xorshift state from 64 seed bits."""
+    return np.array([(seed_bits & 0xFFFFFFFFFFFFFFFF) or 0x9E3779B97F4A7C15], dtype=np.uint64)
+
+
+# --- moves ----------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def try_forward(heights, robots, active, k, throttle, params):
+    """Move robot k one cell forward, pushing or cutting soil with the blade.
+
+    The blade equations of the paper, per blade column i with front wheel cell W_i, old
+    blade cell B~_i and new blade cell B_i = B~_i + forward:
+
+    * cutting level ``t_i = h(W_i) + b_h * eps`` where ``eps = 0`` when the blade holds no
+      soil and ``b_h >= 0``, else 1;
+    * soil above the cutting level in B~_i moves into B_i; B~_i is left at ``t_i``
+      (never raised: the blade cannot pull soil backwards);
+    * the front wheels then stand on the old blade cells.
+
+    The move is refused (robot stuck, nothing changes) when the new footprint leaves the
+    grid or meets another robot, when an engaged blade would push soil off the grid or into
+    another robot, when the soil then held against the blade exceeds the push capacity, or
+    when the wheels would climb a step higher than the climb limit.
+
+    Returns:
+        True when the robot moved.
+    """
+    pose = robots[k]
+    h = pose[HEADING]
+    fr = FORWARD[h, 0]
+    fc = FORWARD[h, 1]
+    capacity = params[1] if throttle else params[0]
+    climb = params[3] if throttle else params[2]
+    blade = pose[BLADE]
+    engaged = blade != BLADE_HOME
+    # New footprint cells are the old blade cells.
+    for i in range(2):
+        br, bc = front_cell(pose, i)
+        if not in_grid(heights, br, bc) or occupied_by_other(robots, active, k, br, bc):
+            return False
+        if engaged:
+            nr = br + fr
+            nc = bc + fc
+            if not in_grid(heights, nr, nc) or occupied_by_other(robots, active, k, nr, nc):
+                return False
+    bh = blade_offset(blade)
+    moved0 = 0
+    moved1 = 0
+    new_load = 0
+    if engaged:
+        eps = 0 if (blade_volume(heights, pose, blade) == 0 and bh >= 0) else 1
+        for i in range(2):
+            br, bc = front_cell(pose, i)
+            wr, wc = front_wheel(pose, i)
+            target = heights[wr, wc] + bh * eps
+            moved = heights[br, bc] - target
+            if moved < 0:
+                moved = 0
+            # Soil against the blade after the move, above the new cutting level.
+            pile = heights[br + fr, bc + fc] + moved - (heights[br, bc] - moved) - bh
+            if pile > 0:
+                new_load += pile
+            if heights[br, bc] - moved - heights[wr, wc] > climb:
+                return False
+            if i == 0:
+                moved0 = moved
+            else:
+                moved1 = moved
+        if new_load > capacity:
+            return False
+    else:
+        for i in range(2):
+            br, bc = front_cell(pose, i)
+            wr, wc = front_wheel(pose, i)
+            if heights[br, bc] - heights[wr, wc] > climb:
+                return False
+    if engaged:
+        for i in range(2):
+            moved = moved0 if i == 0 else moved1
+            br, bc = front_cell(pose, i)
+            heights[br, bc] -= moved
+            heights[br + fr, bc + fc] += moved
+    robots[k, ROW] += fr
+    robots[k, COL] += fc
+    return True
+
+
+@nb.njit(cache=True)
+def try_backward(heights, robots, active, k, throttle, params):
+    """Move robot k one cell backward; the blade leaves its soil where it is.
+
+    Refused when the cells behind leave the grid, meet another robot, or stand higher
+    than the climb limit above the rear wheels.
+    """
+    pose = robots[k]
+    h = pose[HEADING]
+    climb = params[3] if throttle else params[2]
+    for i in range(2):
+        rr, rc = rear_wheel(pose, i)
+        nr = rr - FORWARD[h, 0]
+        nc = rc - FORWARD[h, 1]
+        if not in_grid(heights, nr, nc) or occupied_by_other(robots, active, k, nr, nc):
+            return False
+        if heights[nr, nc] - heights[rr, rc] > climb:
+            return False
+    robots[k, ROW] -= FORWARD[h, 0]
+    robots[k, COL] -= FORWARD[h, 1]
+    return True
+
+
+@nb.njit(cache=True)
+def apply_behaviours(heights, robots, active, k, mask, rng, params):
+    """Run robot k's selected behaviours (bit mask) in Table 2 order.
+
+    U1 (stuck) becomes 1 when any move attempted this timestep was refused and 0
+    otherwise. Blade and memory commands apply in table order, so the last one wins.
+    """
+    if not active[k]:
+        return
+    throttle = (mask >> THROTTLE_UP) & 1 == 1
+    stuck = 0
+    if (mask >> MOVE_FORWARD) & 1:
+        if not try_forward(heights, robots, active, k, throttle, params):
+            stuck = 1
+    if (mask >> MOVE_BACKWARD) & 1:
+        if not try_backward(heights, robots, active, k, throttle, params):
+            stuck = 1
+    if (mask >> RANDOM_TURN) & 1:
+        if next_random(rng) >> np.uint64(63):
+            robots[k, HEADING] = (robots[k, HEADING] + 1) % 4
+        else:
+            robots[k, HEADING] = (robots[k, HEADING] + 3) % 4
+    if (mask >> TURN_RIGHT) & 1:
+        robots[k, HEADING] = (robots[k, HEADING] + 1) % 4
+    if (mask >> TURN_LEFT) & 1:
+        robots[k, HEADING] = (robots[k, HEADING] + 3) % 4
+    if (mask >> BLADE_ABOVE_CMD) & 1:
+        robots[k, BLADE] = BLADE_ABOVE
+    if (mask >> BLADE_BELOW_CMD) & 1:
+        robots[k, BLADE] = BLADE_BELOW
+    if (mask >> BLADE_LEVEL_CMD) & 1:
+        robots[k, BLADE] = BLADE_LEVEL
+    if (mask >> BLADE_HOME_CMD) & 1:
+        robots[k, BLADE] = BLADE_HOME
+    if (mask >> BIT_SET) & 1:
+        robots[k, MEMORY] = 1
+    if (mask >> BIT_CLEAR) & 1:
+        robots[k, MEMORY] = 0
+    robots[k, STUCK] = stuck
+
+
+@nb.njit(cache=True)
+def sense_robot(heights, zones, goal, robots, active, k, out):
+    """Sensor vector of robot k from the world state (simulator side of ``sense``)."""
+    pose = robots[k]
+    sense(
+        heights,
+        zones,
+        goal,
+        robots,
+        active,
+        k,
+        pose[BLADE],
+        blade_volume(heights, pose, pose[BLADE]),
+        pose[STUCK],
+        is_tilted_down(heights, pose),
+        pose[MEMORY],
+        out,
+    )
+
+
+@nb.njit(cache=True)
+def sense_all(heights, zones, goal, robots, active, out):
+    """Sensor vectors of every robot from one snapshot, ``out[n_robots, 14]``."""
+    for k in range(robots.shape[0]):
+        sense_robot(heights, zones, goal, robots, active, k, out[k])
+
+
+@nb.njit(cache=True)
+def apply_all(heights, robots, active, masks, rng, params):
+    """Apply every robot's behaviour mask in index order (robot 0 first)."""
+    for k in range(robots.shape[0]):
+        apply_behaviours(heights, robots, active, k, masks[k], rng, params)
+
+
+@nb.njit(cache=True)
+def fitness(heights, zones, goal):
+    """The paper's excavation fitness: mean of ``exp(-2 |g - z|)`` over the dig cells.
+
+    Returns 0 for a blueprint without dig cells.
+    """
+    total = 0.0
+    count = 0
+    for r in range(heights.shape[0]):
+        for c in range(heights.shape[1]):
+            if zones[r, c] == 1:
+                total += np.exp(-2.0 * abs(goal[r, c] - heights[r, c]))
+                count += 1
+    if count == 0:
+        return 0.0
+    return total / count
+
+
+# --- scenarios ------------------------------------------------------------------------------
+
+
+class PlacementError(ValueError):
+    """The requested robots do not fit on the grid."""
+
+
+def place_robots(
+    shape: tuple[int, int], n_robots: int, rng: np.random.Generator, max_tries: int = 10_000
+) -> np.ndarray:
+    """Random non-overlapping 2 x 2 footprints with random headings.
+
+    Args:
+        shape: Grid ``(rows, cols)``.
+        n_robots: Number of robots.
+        rng: Source of randomness.
+        max_tries: Rejection-sampling budget.
+
+    Returns:
+        ``int64 [n_robots, ROBOT_FIELDS]`` robot states: blade home, memory 0, not stuck.
+
+    Raises:
+        PlacementError: When the robots cannot be placed.
+    """
+    rows, cols = shape
+    if rows < 2 or cols < 2:
+        raise PlacementError(f"grid {rows} x {cols} is smaller than one robot (2 x 2)")
+    robots = np.zeros((n_robots, ROBOT_FIELDS), dtype=np.int64)
+    taken = np.zeros(shape, dtype=bool)
+    for k in range(n_robots):
+        for _ in range(max_tries):
+            r = int(rng.integers(0, rows - 1))
+            c = int(rng.integers(0, cols - 1))
+            if not taken[r : r + 2, c : c + 2].any():
+                break
+        else:
+            raise PlacementError(
+                f"could not place robot {k + 1} of {n_robots} on a {rows} x {cols} grid"
+            )
+        taken[r : r + 2, c : c + 2] = True
+        robots[k, ROW] = r
+        robots[k, COL] = c
+        robots[k, HEADING] = int(rng.integers(0, 4))
+        robots[k, BLADE] = BLADE_HOME
+    return robots
+
+
+@dataclass
+class World:
+    """A worksite ready to step: arrays plus the blueprint they are measured against.
+
+    Attributes:
+        heights: Soil heights, ``int32 [rows, cols]``.
+        zones: Blueprint zones, ``uint8 [rows, cols]``.
+        goal: Goal heights, ``int32 [rows, cols]``.
+        robots: Robot states, ``int64 [n, ROBOT_FIELDS]``.
+        active: Robots taking part, ``bool [n]``.
+        rng: xorshift64* state, ``uint64 [1]``.
+        params: Packed :class:`WorldParams`.
+    """
+
+    heights: np.ndarray
+    zones: np.ndarray
+    goal: np.ndarray
+    robots: np.ndarray
+    active: np.ndarray
+    rng: np.ndarray
+    params: np.ndarray
+
+    @classmethod
+    def create(
+        cls,
+        zones: np.ndarray,
+        goal: np.ndarray,
+        n_robots: int,
+        rng: np.random.Generator,
+        params: WorldParams = DEFAULT_PARAMS,
+        heights: np.ndarray | None = None,
+    ) -> World:
+        """A flat (or given) terrain with robots placed at random by ``rng``."""
+        shape = zones.shape
+        robots = place_robots(shape, n_robots, rng)
+        return cls(
+            heights=(
+                np.zeros(shape, dtype=np.int32)
+                if heights is None
+                else np.array(heights, dtype=np.int32)
+            ),
+            zones=np.ascontiguousarray(zones, dtype=np.uint8),
+            goal=np.ascontiguousarray(goal, dtype=np.int32),
+            robots=robots,
+            active=np.ones(n_robots, dtype=np.bool_),
+            rng=seed_state(int(rng.integers(0, 2**63))),
+            params=params.as_array(),
+        )
+
+    @property
+    def n_robots(self) -> int:
+        """Number of robots."""
+        return self.robots.shape[0]
+
+    def sense(self) -> np.ndarray:
+        """Sensor vectors of all robots from the current snapshot, ``int64 [n, 14]``."""
+        out = np.zeros((self.n_robots, N_SENSORS), dtype=np.int64)
+        sense_all(self.heights, self.zones, self.goal, self.robots, self.active, out)
+        return out
+
+    def step(self, masks: np.ndarray) -> None:
+        """Apply one behaviour mask per robot, in robot order."""
+        apply_all(
+            self.heights,
+            self.robots,
+            self.active,
+            np.asarray(masks, dtype=np.int64),
+            self.rng,
+            self.params,
+        )
+
+    def fitness(self) -> float:
+        """The paper's fitness of the current terrain."""
+        return float(fitness(self.heights, self.zones, self.goal))
+
+    def copy(self) -> World:
+        """A deep copy (arrays included)."""
+        return World(*(np.array(a, copy=True) for a in self.__dict__.values()))
