@@ -1,0 +1,79 @@
+"""The ROS 2 workspace builds with colcon into what ``ros2 run`` looks up."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = {
+    "ant_controller": ["genome_info"],
+    "blueprint_server": ["blueprint_info"],
+    "excavation_sim": [],
+}
+
+
+@pytest.fixture(scope="module")
+def install(tmp_path_factory):
+    base = tmp_path_factory.mktemp("colcon")
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}")
+    result = subprocess.run(
+        [
+            str(Path(sys.executable).parent / "colcon"),
+            "--log-base",
+            str(base / "log"),
+            "build",
+            "--base-paths",
+            str(ROOT / "ros2_ws" / "src"),
+            "--build-base",
+            str(base / "build"),
+            "--install-base",
+            str(base / "install"),
+        ],
+        cwd=base,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    return base / "install"
+
+
+@pytest.mark.parametrize("package", sorted(PACKAGES))
+def test_ament_python_layout(install, package):
+    prefix = install / package
+    marker = prefix / "share" / "ament_index" / "resource_index" / "packages" / package
+    assert marker.is_file()
+    assert (prefix / "share" / package / "package.xml").is_file()
+    # colcon only writes the ament hooks when catkin_pkg accepted the package.xml
+    assert (prefix / "share" / package / "package.dsv").is_file()
+    for exe in PACKAGES[package]:
+        path = prefix / "lib" / package / exe
+        assert path.is_file() and os.access(path, os.X_OK)
+
+
+def test_ros2_run_lookup_runs_the_executable(install, tmp_path):
+    """Resolve lib/<pkg>/<exe> through AMENT_PREFIX_PATH as ``ros2 run`` does, then run it."""
+    script = (
+        f"source {install}/setup.bash && "
+        f"{sys.executable} -c 'from ament_index_python.packages import get_package_prefix;"
+        f' print(get_package_prefix("blueprint_server"))\''
+    )
+    out = subprocess.run(
+        ["bash", "-c", script], capture_output=True, text=True, timeout=60, check=True
+    )
+    prefix = Path(out.stdout.strip().splitlines()[-1])
+    assert prefix == install / "blueprint_server"
+    run = subprocess.run(
+        [str(prefix / "lib" / "blueprint_server" / "blueprint_info"), "default:3"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 0, run.stderr
+    assert "goal depths [3]" in run.stdout
