@@ -1,5 +1,9 @@
 # One entry point for people and CI. Everything installs into .venv from pinned versions.
+SHELL := /bin/bash
+.SHELLFLAGS := -o pipefail -c
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
+# This machine's pip configuration warns about missing local indexes; hide only those lines.
+QUIET_PIP := { grep -v "^WARNING: Location" || true; }
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
@@ -11,10 +15,10 @@ NETNS := $(shell unshare -n true 2>/dev/null && echo "unshare -n")
 
 .PHONY: setup lint test demo clean
 
-$(STAMP): requirements.lock $(addsuffix /setup.py,$(filter ros2_ws/%,$(PACKAGES))) evolution/pyproject.toml
+$(STAMP): requirements.txt $(addsuffix /setup.py,$(filter ros2_ws/%,$(PACKAGES))) evolution/pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements.lock 2>&1 | grep -v "^WARNING: Location" || true
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps $(addprefix -e ,$(PACKAGES)) 2>&1 | grep -v "^WARNING: Location" || true
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements.txt 2>&1 | $(QUIET_PIP)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps $(addprefix -e ,$(PACKAGES)) 2>&1 | $(QUIET_PIP)
 	$(BIN)/python -c "import rclpy, numba, ant_controller, blueprint_server, excavation_sim, ant_evolution"
 	touch $(STAMP)
 

@@ -444,11 +444,18 @@ def test_to_yaml_round_trip(tmp_path: Path, bp: Blueprint) -> None:
     assert loaded.to_rows() == bp.to_rows()
 
 
-def test_to_yaml_round_trip_with_depth_of_ten_or_more(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    "bp",
+    [
+        pit_blueprint((3, 3), (1, 1), depth=12, dump_band=0),
+        pit_blueprint((1, 2), (1, 1), depth=12, dump_band=0),
+    ],
+    ids=["unloadable", "loads_as_another_blueprint"],
+)
+def test_to_yaml_round_trip_with_depth_of_ten_or_more(tmp_path: Path, bp: Blueprint) -> None:
     # to_yaml() promises output loadable by load_blueprint. A goal of 10 or more soil units
     # cannot be written as one character: refusing to write it is acceptable, writing a
     # file that loads as a different (or broken) blueprint is not.
-    bp = pit_blueprint((3, 3), (1, 1), depth=12, dump_band=0)
     try:
         text = bp.to_yaml()
     except ValueError:

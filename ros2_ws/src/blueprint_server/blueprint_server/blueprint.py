@@ -99,7 +99,20 @@ class Blueprint:
     __hash__ = None  # type: ignore[assignment]
 
     def to_rows(self) -> list[str]:
-        """Per-cell form: one string per row, northern row first."""
+        """Per-cell form: one string per row, northern row first.
+
+        Raises:
+            BlueprintError: When a goal is deeper than 9 units (one character per cell).
+        """
+        deepest = int(-self.goal.min()) if self.goal.size else 0
+        if deepest > 9:
+            raise BlueprintError(
+                self.name,
+                "goal",
+                -deepest,
+                "the per-cell form holds depths 1-9 only; "
+                "use a coarser height_unit or the parametric form",
+            )
         out = []
         for r in range(self.shape[0] - 1, -1, -1):
             chars = []
@@ -347,7 +360,7 @@ def _from_rows(path: str, rows: object, cell_size: float, height_unit: float) ->
                 continue
             if ch == CHAR_DUMP:
                 zones[r, c] = DUMP
-            elif ch.isdigit() and ch != "0":
+            elif ch in "123456789":
                 zones[r, c] = DIG
                 goal[r, c] = -int(ch)
             else:

@@ -73,8 +73,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     rows, cols = bp.shape
     print(f"{bp.name}: {rows} rows x {cols} cols, cell {bp.cell_size} m, unit {bp.height_unit} m")
-    print(f"dig cells {bp.dig_cells}, dump cells {int((bp.zones == DUMP).sum())}, "
-          f"goal depths {sorted({-int(g) for g in bp.goal[bp.zones == DIG]})}")
+    print(
+        f"dig cells {bp.dig_cells}, dump cells {int((bp.zones == DUMP).sum())}, "
+        f"goal depths {sorted({-int(g) for g in bp.goal[bp.zones == DIG]})}"
+    )
     if args.rows:
         print(bp.to_yaml(), end="")
     if args.png:

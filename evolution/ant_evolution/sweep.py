@@ -1,0 +1,106 @@
+"""``ant-sweep``: a controller's fitness over robot counts and goal depths, as a table and a plot.
+
+Example (the hand-coded table of ``docs/results.md``)::
+
+    ant-sweep --hand-coded --robots 1-10 --depths 1,2,3 --scenarios 100 --out docs/figures
+
+Writes ``sweep.csv``, ``sweep.md`` (a markdown table of mean +- std) and ``sweep.png``
+into ``--out``, showing progress with a bar.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+from ant_controller.errors import GenomeFormatError
+from tqdm import tqdm
+
+from ant_evolution.evaluate import DEFAULT_STEPS, Controller, evaluate
+
+
+def _int_list(text: str) -> list[int]:
+    out: set[int] = set()
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        try:
+            a, b = int(lo), int(hi or lo)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r}: use '1,2,3' or '1-10'") from None
+        if a < 1 or b < a:
+            raise argparse.ArgumentTypeError(f"{text!r}: values must be positive and ordered")
+        out.update(range(a, b + 1))
+    return sorted(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``ant-sweep``."""
+    p = argparse.ArgumentParser(prog="ant-sweep", description=__doc__.split("\n\n")[0])
+    who = p.add_mutually_exclusive_group(required=True)
+    who.add_argument("--genome", metavar="FILE")
+    who.add_argument("--hand-coded", action="store_true")
+    p.add_argument("--robots", type=_int_list, default=_int_list("1-10"))
+    p.add_argument("--depths", type=_int_list, default=[1, 2, 3])
+    p.add_argument("--scenarios", type=int, default=100)
+    p.add_argument("--steps", type=int, default=DEFAULT_STEPS)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", required=True, type=Path)
+    args = p.parse_args(argv)
+    from blueprint_server.blueprint import default_blueprint
+
+    try:
+        ctl = Controller.hand_coded() if args.hand_coded else Controller.from_file(args.genome)
+    except GenomeFormatError as exc:
+        print(f"ant-sweep: error: {exc}", file=sys.stderr)
+        return 2
+    rows = []
+    cells = [(d, n) for d in args.depths for n in args.robots]
+    for d, n in tqdm(cells, desc="sweep", unit="setting"):
+        res = evaluate(ctl, default_blueprint(d), n, args.scenarios, args.steps, args.seed)
+        rows.append({"depth": d, "robots": n, **res.summary()})
+    args.out.mkdir(parents=True, exist_ok=True)
+    with open(args.out / "sweep.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    by = {(r["depth"], r["robots"]): r for r in rows}
+    lines = [
+        f"Fitness of {ctl.name} on the default blueprint, mean +- std over {args.scenarios} "
+        f"scenarios of {args.steps} steps (seed {args.seed}).",
+        "",
+        "| robots | " + " | ".join(f"depth {d}" for d in args.depths) + " |",
+        "|---:|" + "---:|" * len(args.depths),
+    ]
+    for n in args.robots:
+        vals = " | ".join(
+            f"{by[(d, n)]['mean']:.3f} +- {by[(d, n)]['std']:.3f}" for d in args.depths
+        )
+        lines.append(f"| {n} | {vals} |")
+    (args.out / "sweep.md").write_text("\n".join(lines) + "\n")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
+    for d in args.depths:
+        means = [by[(d, n)]["mean"] for n in args.robots]
+        stds = [by[(d, n)]["std"] for n in args.robots]
+        ax.errorbar(args.robots, means, yerr=stds, capsize=3, marker="o", label=f"depth {d}")
+    ax.set_xlabel("robots")
+    ax.set_ylabel("fitness after %d steps" % args.steps)
+    ax.set_title(f"{ctl.name}, default blueprint (8 x 8 pit in 16 x 16)")
+    ax.set_ylim(0, 1)
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(args.out / "sweep.png")
+    plt.close(fig)
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
