@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+
 from ant_controller.genome import random_genome
 from ant_controller.genome_io import save_genome
 from ant_evolution.cli_eval import main

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from ant_controller.hand_coded import hand_coded
 from ant_controller.layout import (
     L1,

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from ant_controller.layout import (
     B1,
     BLADE_ABOVE,
@@ -53,8 +56,6 @@ from excavation_sim.world import (
     place_robots,
     seed_state,
 )
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 FORWARD = mask_of(2)
 BACKWARD = mask_of(3)
@@ -272,7 +273,8 @@ def test_blade_state_load_tilt_stuck_memory():
 
 
 @pytest.mark.parametrize(
-    ("volume", "code"), [(0, 0), (1, 1), (6, 1), (7, 2), (12, 2), (13, 3), (19, 4), (24, 4), (99, 4)]
+    ("volume", "code"),
+    [(0, 0), (1, 1), (6, 1), (7, 2), (12, 2), (13, 3), (19, 4), (24, 4), (99, 4)],
 )
 def test_load_code(volume, code):
     assert load_code(volume) == code

@@ -15,9 +15,9 @@ import csv
 import sys
 from pathlib import Path
 
-from ant_controller.errors import GenomeFormatError
 from tqdm import tqdm
 
+from ant_controller.errors import GenomeFormatError
 from ant_evolution.evaluate import DEFAULT_STEPS, Controller, evaluate
 
 
@@ -90,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
         stds = [by[(d, n)]["std"] for n in args.robots]
         ax.errorbar(args.robots, means, yerr=stds, capsize=3, marker="o", label=f"depth {d}")
     ax.set_xlabel("robots")
-    ax.set_ylabel("fitness after %d steps" % args.steps)
+    ax.set_ylabel(f"fitness after {args.steps} steps")
     ax.set_title(f"{ctl.name}, default blueprint (8 x 8 pit in 16 x 16)")
     ax.set_ylim(0, 1)
     ax.legend()
