@@ -244,7 +244,9 @@ BAD_FILES = [
     pytest.param(_write(_set("cells", {})), "cells", id="cells-not-a-list"),
     pytest.param(_write(_set("extra", 1)), "extra", id="unknown-top-level-key"),
     pytest.param(_write(_delete("cells", 0, "theta1")), "cells[0].theta1", id="missing-cell-field"),
-    pytest.param(_write(_set("cells", 0, "colour", "red")), "cells[0].colour", id="unknown-cell-key"),
+    pytest.param(
+        _write(_set("cells", 0, "colour", "red")), "cells[0].colour", id="unknown-cell-key"
+    ),
     pytest.param(_write(_set("cells", 0, "kind", "sensor")), "cells[0].kind", id="bad-kind"),
     pytest.param(_write(_set("cells", 2, 7)), "cells[2]", id="cell-not-an-object"),
     pytest.param(_write(_nan_weight), "<json>", id="nan-weight"),
@@ -274,7 +276,9 @@ BAD_FILES = [
         _write(_short_sensor_weights), "cells[0].sensor_weights", id="sensor-weights-length"
     ),
     pytest.param(_write(_set("cells", 0, "k1", 2)), "cells[0].k1", id="k1-is-2"),
-    pytest.param(_write(_set("cells", 0, "behaviour", 12)), "cells[0].behaviour", id="behaviour-12"),
+    pytest.param(
+        _write(_set("cells", 0, "behaviour", 12)), "cells[0].behaviour", id="behaviour-12"
+    ),
     pytest.param(
         _write(_set("cells", 0, "concentration", -0.25)),
         "cells[0].concentration",
@@ -309,6 +313,15 @@ BAD_FILES = [
         id="coarse-coding-string",
     ),
     pytest.param(_write(_set("metadata", [1])), "metadata", id="metadata-not-an-object"),
+    # Integers too large for a float: the loader promises GenomeFormatError for any problem.
+    pytest.param(
+        _write(_set("cells", 0, "theta1", 10**400)), "cells[0].theta1", id="huge-int-theta1"
+    ),
+    pytest.param(
+        _write(_set("cells", 1, "sensor_weights", [10**400] * 14)),
+        "cells[1].sensor_weights[0]",
+        id="huge-int-weight",
+    ),
 ]
 
 
@@ -327,6 +340,29 @@ def test_bad_file_is_rejected_with_field(tmp_path, write, field):
     assert f": {field} = " in str(exc)
     assert exc.reason and str(exc).endswith(exc.reason)
     assert isinstance(exc, ValueError)
+
+
+def _huge_literal(path: Path) -> None:
+    d = _good_dict(0)
+    d["cells"][0]["theta1"] = "HUGE"
+    text = json.dumps(d).replace('"HUGE"', "1" + "0" * 5000)
+    path.write_text(text, encoding="utf-8")
+
+
+@pytest.mark.parametrize(
+    "write",
+    [
+        _huge_literal,  # json raises ValueError (int max str digits)
+        _literal("[" * 100_000 + "]" * 100_000),  # json raises RecursionError
+    ],
+    ids=["5000-digit-integer", "deeply-nested"],
+)
+def test_pathological_json_is_a_format_error(tmp_path, write):
+    path = tmp_path / "bad.json"
+    write(path)
+    with pytest.raises(GenomeFormatError) as info:
+        load_genome(path)
+    assert str(path) in str(info.value)
 
 
 def test_bad_values_are_reported():
@@ -360,7 +396,12 @@ def test_nan_in_mapping_is_rejected_without_json():
 def test_error_message_format():
     exc = GenomeFormatError("g.json", "cells[0].k1", 2, "must lie in 0..1")
     assert str(exc) == "g.json: cells[0].k1 = 2: must lie in 0..1"
-    assert (exc.path, exc.field, exc.value, exc.reason) == ("g.json", "cells[0].k1", 2, "must lie in 0..1")
+    assert (exc.path, exc.field, exc.value, exc.reason) == (
+        "g.json",
+        "cells[0].k1",
+        2,
+        "must lie in 0..1",
+    )
     long = GenomeFormatError(Path("p"), "f", "x" * 200, "r")
     assert long.path == "p"
     shown = str(long)[len("p: f = ") : -len(": r")]
@@ -396,8 +437,9 @@ def test_genome_info_json_output(tmp_path, capsys):
         (_missing, "<file>"),
         (_write(_set("cells", 0, "k1", 2)), "cells[0].k1"),
         (_write(_nan_weight), "<json>"),
+        (_write(_set("cells", 0, "theta1", 10**400)), "cells[0].theta1"),
     ],
-    ids=["missing", "k1", "nan"],
+    ids=["missing", "k1", "nan", "huge-int"],
 )
 def test_genome_info_bad_file(tmp_path, capsys, write, field):
     path = tmp_path / "bad.json"

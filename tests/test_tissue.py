@@ -322,14 +322,12 @@ def test_highest_concentration_rule():
     )
     # a stronger field over B alone moves the peak to B
     only_b = decision((3, 1, 0), extent=(0, 1, 0), concentration=0.75)
-    assert decide_both(tissue(a, b, both, only_a, only_b, coarse_coding=True)) == bit(
-        MOVE_BACKWARD
-    )
+    assert decide_both(tissue(a, b, both, only_a, only_b, coarse_coding=True)) == bit(MOVE_BACKWARD)
     # a silent decision neuron releases nothing
     silent_a = dataclasses.replace(only_a, theta2=1.0)
-    assert decide_both(tissue(a, b, both, silent_a, coarse_coding=True)) == bit(
-        MOVE_FORWARD
-    ) | bit(MOVE_BACKWARD)
+    assert decide_both(tissue(a, b, both, silent_a, coarse_coding=True)) == bit(MOVE_FORWARD) | bit(
+        MOVE_BACKWARD
+    )
     # coarse coding off: decision neurons are ignored
     assert decide_both(g, coarse_coding=False) == bit(MOVE_FORWARD) | bit(MOVE_BACKWARD)
 

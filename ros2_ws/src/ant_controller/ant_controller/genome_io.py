@@ -116,6 +116,9 @@ def save_genome(genome: Genome, path: str | Path) -> None:
     text = json.dumps(genome_to_dict(genome), indent=1, allow_nan=False)
     fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
     try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)  # as open() would; mkstemp makes 0600 files
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text + "\n")
             f.flush()
@@ -149,10 +152,20 @@ def load_genome(path: str | Path) -> Genome:
         raise GenomeFormatError(
             label, f"line {exc.lineno} column {exc.colno}", None, f"is not valid JSON: {exc.msg}"
         ) from None
+    except (ValueError, RecursionError) as exc:  # huge integers, absurd nesting
+        raise GenomeFormatError(label, "<json>", None, f"cannot be parsed: {exc}") from None
     return genome_from_dict(data, label)
 
 
 # --- validation ------------------------------------------------------------------------------
+
+
+def _is_finite(v: int | float) -> bool:
+    """True for a number that is finite as a float (huge JSON integers are not)."""
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
 
 
 class _Checker:
@@ -183,7 +196,7 @@ class _Checker:
         v = obj[key]
         if isinstance(v, bool) or not isinstance(v, int | float):
             raise self.fail(field, v, "must be a number")
-        if not math.isfinite(v):
+        if not _is_finite(v):
             raise self.fail(field, v, "must be finite")
         if not lo <= v <= hi:
             raise self.fail(field, v, f"must lie in [{lo}, {hi}]")
@@ -208,7 +221,7 @@ class _Checker:
             raise self.fail(field, v, f"must be a list of {length} numbers")
         out = []
         for i, w in enumerate(v):
-            if isinstance(w, bool) or not isinstance(w, int | float) or not math.isfinite(w):
+            if isinstance(w, bool) or not isinstance(w, int | float) or not _is_finite(w):
                 raise self.fail(f"{field}[{i}]", w, "must be a finite number")
             out.append(float(w))
         return tuple(out)
