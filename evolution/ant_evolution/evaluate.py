@@ -71,7 +71,7 @@ class Controller:
         c = np.asarray(codes, dtype=np.int64)
         if self.kind == KIND_HAND_CODED:
             return int(hand_coded_decide(c))
-        return int(decide(c, *self.tissue.arrays()))
+        return int(decide(c, self.tissue.arrays()))
 
 
 _EMPTY_TISSUE = compile_tissue(Genome(tissue=TissueGene(), cells=()))
@@ -88,19 +88,7 @@ def run_episode(
     params,
     steps,
     kind,
-    mn_layer,
-    mn_func,
-    mn_theta,
-    mn_sensor_w,
-    mn_in_idx,
-    mn_in_w,
-    mn_behaviour,
-    dn_func,
-    dn_theta,
-    dn_sensor_w,
-    dn_conc,
-    dn_member,
-    coarse_coding,
+    tissue,
     trace,
 ):
     """Run ``steps`` timesteps in place; ``trace[t]`` gets the fitness after step t.
@@ -118,22 +106,7 @@ def run_episode(
             elif kind == KIND_HAND_CODED:
                 masks[k] = hand_coded_decide(codes[k])
             else:
-                masks[k] = decide(
-                    codes[k],
-                    mn_layer,
-                    mn_func,
-                    mn_theta,
-                    mn_sensor_w,
-                    mn_in_idx,
-                    mn_in_w,
-                    mn_behaviour,
-                    dn_func,
-                    dn_theta,
-                    dn_sensor_w,
-                    dn_conc,
-                    dn_member,
-                    coarse_coding,
-                )
+                masks[k] = decide(codes[k], tissue)
         apply_all(heights, robots, active, masks, rng, params)
         if trace.shape[0] > t:
             trace[t] = fitness(heights, zones, goal)
@@ -151,7 +124,7 @@ def advance(world: World, controller: Controller, steps: int, trace: np.ndarray 
         world.params,
         steps,
         controller.kind,
-        *controller.tissue.arrays(),
+        controller.tissue.arrays(),
         np.zeros(0) if trace is None else trace,
     )
 

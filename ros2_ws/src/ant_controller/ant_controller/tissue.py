@@ -113,7 +113,7 @@ class CompiledTissue:
         return int(np.count_nonzero(self.mn_behaviour >= 0))
 
     def arrays(self) -> tuple:
-        """The arrays in :func:`decide`'s argument order."""
+        """The arrays as one tuple, the form :func:`decide` takes."""
         return (
             self.mn_layer,
             self.mn_func,
@@ -223,23 +223,28 @@ def activation(func, theta1, theta2, sigma):
 
 
 @nb.njit(cache=True)
-def decide(
-    codes,
-    mn_layer,
-    mn_func,
-    mn_theta,
-    mn_sensor_w,
-    mn_in_idx,
-    mn_in_w,
-    mn_behaviour,
-    dn_func,
-    dn_theta,
-    dn_sensor_w,
-    dn_conc,
-    dn_member,
-    coarse_coding,
-):
-    """Behaviour bit mask for one sensor vector (numba kernel; see the module docstring)."""
+def decide(codes, tissue):
+    """Behaviour bit mask for one sensor vector (numba kernel; see the module docstring).
+
+    Args:
+        codes: Integer sensor vector (length 14).
+        tissue: The tuple :meth:`CompiledTissue.arrays` returns.
+    """
+    (
+        mn_layer,
+        mn_func,
+        mn_theta,
+        mn_sensor_w,
+        mn_in_idx,
+        mn_in_w,
+        mn_behaviour,
+        dn_func,
+        dn_theta,
+        dn_sensor_w,
+        dn_conc,
+        dn_member,
+        coarse_coding,
+    ) = tissue
     n_s = codes.shape[0]
     x = np.empty(n_s, dtype=np.float64)
     sx = 0.0
@@ -302,7 +307,7 @@ def decide(
 
 def decide_tissue(tissue: CompiledTissue, codes: np.ndarray) -> int:
     """:func:`decide` for a compiled tissue and one integer sensor vector."""
-    return int(decide(np.asarray(codes, dtype=np.int64), *tissue.arrays()))
+    return int(decide(np.asarray(codes, dtype=np.int64), tissue.arrays()))
 
 
 # --- plain reference -------------------------------------------------------------------------

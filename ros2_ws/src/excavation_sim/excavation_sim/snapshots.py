@@ -100,12 +100,7 @@ def save_snapshot(path: str | Path, heights, zones, robots, active=None, title: 
     fig, ax = plt.subplots(figsize=(4.2, 4.2), dpi=100)
     im = draw_world(ax, heights, zones, robots, active, title)
     fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="soil height (units)")
-    fig.tight_layout()
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(p)
-    plt.close(fig)
-    return p
+    return _save(fig, path)
 
 
 def save_strip(
@@ -122,6 +117,11 @@ def save_strip(
         draw_world(ax, heights, zones, robots, active, f"t = {step}")
     if title:
         fig.suptitle(title, fontsize=10)
+    return _save(fig, path)
+
+
+def _save(fig, path: str | Path) -> Path:
+    """Lay out, write and close a figure; returns the path."""
     fig.tight_layout()
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
