@@ -39,3 +39,18 @@ def test_robot_centre_round_trip():
         for c in range(5):
             x, y = robot_center(r, c, 0.25)
             assert robot_anchor(x + 0.05, y - 0.05, 0.25) == (r, c)
+
+
+@pytest.mark.parametrize("heading", [NORTH, EAST, SOUTH, WEST])
+def test_heading_arithmetic_matches_the_tables(heading):
+    from ant_controller.sensing import (
+        FRONT_LEFT,
+        RIGHT_STEP,
+        forward_step,
+        front_left,
+        right_step,
+    )
+
+    assert tuple(forward_step(heading)) == tuple(FORWARD[heading])
+    assert tuple(front_left(heading)) == tuple(FRONT_LEFT[heading])
+    assert tuple(right_step(heading)) == tuple(RIGHT_STEP[heading])

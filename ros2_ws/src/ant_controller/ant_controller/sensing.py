@@ -67,40 +67,56 @@ RIGHT_STEP = np.array([[0, 1], [-1, 0], [0, -1], [1, 0]], dtype=np.int64)
 
 
 @nb.njit(cache=True, inline="always")
-def in_grid(heights, r, c):
-    """True when cell ``(r, c)`` lies on the grid."""
-    return 0 <= r < heights.shape[0] and 0 <= c < heights.shape[1]
+def in_grid(rows, cols, r, c):
+    """True when cell ``(r, c)`` lies on a ``rows`` x ``cols`` grid."""
+    return (r >= 0) & (r < rows) & (c >= 0) & (c < cols)
+
+
+# The same tables as arithmetic on the heading, for the kernels (branch-free, no array
+# loads); tests/test_world.py checks them against the tables.
+@nb.njit(cache=True, inline="always")
+def forward_step(h):
+    """``FORWARD[h]``: the (d_row, d_col) of one step ahead."""
+    return (h == 0) - (h == 2), (h == 1) - (h == 3)
 
 
 @nb.njit(cache=True, inline="always")
-def front_wheel(pose, i):
-    """Cell under front wheel ``i`` (0 left, 1 right) of a robot pose."""
-    h = pose[POSE_HEADING]
-    return (
-        pose[POSE_ROW] + FRONT_LEFT[h, 0] + i * RIGHT_STEP[h, 0],
-        pose[POSE_COL] + FRONT_LEFT[h, 1] + i * RIGHT_STEP[h, 1],
-    )
+def right_step(h):
+    """``RIGHT_STEP[h]``: the (d_row, d_col) from the left front wheel to the right one."""
+    return (h == 3) - (h == 1), (h == 0) - (h == 2)
 
 
 @nb.njit(cache=True, inline="always")
-def rear_wheel(pose, i):
+def front_left(h):
+    """``FRONT_LEFT[h]``: offset of the left front wheel from the footprint anchor."""
+    return 1 * (h <= 1), 1 * ((h == 1) | (h == 2))
+
+
+@nb.njit(cache=True, inline="always")
+def front_wheel(row, col, h, i):
+    """Cell under front wheel ``i`` (0 left, 1 right) of a robot at ``(row, col, h)``."""
+    flr, flc = front_left(h)
+    rsr, rsc = right_step(h)
+    return row + flr + i * rsr, col + flc + i * rsc
+
+
+@nb.njit(cache=True, inline="always")
+def rear_wheel(row, col, h, i):
     """Cell under rear wheel ``i`` (0 left, 1 right)."""
-    h = pose[POSE_HEADING]
-    r, c = front_wheel(pose, i)
-    return r - FORWARD[h, 0], c - FORWARD[h, 1]
+    r, c = front_wheel(row, col, h, i)
+    fr, fc = forward_step(h)
+    return r - fr, c - fc
 
 
 @nb.njit(cache=True, inline="always")
-def front_cell(pose, j):
+def front_cell(row, col, h, j):
     """Cell ``j`` of the row in front of the robot, ``j = -1 .. 2`` from left to right.
 
     ``j = 0, 1`` are the two blade cells (Z2, Z3); ``j = -1, 2`` are Z1 and Z4.
     """
-    h = pose[POSE_HEADING]
-    return (
-        pose[POSE_ROW] + FRONT_LEFT[h, 0] + FORWARD[h, 0] + j * RIGHT_STEP[h, 0],
-        pose[POSE_COL] + FRONT_LEFT[h, 1] + FORWARD[h, 1] + j * RIGHT_STEP[h, 1],
-    )
+    r, c = front_wheel(row, col, h, j)
+    fr, fc = forward_step(h)
+    return r + fr, c + fc
 
 
 @nb.njit(cache=True, inline="always")
@@ -126,8 +142,8 @@ def blade_offset(blade):
     return 0
 
 
-@nb.njit(cache=True)
-def blade_volume(heights, pose, blade):
+@nb.njit(cache=True, inline="always")
+def blade_volume(heights, row, col, h, blade):
     """Soil held against the blade, ``V_blade`` of the paper, in soil units.
 
     Sum over the two blade cells of the soil above the cutting level (front wheel height
@@ -139,9 +155,9 @@ def blade_volume(heights, pose, blade):
     bh = blade_offset(blade)
     volume = 0
     for i in range(2):
-        br, bc = front_cell(pose, i)
-        wr, wc = front_wheel(pose, i)
-        if in_grid(heights, br, bc) and in_grid(heights, wr, wc):
+        br, bc = front_cell(row, col, h, i)
+        wr, wc = front_wheel(row, col, h, i)
+        if in_grid(heights.shape[0], heights.shape[1], br, bc):
             v = heights[br, bc] - heights[wr, wc] - bh
             if v > 0:
                 volume += v
@@ -157,37 +173,39 @@ def load_code(volume):
     return code if code < 4 else 4
 
 
-@nb.njit(cache=True)
-def is_tilted_down(heights, pose):
+@nb.njit(cache=True, inline="always")
+def is_tilted_down(heights, row, col, h):
     """R1: the front wheels stand lower than the rear wheels (summed over both sides)."""
     front = 0
     rear = 0
     for i in range(2):
-        fr, fc = front_wheel(pose, i)
-        rr, rc = rear_wheel(pose, i)
+        fr, fc = front_wheel(row, col, h, i)
+        rr, rc = rear_wheel(row, col, h, i)
         front += heights[fr, fc]
         rear += heights[rr, rc]
     return front < rear
 
 
-@nb.njit(cache=True)
-def zone_code(heights, zones, goal, r, c):
-    """Z code of one cell relative to the blueprint (off the grid: don't care)."""
-    if not in_grid(heights, r, c):
-        return Z_DONT_CARE
-    z = zones[r, c]
-    if z == ZONE_DUMP:
+@nb.njit(cache=True, inline="always")
+def zone_code(zone, height, goal_height):
+    """Z code of one on-grid cell from its zone, soil height and goal height.
+
+    Cells off the grid read ``Z_DONT_CARE`` (the caller checks). Scalar arguments on
+    purpose: these helpers run several times per robot and step, and numba helpers that
+    take arrays cost far more per call than the arithmetic (see docs/benchmarks.md).
+    """
+    if zone == ZONE_DUMP:
         return Z_DUMP
-    if z != ZONE_DIG:
+    if zone != ZONE_DIG:
         return Z_DONT_CARE
-    if heights[r, c] > goal[r, c]:
+    if height > goal_height:
         return Z_ABOVE
-    if heights[r, c] < goal[r, c]:
+    if height < goal_height:
         return Z_BELOW
     return Z_LEVEL
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def nearest_robot(poses, active, k):
     """Index of the nearest other active robot and the free cells between the footprints.
 
@@ -212,7 +230,7 @@ def nearest_robot(poses, active, k):
     return best, best_gap
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def relative_bearing(poses, k, j):
     """H1: where robot j lies as seen from robot k (0 ahead, 1 right, 2 behind, 3 left)."""
     h = poses[k, POSE_HEADING]
@@ -225,7 +243,7 @@ def relative_bearing(poses, k, j):
     return RIGHT if right > 0 else LEFT
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def sense(heights, zones, goal, poses, active, k, blade, load_volume, stuck, tilted, memory, out):
     """Fill ``out`` (length 14, integer) with robot k's sensor vector (Table 1).
 
@@ -244,15 +262,22 @@ def sense(heights, zones, goal, poses, active, k, blade, load_volume, stuck, til
         memory: M1 bit.
         out: Output array, length ``N_SENSORS``.
     """
-    pose = poses[k]
+    row = poses[k, POSE_ROW]
+    col = poses[k, POSE_COL]
+    h = poses[k, POSE_HEADING]
+    rows = heights.shape[0]
+    cols = heights.shape[1]
     for j in range(4):
-        r, c = front_cell(pose, j - 1)
-        out[Z1 + j] = zone_code(heights, zones, goal, r, c)
+        r, c = front_cell(row, col, h, j - 1)
+        if in_grid(rows, cols, r, c):
+            out[Z1 + j] = zone_code(zones[r, c], heights[r, c], goal[r, c])
+        else:
+            out[Z1 + j] = Z_DONT_CARE
     obstacle = 0
     for i in range(2):
-        br, bc = front_cell(pose, i)
-        wr, wc = front_wheel(pose, i)
-        if not in_grid(heights, br, bc):
+        br, bc = front_cell(row, col, h, i)
+        wr, wc = front_wheel(row, col, h, i)
+        if not in_grid(rows, cols, br, bc):
             out[E1 + i] = E_LEVEL
             obstacle = 1
             continue

@@ -34,7 +34,7 @@ import numba as nb
 import numpy as np
 
 from ant_controller.genome import DECISION, MOTOR, Genome
-from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, SENSOR_SCALE
+from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, SENSOR_SCALE, SENSOR_STATES
 
 
 @dataclass(frozen=True)
@@ -223,6 +223,20 @@ def activation(func, theta1, theta2, sigma):
 
 
 @nb.njit(cache=True)
+def new_scratch(tissue):
+    """Work buffers for :func:`decide_into`, sized for one compiled tissue."""
+    m = tissue[0].shape[0]
+    return (
+        np.empty(N_SENSORS, dtype=np.float64),
+        np.empty(m, dtype=np.bool_),
+        np.empty(m, dtype=np.float64),
+        np.empty(m, dtype=np.int64),
+        np.empty(N_BEHAVIOURS, dtype=np.int64),
+        np.empty(N_BEHAVIOURS, dtype=np.int64),
+    )
+
+
+@nb.njit(cache=True)
 def decide(codes, tissue):
     """Behaviour bit mask for one sensor vector (numba kernel; see the module docstring).
 
@@ -230,6 +244,12 @@ def decide(codes, tissue):
         codes: Integer sensor vector (length 14).
         tissue: The tuple :meth:`CompiledTissue.arrays` returns.
     """
+    return decide_into(codes, tissue, new_scratch(tissue))
+
+
+@nb.njit(cache=True, inline="always")
+def decide_into(codes, tissue, scratch):
+    """:func:`decide` with caller-owned work buffers (:func:`new_scratch`); allocates nothing."""
     (
         mn_layer,
         mn_func,
@@ -245,16 +265,15 @@ def decide(codes, tissue):
         dn_member,
         coarse_coding,
     ) = tissue
+    x, active, conc, state, votes, voters = scratch
     n_s = codes.shape[0]
-    x = np.empty(n_s, dtype=np.float64)
     sx = 0.0
     for i in range(n_s):
         x[i] = codes[i] * SENSOR_SCALE[i]
         sx += x[i]
     m = mn_layer.shape[0]
-    active = np.empty(m, dtype=np.bool_)
     if coarse_coding:
-        conc = np.zeros(m, dtype=np.float64)
+        conc[:] = 0.0
         for d in range(dn_conc.shape[0]):
             num = 0.0
             for i in range(n_s):
@@ -271,9 +290,8 @@ def decide(codes, tissue):
         for j in range(m):
             active[j] = best > 0.0 and conc[j] == best
     else:
-        for j in range(m):
-            active[j] = True
-    state = np.zeros(m, dtype=np.int64)
+        active[:] = True
+    state[:] = 0
     for j in range(m):
         if not active[j]:
             continue
@@ -291,8 +309,8 @@ def decide(codes, tissue):
                     den += state[src]
         sigma = num / den if den != 0.0 else 0.0
         state[j] = activation(mn_func[j], mn_theta[j, 0], mn_theta[j, 1], sigma)
-    votes = np.zeros(N_BEHAVIOURS, dtype=np.int64)
-    voters = np.zeros(N_BEHAVIOURS, dtype=np.int64)
+    votes[:] = 0
+    voters[:] = 0
     for j in range(m):
         q = mn_behaviour[j]
         if q >= 0 and active[j]:
@@ -302,6 +320,44 @@ def decide(codes, tissue):
     for q in range(N_BEHAVIOURS):
         if voters[q] > 0 and 2 * votes[q] >= voters[q]:
             mask |= 1 << q
+    return mask
+
+
+CACHE_BITS = 12
+"""A decision cache holds ``2 ** CACHE_BITS`` entries (direct-mapped)."""
+
+_RADIX = np.cumprod(np.concatenate(([1], SENSOR_STATES[:-1]))).astype(np.int64)
+
+
+def new_cache() -> tuple[np.ndarray, np.ndarray]:
+    """An empty decision cache: ``(keys, masks)``, keys -1 = empty slot."""
+    size = 1 << CACHE_BITS
+    return np.full(size, -1, dtype=np.int64), np.zeros(size, dtype=np.int64)
+
+
+@nb.njit(cache=True, inline="always")
+def sensor_key(codes):
+    """A unique integer for a sensor vector (mixed radix over the sensor state counts)."""
+    key = 0
+    for i in range(codes.shape[0]):
+        key += codes[i] * _RADIX[i]
+    return key
+
+
+@nb.njit(cache=True, inline="always")
+def decide_cached(codes, tissue, cache_keys, cache_masks, scratch):
+    """:func:`decide_into` through a direct-mapped cache of earlier answers.
+
+    A tissue's answer depends on the sensor vector alone, so a cache hit returns exactly
+    what :func:`decide` would. Use one cache per tissue (:func:`new_cache`).
+    """
+    key = sensor_key(codes)
+    slot = (np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(64 - CACHE_BITS)
+    if cache_keys[slot] == key:
+        return cache_masks[slot]
+    mask = decide_into(codes, tissue, scratch)
+    cache_keys[slot] = key
+    cache_masks[slot] = mask
     return mask
 
 

@@ -75,7 +75,7 @@ def draw_world(ax, heights, zones, robots, active=None, title: str = "", limit: 
         colour = _COLOURS[k % len(_COLOURS)]
         ax.add_patch(patches.Rectangle((c, r), 2, 2, facecolor=colour, alpha=0.6, edgecolor="k"))
         if robots[k, BLADE] != BLADE_HOME:
-            (r0, c0), (r1, c1) = front_cell(robots[k], 0), front_cell(robots[k], 1)
+            (r0, c0), (r1, c1) = front_cell(r, c, h, 0), front_cell(r, c, h, 1)
             xs = [c0 + 0.5 - 0.45 * FORWARD[h, 1], c1 + 0.5 - 0.45 * FORWARD[h, 1]]
             ys = [r0 + 0.5 - 0.45 * FORWARD[h, 0], r1 + 0.5 - 0.45 * FORWARD[h, 0]]
             ax.plot(xs, ys, color="k", linewidth=3)

@@ -124,7 +124,7 @@ def seed_state(seed_bits: int) -> np.ndarray:
 # --- moves ----------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def try_forward(heights, robots, active, k, throttle, params):
     """Move robot k one cell forward, pushing or cutting soil with the blade.
 
@@ -145,33 +145,36 @@ def try_forward(heights, robots, active, k, throttle, params):
     Returns:
         True when the robot moved.
     """
-    pose = robots[k]
-    h = pose[HEADING]
+    row = robots[k, ROW]
+    col = robots[k, COL]
+    h = robots[k, HEADING]
+    rows = heights.shape[0]
+    cols = heights.shape[1]
     fr = FORWARD[h, 0]
     fc = FORWARD[h, 1]
     capacity = params[1] if throttle else params[0]
     climb = params[3] if throttle else params[2]
-    blade = pose[BLADE]
+    blade = robots[k, BLADE]
     engaged = blade != BLADE_HOME
     # New footprint cells are the old blade cells.
     for i in range(2):
-        br, bc = front_cell(pose, i)
-        if not in_grid(heights, br, bc) or occupied_by_other(robots, active, k, br, bc):
+        br, bc = front_cell(row, col, h, i)
+        if not in_grid(rows, cols, br, bc) or occupied_by_other(robots, active, k, br, bc):
             return False
         if engaged:
             nr = br + fr
             nc = bc + fc
-            if not in_grid(heights, nr, nc) or occupied_by_other(robots, active, k, nr, nc):
+            if not in_grid(rows, cols, nr, nc) or occupied_by_other(robots, active, k, nr, nc):
                 return False
     bh = blade_offset(blade)
     moved0 = 0
     moved1 = 0
     new_load = 0
     if engaged:
-        eps = 0 if (blade_volume(heights, pose, blade) == 0 and bh >= 0) else 1
+        eps = 0 if (blade_volume(heights, row, col, h, blade) == 0 and bh >= 0) else 1
         for i in range(2):
-            br, bc = front_cell(pose, i)
-            wr, wc = front_wheel(pose, i)
+            br, bc = front_cell(row, col, h, i)
+            wr, wc = front_wheel(row, col, h, i)
             target = heights[wr, wc] + bh * eps
             moved = heights[br, bc] - target
             if moved < 0:
@@ -190,14 +193,14 @@ def try_forward(heights, robots, active, k, throttle, params):
             return False
     else:
         for i in range(2):
-            br, bc = front_cell(pose, i)
-            wr, wc = front_wheel(pose, i)
+            br, bc = front_cell(row, col, h, i)
+            wr, wc = front_wheel(row, col, h, i)
             if heights[br, bc] - heights[wr, wc] > climb:
                 return False
     if engaged:
         for i in range(2):
             moved = moved0 if i == 0 else moved1
-            br, bc = front_cell(pose, i)
+            br, bc = front_cell(row, col, h, i)
             heights[br, bc] -= moved
             heights[br + fr, bc + fc] += moved
     robots[k, ROW] += fr
@@ -205,21 +208,24 @@ def try_forward(heights, robots, active, k, throttle, params):
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def try_backward(heights, robots, active, k, throttle, params):
     """Move robot k one cell backward; the blade leaves its soil where it is.
 
     Refused when the cells behind leave the grid, meet another robot, or stand higher
     than the climb limit above the rear wheels.
     """
-    pose = robots[k]
-    h = pose[HEADING]
+    row = robots[k, ROW]
+    col = robots[k, COL]
+    h = robots[k, HEADING]
+    rows = heights.shape[0]
+    cols = heights.shape[1]
     climb = params[3] if throttle else params[2]
     for i in range(2):
-        rr, rc = rear_wheel(pose, i)
+        rr, rc = rear_wheel(row, col, h, i)
         nr = rr - FORWARD[h, 0]
         nc = rc - FORWARD[h, 1]
-        if not in_grid(heights, nr, nc) or occupied_by_other(robots, active, k, nr, nc):
+        if not in_grid(rows, cols, nr, nc) or occupied_by_other(robots, active, k, nr, nc):
             return False
         if heights[nr, nc] - heights[rr, rc] > climb:
             return False
@@ -228,7 +234,7 @@ def try_backward(heights, robots, active, k, throttle, params):
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def apply_behaviours(heights, robots, active, k, mask, rng, params):
     """Run robot k's selected behaviours (bit mask) in Table 2 order.
 
@@ -269,10 +275,13 @@ def apply_behaviours(heights, robots, active, k, mask, rng, params):
     robots[k, STUCK] = stuck
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def sense_robot(heights, zones, goal, robots, active, k, out):
     """Sensor vector of robot k from the world state (simulator side of ``sense``)."""
-    pose = robots[k]
+    row = robots[k, ROW]
+    col = robots[k, COL]
+    h = robots[k, HEADING]
+    blade = robots[k, BLADE]
     sense(
         heights,
         zones,
@@ -280,11 +289,11 @@ def sense_robot(heights, zones, goal, robots, active, k, out):
         robots,
         active,
         k,
-        pose[BLADE],
-        blade_volume(heights, pose, pose[BLADE]),
-        pose[STUCK],
-        is_tilted_down(heights, pose),
-        pose[MEMORY],
+        blade,
+        blade_volume(heights, row, col, h, blade),
+        robots[k, STUCK],
+        is_tilted_down(heights, row, col, h),
+        robots[k, MEMORY],
         out,
     )
 
