@@ -1,0 +1,158 @@
+"""``ant-evolve``: evolve ANT controller genomes on the simulated worksite.
+
+Examples::
+
+    ant-evolve --out runs/r1 --generations 200
+    ant-evolve --config runs/r1/config.yaml --out runs/r1 --resume
+    ant-evolve --out runs/mix --robots-mix 1,4 --workers 2
+    ant-evolve --out runs/n --evolve-robots --ray-address local
+
+Command-line values override the config file; the resolved configuration is written to
+``OUT/config.yaml``. Exit codes: 0 done, 2 bad configuration or checkpoint, 130 interrupted
+(the last checkpoint stays valid: resume with ``--resume``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+from tqdm import tqdm
+
+from ant_evolution.errors import CheckpointError, ConfigError
+from ant_evolution.evolve import EvolveConfig, load_config, run_evolution
+from blueprint_server.errors import BlueprintError
+from excavation_sim.world import PlacementError
+
+
+def _int_list(text: str) -> tuple[int, ...]:
+    try:
+        values = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list") from None
+    if not values:
+        raise argparse.ArgumentTypeError("the list is empty")
+    return values
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command-line interface."""
+    p = argparse.ArgumentParser(prog="ant-evolve", description=__doc__.split("\n\n")[0])
+    p.add_argument("--config", metavar="FILE", help="YAML run configuration")
+    p.add_argument("--out", required=True, metavar="DIR", help="run directory")
+    p.add_argument("--population", type=int, help="P (default 100)")
+    p.add_argument("--generations", type=int, help="generations (default 100)")
+    p.add_argument("--scenarios", type=int, help="scenarios per generation S (default 100)")
+    robots = p.add_mutually_exclusive_group()
+    robots.add_argument("--robots", type=int, help="robots per scenario (default 4)")
+    robots.add_argument(
+        "--robots-mix",
+        type=_int_list,
+        metavar="N1,N2",
+        help="alternate robot counts between scenarios, e.g. 1,4",
+    )
+    robots.add_argument("--evolve-robots", action="store_true", help="N is a gene")
+    p.add_argument("--steps", type=int, help="timesteps per scenario T (default 300)")
+    p.add_argument("--blueprint", metavar="FILE", help="blueprint file (default: 8 x 8 pit)")
+    p.add_argument(
+        "--depths",
+        type=_int_list,
+        metavar="D1,D2",
+        help="goal depths of the default blueprint (default 1,2,3)",
+    )
+    p.add_argument("--no-coarse-coding", action="store_true", help="ANT without coarse coding")
+    p.add_argument("--workers", type=int, default=None, help="local processes (default: cores)")
+    p.add_argument("--ray-address", metavar="ADDR", help="Ray cluster ('local' starts one)")
+    p.add_argument("--seed", type=int, help="run seed (default 0)")
+    p.add_argument("--checkpoint-every", type=int, help="generations between checkpoints")
+    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.json")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def resolve_config(args: argparse.Namespace) -> EvolveConfig:
+    """Defaults, then the config file (or OUT/config.yaml when resuming), then the flags."""
+    config = EvolveConfig()
+    source = args.config
+    if source is None and args.resume and (Path(args.out) / "config.yaml").exists():
+        source = str(Path(args.out) / "config.yaml")
+    if source:
+        config = load_config(source)
+    overrides = {
+        "population": args.population,
+        "generations": args.generations,
+        "scenarios": args.scenarios,
+        "steps": args.steps,
+        "seed": args.seed,
+        "checkpoint_every": args.checkpoint_every,
+        "depths": args.depths,
+        "blueprint": args.blueprint,
+    }
+    values = {k: v for k, v in overrides.items() if v is not None}
+    if args.robots is not None:
+        values.update(robots=args.robots, robots_mix=(), evolve_robots=False)
+    if args.robots_mix is not None:
+        values.update(robots=args.robots_mix[0], robots_mix=args.robots_mix, evolve_robots=False)
+    if args.evolve_robots:
+        values.update(evolve_robots=True, robots_mix=())
+    if args.no_coarse_coding:
+        values["coarse_coding"] = False
+    try:
+        return dataclasses.replace(config, **values)
+    except ConfigError as exc:
+        raise ConfigError("<command line>", exc.field, exc.value, exc.reason) from None
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``ant-evolve``."""
+    args = build_parser().parse_args(argv)
+    try:
+        config = resolve_config(args)
+    except ConfigError as exc:
+        print(f"ant-evolve: error: {exc}", file=sys.stderr)
+        return 2
+    bar = tqdm(total=config.generations, unit="gen", disable=args.quiet, dynamic_ncols=True)
+    started = time.perf_counter()
+    evaluated = 0
+
+    def progress(row: dict) -> None:
+        nonlocal evaluated
+        if bar.n == 0 and row["generation"] > 0:
+            bar.update(row["generation"])  # resumed run
+        evaluated += config.population * config.scenarios
+        rate = evaluated / max(time.perf_counter() - started, 1e-9)
+        bar.set_postfix(
+            best=f"{row['best']:.3f}", mean=f"{row['mean']:.3f}", evals_s=f"{rate:,.0f}"
+        )
+        bar.update(1)
+
+    try:
+        state = run_evolution(
+            config,
+            args.out,
+            workers=args.workers,
+            ray_address=args.ray_address,
+            resume=args.resume,
+            progress=progress,
+        )
+    except (ConfigError, CheckpointError, BlueprintError, PlacementError) as exc:
+        bar.close()
+        print(f"ant-evolve: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        bar.close()
+        print(f"ant-evolve: interrupted; resume with --resume --out {args.out}", file=sys.stderr)
+        return 130
+    bar.close()
+    print(
+        f"best fitness {state.best_fitness:.4f} after {state.generation} generations "
+        f"({state.evaluations:,} scenario evaluations); {args.out}/best.json"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,247 @@
+"""The genetic algorithm of the paper (sections 3.4, 3.5 and 4.3) as pure functions.
+
+Every operator takes an explicit ``numpy.random.Generator`` and returns new genomes; nothing
+is modified in place. Defaults follow the paper: population 100, tournament size 0.06 P,
+crossover probability 0.7, mutation probability 0.025 per gene parameter.
+
+* :func:`mutate`: each parameter of each cell gene is redrawn uniformly over its range with
+  probability ``mutation_prob`` (flags and selector bits are flipped); the tissue gene's
+  parameters likewise (the N gene steps by one robot). Then, with the tissue's replication
+  probability, a cell divides (:func:`replicate`).
+* :func:`replicate`: the parent is the grown cell with the highest replication value; the
+  daughter takes a free lattice site next to it (one of six neighbours, chosen at random),
+  is a decision neuron with probability ``decision_ratio``, and copies the first m% of the
+  parent's parameters (m uniform), the rest drawn at random.
+* :func:`crossover`: a plane normal to the l or m axis cuts the tissue; child 1 has
+  affinity to parent A and child 2 to parent B. Genes on the origin side of the plane come
+  from the affine parent; beyond it a gene is exchanged with the other parent's gene at the
+  same lattice site when both are expressed or both repressed (the compatibility criterion);
+  otherwise it stays.
+* :func:`next_generation`: elitism (a documented option, default 1: the best genome is
+  copied unchanged), then tournament selection, crossover and mutation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ant_controller.genome import (
+    DECISION,
+    MAX_EXTENT,
+    MOTOR,
+    N_NOMINAL_INPUTS,
+    CellGene,
+    Genome,
+    random_cell,
+)
+from ant_controller.layout import N_BEHAVIOURS, N_SENSORS
+
+_NEIGHBOURS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
+
+
+@dataclass(frozen=True)
+class GAParams:
+    """Parameters of the genetic algorithm.
+
+    Attributes:
+        population: P.
+        tournament_fraction: Tournament size as a fraction of P (at least 2 genomes).
+        crossover_prob: Probability that a pair of parents is crossed.
+        mutation_prob: Probability that one gene parameter mutates.
+        elitism: Best genomes copied unchanged into the next generation.
+        robots_range: Bounds of the N gene when it is evolved.
+    """
+
+    population: int = 100
+    tournament_fraction: float = 0.06
+    crossover_prob: float = 0.7
+    mutation_prob: float = 0.025
+    elitism: int = 1
+    robots_range: tuple[int, int] = (1, 8)
+
+    @property
+    def tournament_size(self) -> int:
+        """Genomes per tournament."""
+        return max(2, int(round(self.tournament_fraction * self.population)))
+
+
+# --- mutation -------------------------------------------------------------------------------
+
+
+def _redraw(rng: np.random.Generator, value: float, lo: float, hi: float, p: float) -> float:
+    return float(rng.uniform(lo, hi)) if rng.random() < p else value
+
+
+def _redraw_vector(rng: np.random.Generator, values: tuple[float, ...], p: float):
+    hits = rng.random(len(values)) < p
+    if not hits.any():
+        return values
+    fresh = rng.uniform(-1.0, 1.0, len(values))
+    return tuple(float(f) if h else v for v, f, h in zip(values, fresh, hits, strict=True))
+
+
+def mutate_cell(rng: np.random.Generator, gene: CellGene, p: float) -> CellGene:
+    """Mutate every parameter of one cell gene with probability ``p`` each."""
+    flips = rng.random(5) < p
+    extent = tuple(
+        int(rng.integers(0, MAX_EXTENT + 1)) if rng.random() < p else e for e in gene.extent
+    )
+    return replace(
+        gene,
+        expressed=gene.expressed ^ bool(flips[0]),
+        dead=gene.dead ^ bool(flips[1]),
+        k1=gene.k1 ^ int(flips[2]),
+        k2=gene.k2 ^ int(flips[3]),
+        replication=_redraw(rng, gene.replication, 0.0, 1.0, p),
+        theta1=_redraw(rng, gene.theta1, -1.0, 1.0, p),
+        theta2=_redraw(rng, gene.theta2, -1.0, 1.0, p),
+        concentration=_redraw(rng, gene.concentration, 0.0, 1.0, p),
+        behaviour=int(rng.integers(0, N_BEHAVIOURS)) if flips[4] else gene.behaviour,
+        sensor_weights=_redraw_vector(rng, gene.sensor_weights, p),
+        input_weights=_redraw_vector(rng, gene.input_weights, p),
+        extent=extent,
+    )
+
+
+def mutate(rng: np.random.Generator, genome: Genome, params: GAParams) -> Genome:
+    """Mutate a genome's cell genes and tissue gene, then maybe replicate a cell."""
+    p = params.mutation_prob
+    cells = tuple(mutate_cell(rng, g, p) for g in genome.cells)
+    t = genome.tissue
+    robots = t.robots
+    if robots is not None and rng.random() < p:
+        lo, hi = params.robots_range
+        robots = int(np.clip(robots + (1 if rng.random() < 0.5 else -1), lo, hi))
+    tissue = replace(
+        t,
+        replication_probability=_redraw(rng, t.replication_probability, 0.0, 0.1, p),
+        decision_ratio=_redraw(rng, t.decision_ratio, 0.0, 1.0, p),
+        robots=robots,
+    )
+    child = replace(genome, tissue=tissue, cells=cells)
+    if rng.random() < tissue.replication_probability:
+        child = replicate(rng, child)
+    return child
+
+
+def _param_vector(g: CellGene) -> list[float]:
+    return [
+        g.replication,
+        g.theta1,
+        g.theta2,
+        float(g.k1),
+        float(g.k2),
+        *g.sensor_weights,
+        *g.input_weights,
+        float(g.behaviour),
+        g.concentration,
+        *map(float, g.extent),
+    ]
+
+
+def _from_vector(base: CellGene, v: list[float]) -> CellGene:
+    i = 5 + N_SENSORS
+    j = i + N_NOMINAL_INPUTS
+    return replace(
+        base,
+        replication=v[0],
+        theta1=v[1],
+        theta2=v[2],
+        k1=int(v[3]),
+        k2=int(v[4]),
+        sensor_weights=tuple(v[5:i]),
+        input_weights=tuple(v[i:j]),
+        behaviour=int(v[j]),
+        concentration=v[j + 1],
+        extent=tuple(int(e) for e in v[j + 2 : j + 5]),
+    )
+
+
+def replicate(rng: np.random.Generator, genome: Genome) -> Genome:
+    """Cell division: add one daughter gene next to the most replicative grown cell.
+
+    Returns the genome unchanged when no cell is grown or the parent has no free
+    neighbouring site inside the lattice.
+    """
+    grown = [g for g in genome.cells if g.expressed and not g.dead]
+    if not grown:
+        return genome
+    parent = max(grown, key=lambda g: g.replication)  # first of equals: gene order
+    taken = {genome.absolute(g) for g in genome.cells}
+    base = genome.absolute(parent)
+    sites = [
+        s
+        for s in (tuple(base[a] + d[a] for a in range(3)) for d in _NEIGHBOURS)
+        if genome.lattice.contains(s) and s not in taken
+    ]
+    if not sites:
+        return genome
+    site = sites[int(rng.integers(0, len(sites)))]
+    kind = DECISION if rng.random() < genome.tissue.decision_ratio else MOTOR
+    seed = genome.tissue.seed
+    rel = tuple(site[a] - seed[a] for a in range(3))
+    fresh = random_cell(rng, kind, rel)
+    pv = _param_vector(parent)
+    fv = _param_vector(fresh)
+    keep = int(rng.integers(0, len(pv) + 1))  # the first m% of the parent's contents
+    daughter = _from_vector(fresh, pv[:keep] + fv[keep:])
+    return replace(genome, cells=(*genome.cells, daughter))
+
+
+# --- crossover ------------------------------------------------------------------------------
+
+
+def crossover(rng: np.random.Generator, a: Genome, b: Genome) -> tuple[Genome, Genome]:
+    """Plane-cut crossover with the compatibility criterion; returns (child of A, child of B)."""
+    axis = int(rng.integers(0, 2))
+    coords = [a.absolute(g)[axis] for g in a.cells] + [b.absolute(g)[axis] for g in b.cells]
+    if not coords:
+        return a, b
+    cut = int(rng.integers(min(coords), max(coords) + 1))
+    b_at = {b.absolute(g): i for i, g in enumerate(b.cells)}
+    a_cells = list(a.cells)
+    b_cells = list(b.cells)
+    for i, ga in enumerate(a.cells):
+        pos = a.absolute(ga)
+        if (pos[axis] <= cut) if cut >= 0 else (pos[axis] > cut):
+            continue  # origin side of the plane (at cut + 0.5): from the affine parent
+        j = b_at.get(pos)
+        if j is None or b.cells[j].expressed != ga.expressed:
+            continue  # incompatible: no exchange
+        gb = b.cells[j]
+        a_cells[i] = _relocate(gb, pos, a.tissue.seed)
+        b_cells[j] = _relocate(ga, pos, b.tissue.seed)
+    return replace(a, cells=tuple(a_cells)), replace(b, cells=tuple(b_cells))
+
+
+def _relocate(gene: CellGene, absolute, seed) -> CellGene:
+    return replace(gene, position=tuple(absolute[k] - seed[k] for k in range(3)))
+
+
+# --- selection and generations ----------------------------------------------------------------
+
+
+def tournament(rng: np.random.Generator, fitness: np.ndarray, size: int) -> int:
+    """Index of the fittest of ``size`` distinct random genomes (ties: the lowest index)."""
+    picks = np.sort(rng.choice(len(fitness), size=min(size, len(fitness)), replace=False))
+    return int(picks[np.argmax(fitness[picks])])
+
+
+def next_generation(
+    rng: np.random.Generator, population: list[Genome], fitness: np.ndarray, params: GAParams
+) -> list[Genome]:
+    """Breed the next population from the current one and its fitness."""
+    order = np.argsort(-fitness, kind="stable")
+    out = [population[i] for i in order[: params.elitism]]
+    size = params.tournament_size
+    while len(out) < params.population:
+        a = population[tournament(rng, fitness, size)]
+        b = population[tournament(rng, fitness, size)]
+        if rng.random() < params.crossover_prob:
+            a, b = crossover(rng, a, b)
+        out.append(mutate(rng, a, params))
+        if len(out) < params.population:
+            out.append(mutate(rng, b, params))
+    return out
