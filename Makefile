@@ -13,7 +13,7 @@ DEMO_OUT ?= demo_out
 # as root), which also proves that nothing in it talks to the outside.
 NETNS := $(shell unshare -n true 2>/dev/null && echo "unshare -n")
 
-.PHONY: setup lint test demo clean
+.PHONY: setup lint test demo bench clean
 
 $(STAMP): requirements.txt $(addsuffix /setup.py,$(filter ros2_ws/%,$(PACKAGES))) evolution/pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -35,9 +35,18 @@ else
 	unshare -n sh -c 'ip link set lo up 2>/dev/null; exec $(BIN)/python -m pytest -q tests ros2_ws/src'
 endif
 
+# The demo: the hand-coded baseline, a short evolution (progress bar; about two minutes on
+# two cores), then the shipped evolved genome with terrain snapshots.
 demo: setup
 	$(BIN)/ant-eval --hand-coded --robots 4 --scenarios 100 --seed 0 --snapshots $(DEMO_OUT)/hand_coded
-	@echo "Terrain snapshots: $(DEMO_OUT)/hand_coded/strip.png"
+	rm -rf $(DEMO_OUT)/evolve
+	$(BIN)/ant-evolve --out $(DEMO_OUT)/evolve --population 40 --generations 25 --scenarios 20 --seed 0
+	$(BIN)/ant-eval --genome genomes/best.json --robots 4 --depth 1 --scenarios 100 --seed 0 --snapshots $(DEMO_OUT)/evolved
+	@echo "Terrain snapshots: $(DEMO_OUT)/hand_coded/strip.png $(DEMO_OUT)/evolved/strip.png"
+	@echo "Short evolution: $(DEMO_OUT)/evolve/fitness.png, $(DEMO_OUT)/evolve/best.json"
+
+bench: setup
+	$(BIN)/ant-bench --write docs/benchmarks.md
 
 clean:
 	rm -rf $(VENV) ros2_ws/build ros2_ws/install ros2_ws/log $(DEMO_OUT)

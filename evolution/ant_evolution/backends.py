@@ -23,7 +23,6 @@ from multiprocessing import get_context
 import numpy as np
 
 from ant_controller.genome import Genome
-from ant_controller.genome_io import genome_from_dict, genome_to_dict
 from ant_evolution.evaluate import Controller, ScenarioSet
 
 
@@ -35,11 +34,11 @@ def genome_fitness(genome: Genome, sets: list[ScenarioSet]) -> float:
     return float(scores.mean())
 
 
-def _evaluate_parts(dicts: list[dict], sets: list[ScenarioSet]) -> list[float]:
-    return [genome_fitness(genome_from_dict(d), sets) for d in dicts]
+def _evaluate_parts(genomes: list[Genome], sets: list[ScenarioSet]) -> list[float]:
+    return [genome_fitness(g, sets) for g in genomes]
 
 
-def _evaluate_chunk(payload: tuple[list[dict], list[ScenarioSet]]) -> list[float]:
+def _evaluate_chunk(payload: tuple[list[Genome], list[ScenarioSet]]) -> list[float]:
     return _evaluate_parts(*payload)
 
 
@@ -87,8 +86,7 @@ class Evaluator:
         """Fitness of every genome (same order)."""
         if self._ray is None and self._pool is None:
             return np.array([genome_fitness(g, sets) for g in genomes])
-        dicts = [genome_to_dict(g) for g in genomes]
-        chunks = _chunks(dicts, self.workers)
+        chunks = _chunks(list(genomes), self.workers)
         if self._ray is not None:
             sets_ref = self._ray.put(sets)
             results = self._ray.get([self._remote.remote(c, sets_ref) for c in chunks])

@@ -77,19 +77,19 @@ def in_grid(rows, cols, r, c):
 @nb.njit(cache=True, inline="always")
 def forward_step(h):
     """``FORWARD[h]``: the (d_row, d_col) of one step ahead."""
-    return (h == 0) - (h == 2), (h == 1) - (h == 3)
+    return int(h == 0) - int(h == 2), int(h == 1) - int(h == 3)
 
 
 @nb.njit(cache=True, inline="always")
 def right_step(h):
     """``RIGHT_STEP[h]``: the (d_row, d_col) from the left front wheel to the right one."""
-    return (h == 3) - (h == 1), (h == 0) - (h == 2)
+    return int(h == 3) - int(h == 1), int(h == 0) - int(h == 2)
 
 
 @nb.njit(cache=True, inline="always")
 def front_left(h):
     """``FRONT_LEFT[h]``: offset of the left front wheel from the footprint anchor."""
-    return 1 * (h <= 1), 1 * ((h == 1) | (h == 2))
+    return int(h <= 1), int((h == 1) | (h == 2))
 
 
 @nb.njit(cache=True, inline="always")

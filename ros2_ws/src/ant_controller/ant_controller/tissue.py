@@ -323,7 +323,7 @@ def decide_into(codes, tissue, scratch):
     return mask
 
 
-CACHE_BITS = 12
+CACHE_BITS = 16
 """A decision cache holds ``2 ** CACHE_BITS`` entries (direct-mapped)."""
 
 _RADIX = np.cumprod(np.concatenate(([1], SENSOR_STATES[:-1]))).astype(np.int64)
