@@ -2,23 +2,11 @@
 
 from __future__ import annotations
 
+from ant_controller.errors import FieldError
 
-class ConfigError(ValueError):
-    """A run configuration (file or command line) is invalid.
 
-    Attributes:
-        path: Config file (or ``<config>``).
-        field: Key at fault.
-        value: Its value.
-        reason: What is wrong.
-    """
-
-    def __init__(self, path: str, field: str, value: object, reason: str) -> None:
-        self.path = str(path)
-        self.field = field
-        self.value = value
-        self.reason = reason
-        super().__init__(f"{self.path}: {field} = {value!r}: {reason}")
+class ConfigError(FieldError):
+    """A run configuration (file or command line) is invalid (``path: field = value: reason``)."""
 
 
 class CheckpointError(RuntimeError):

@@ -23,8 +23,6 @@ import dataclasses
 import hashlib
 import io
 import json
-import os
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -33,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ant_controller.files import write_text_atomic
 from ant_controller.genome import Genome, random_genome
 from ant_controller.genome_io import genome_from_dict, genome_to_dict, save_genome
 from ant_evolution.backends import Evaluator
@@ -272,19 +271,6 @@ class RunState:
     evaluations: int
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def save_checkpoint(out: Path, config: EvolveConfig, state: RunState) -> None:
     """Write ``checkpoint.json`` atomically."""
     data = {
@@ -298,7 +284,7 @@ def save_checkpoint(out: Path, config: EvolveConfig, state: RunState) -> None:
         "history": state.history,
         "population": [genome_to_dict(g) for g in state.population],
     }
-    _write_atomic(out / "checkpoint.json", json.dumps(data, allow_nan=False))
+    write_text_atomic(out / "checkpoint.json", json.dumps(data, allow_nan=False))
 
 
 def load_checkpoint(out: Path, config: EvolveConfig) -> RunState:
@@ -420,7 +406,7 @@ def run_evolution(
             )
         rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([config.seed, 0xA17])))
         state = RunState(0, initial_population(config, rng), {}, [], None, -1.0, 0)
-    _write_atomic(out / "config.yaml", yaml.safe_dump(config.to_dict(), sort_keys=False))
+    write_text_atomic(out / "config.yaml", yaml.safe_dump(config.to_dict(), sort_keys=False))
     blueprints = blueprints_of(config)
     title = (
         f"ANT{'' if config.coarse_coding else ' without coarse coding'}, "
@@ -475,7 +461,7 @@ def run_evolution(
             last = state.generation == config.generations
             stopping = stop_after is not None and done_here >= stop_after
             if last or stopping or state.generation % config.checkpoint_every == 0:
-                _write_atomic(out / "history.csv", _history_csv(state.history))
+                write_text_atomic(out / "history.csv", _history_csv(state.history))
                 plot_history(state.history, out / "fitness.png", title)
                 save_checkpoint(out, config, state)
             if stopping:

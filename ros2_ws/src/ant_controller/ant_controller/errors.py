@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 
-class GenomeFormatError(ValueError):
-    """A genome file (or mapping) is malformed.
+class FieldError(ValueError):
+    """Bad input that can be pinned to one field of one file.
+
+    The message reads ``path: field = value: reason``. Every loader of the project
+    (genomes, blueprints, run configurations) raises a subclass of this.
 
     Attributes:
-        path: File at fault.
+        path: File at fault (or a label such as ``<command line>``).
         field: Field path inside it (``cells[3].sensor_weights[2]``).
         value: Offending value (``None`` when missing).
         reason: What is wrong.
@@ -22,3 +25,7 @@ class GenomeFormatError(ValueError):
         if len(shown) > 80:
             shown = shown[:77] + "..."
         super().__init__(f"{self.path}: {field} = {shown}: {reason}")
+
+
+class GenomeFormatError(FieldError):
+    """A genome file (or mapping) is malformed."""

@@ -26,11 +26,10 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 
 from ant_controller.errors import GenomeFormatError
+from ant_controller.files import write_text_atomic
 from ant_controller.genome import (
     KINDS,
     MAX_EXTENT,
@@ -111,22 +110,7 @@ def genome_to_dict(genome: Genome) -> dict:
 
 def save_genome(genome: Genome, path: str | Path) -> None:
     """Write a genome file atomically (temporary file, fsync, rename)."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(genome_to_dict(genome), indent=1, allow_nan=False)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.fchmod(fd, 0o666 & ~umask)  # as open() would; mkstemp makes 0600 files
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text + "\n")
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_text_atomic(path, json.dumps(genome_to_dict(genome), indent=1, allow_nan=False) + "\n")
 
 
 def load_genome(path: str | Path) -> Genome:
