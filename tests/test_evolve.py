@@ -204,3 +204,32 @@ def test_evolved_robot_counts_use_the_gene(tmp_path):
     counts = dict(part.split(":") for part in hist.split(";"))
     assert sum(int(c) for c in counts.values()) == 6
     assert set(counts) <= {"1", "2", "3"}
+
+
+def test_cli_blueprint_file_and_bad_blueprint(tmp_path, capsys):
+    site = tmp_path / "site.yaml"
+    site.write_text(
+        "format: ant-blueprint/1\nrows:\n  - 'DDDDDDDD'\n  - 'D1111D..'\n"
+        "  - 'D1111D..'\n  - 'DDDDDD..'\n  - '........'\n  - '........'\n"
+    )
+    out = tmp_path / "run"
+    args = [
+        "--population",
+        "4",
+        "--generations",
+        "1",
+        "--scenarios",
+        "2",
+        "--steps",
+        "10",
+        "--robots",
+        "2",
+        "--workers",
+        "1",
+        "--quiet",
+    ]
+    assert evolve_main(["--out", str(out), "--blueprint", str(site), *args]) == 0
+    assert load_config(out / "config.yaml").blueprint == str(site)
+    site.write_text("format: ant-blueprint/1\nrows: [12, 3]\n")
+    assert evolve_main(["--out", str(tmp_path / "run2"), "--blueprint", str(site), *args]) == 2
+    assert "rows" in capsys.readouterr().err
