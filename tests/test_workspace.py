@@ -12,7 +12,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {
     "ant_controller": ["genome_info"],
-    "blueprint_server": ["blueprint_info"],
+    "blueprint_server": ["blueprint_info", "server"],
     "excavation_sim": [],
 }
 

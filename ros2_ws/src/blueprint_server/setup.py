@@ -22,6 +22,9 @@ setup(
     description="Excavation blueprints: zones and goal depths from YAML, images and generators.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": ["blueprint_info = blueprint_server.blueprint_info:main"],
+        "console_scripts": [
+            "blueprint_info = blueprint_server.blueprint_info:main",
+            "server = blueprint_server.server_node:main",
+        ],
     },
 )

@@ -1,0 +1,220 @@
+"""Conversions between the suite's ROS messages and the arrays of the pure core.
+
+Only message types (common_interfaces) are imported here, never ``rclpy``, so every
+function is testable by building messages in memory. Conventions (``docs/interfaces.md``):
+
+* **Grid images** (``/worksite/height_map`` 32FC1, ``/blueprint/goal`` 32FC1,
+  ``/blueprint/zones`` mono8): one pixel per cell, pixel row ``v`` = grid row (``v = 0`` is
+  the *southern* edge, like ``nav_msgs/OccupancyGrid``), pixel column ``u`` = grid column.
+  Heights and goals are metres; NaN = unknown.
+* **Poses** (``PoseWithCovarianceStamped`` in ``map``): the robot's centre (the shared corner
+  of its 2 x 2 footprint) and its yaw; :func:`pose_to_grid` snaps them to the footprint
+  anchor and the nearest cardinal heading.
+* **Blade** (``JointState``, joint ``blade``): position = blade edge height relative to the
+  wheels in metres (below ``-depth``, level 0, above ``+depth``, home ``+home``), effort =
+  push force in newtons; :func:`blade_from_joint` maps them to the B1 code and the soil
+  volume that gives L1.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from nav_msgs.msg import MapMetaData
+from sensor_msgs.msg import Image, JointState
+
+from ant_controller.errors import FieldError
+from ant_controller.frames import heading_to_yaw, robot_anchor, robot_center, yaw_to_heading
+from ant_controller.layout import BLADE_ABOVE, BLADE_BELOW, BLADE_HOME, BLADE_LEVEL
+from ant_controller.sensing import MAX_LOAD
+
+_ENCODINGS = {"32FC1": (np.float32, 4), "mono8": (np.uint8, 1)}
+
+
+class MessageError(FieldError):
+    """A message cannot be used (wrong encoding, size, frame ...): ``topic: field = value``."""
+
+
+def grid_to_image(grid: np.ndarray, encoding: str, frame_id: str = "map", stamp=None) -> Image:
+    """A 2-D grid as an ``Image`` (``32FC1`` or ``mono8``), row 0 first (south)."""
+    dtype, size = _ENCODINGS[encoding]
+    arr = np.ascontiguousarray(grid, dtype=dtype)
+    msg = Image()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.height, msg.width = arr.shape
+    msg.encoding = encoding
+    msg.is_bigendian = 0
+    msg.step = arr.shape[1] * size
+    msg.data = arr.tobytes()
+    return msg
+
+
+def image_to_grid(
+    msg: Image, encoding: str, topic: str = "<image>", shape: tuple[int, int] | None = None
+) -> np.ndarray:
+    """Decode a grid image, checking encoding, byte order, step, size and (optional) shape.
+
+    Raises:
+        MessageError: Naming the topic, the field and the value at fault.
+    """
+    if msg.encoding != encoding:
+        raise MessageError(topic, "encoding", msg.encoding, f"expected {encoding}")
+    dtype, size = _ENCODINGS[encoding]
+    if msg.is_bigendian and size > 1:
+        raise MessageError(topic, "is_bigendian", msg.is_bigendian, "big-endian is not supported")
+    if msg.step != msg.width * size:
+        raise MessageError(topic, "step", msg.step, f"expected width x {size} = {msg.width * size}")
+    if len(msg.data) != msg.height * msg.step:
+        raise MessageError(
+            topic,
+            "data",
+            f"{len(msg.data)} bytes",
+            f"expected height x step = {msg.height * msg.step}",
+        )
+    if shape is not None and (msg.height, msg.width) != tuple(shape):
+        raise MessageError(
+            topic,
+            "height x width",
+            (msg.height, msg.width),
+            f"the worksite is {shape[0]} x {shape[1]} cells",
+        )
+    return np.frombuffer(bytes(msg.data), dtype=dtype).reshape(msg.height, msg.width).copy()
+
+
+def map_info(rows: int, cols: int, cell_size: float, stamp=None) -> MapMetaData:
+    """``MapMetaData`` of the worksite grid (origin at the map origin, no rotation)."""
+    msg = MapMetaData()
+    if stamp is not None:
+        msg.map_load_time = stamp
+    msg.resolution = float(cell_size)
+    msg.width = int(cols)
+    msg.height = int(rows)
+    return msg
+
+
+def pose_message(
+    row: int,
+    col: int,
+    heading: int,
+    cell_size: float,
+    variance_xy: float,
+    variance_yaw: float,
+    stamp=None,
+) -> PoseWithCovarianceStamped:
+    """A robot pose in ``map`` from its footprint anchor and heading, with a covariance."""
+    msg = PoseWithCovarianceStamped()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.header.frame_id = "map"
+    x, y = robot_center(row, col, cell_size)
+    msg.pose.pose.position.x = x
+    msg.pose.pose.position.y = y
+    yaw = heading_to_yaw(heading)
+    msg.pose.pose.orientation.z = math.sin(yaw / 2)
+    msg.pose.pose.orientation.w = math.cos(yaw / 2)
+    cov = np.zeros(36)
+    cov[0] = cov[7] = variance_xy
+    cov[14] = cov[21] = cov[28] = 1e6  # z, roll, pitch: not estimated
+    cov[35] = variance_yaw
+    msg.pose.covariance = cov
+    return msg
+
+
+def pose_to_grid(
+    msg: PoseWithCovarianceStamped, cell_size: float, topic: str = "<pose>"
+) -> tuple[int, int, int]:
+    """``(row, col, heading)`` of a pose message in the ``map`` frame.
+
+    Raises:
+        MessageError: Wrong frame or a non-finite position or orientation.
+    """
+    if msg.header.frame_id != "map":
+        raise MessageError(topic, "header.frame_id", msg.header.frame_id, "expected 'map'")
+    p = msg.pose.pose.position
+    q = msg.pose.pose.orientation
+    values = (p.x, p.y, q.x, q.y, q.z, q.w)
+    if not all(math.isfinite(v) for v in values):
+        raise MessageError(topic, "pose", values, "must be finite")
+    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+    row, col = robot_anchor(p.x, p.y, cell_size)
+    return row, col, yaw_to_heading(yaw)
+
+
+@dataclass(frozen=True)
+class BladeGeometry:
+    """Joint positions of the four blade settings and the force of a full blade.
+
+    Attributes:
+        depth: Blade edge below/above the wheels for "below"/"above", metres.
+        home: Blade edge height when retracted, metres.
+        max_force: Push force (N) that corresponds to ``MAX_LOAD`` soil units (paper: the
+            dome robots push at most 10 N).
+    """
+
+    depth: float = 0.02
+    home: float = 0.10
+    max_force: float = 10.0
+
+    def position(self, blade: int) -> float:
+        """Joint position of a blade code."""
+        return {
+            BLADE_BELOW: -self.depth,
+            BLADE_LEVEL: 0.0,
+            BLADE_ABOVE: self.depth,
+            BLADE_HOME: self.home,
+        }[blade]
+
+
+def blade_joint(blade: int, force: float, geometry: BladeGeometry, stamp=None) -> JointState:
+    """The ``blade`` joint state for a blade code and push force."""
+    msg = JointState()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.name = ["blade"]
+    msg.position = [geometry.position(blade)]
+    msg.velocity = []
+    msg.effort = [float(force)]
+    return msg
+
+
+def blade_from_joint(
+    msg: JointState, geometry: BladeGeometry, topic: str = "<joint_states>"
+) -> tuple[int, int]:
+    """``(B1 code, soil volume for L1)`` from a joint state holding the ``blade`` joint.
+
+    The code is the setting nearest to the joint position; the volume is the force
+    rescaled so that ``max_force`` gives ``MAX_LOAD`` units (negative forces count as 0).
+
+    Raises:
+        MessageError: No ``blade`` joint, or a non-finite position or effort.
+    """
+    if "blade" not in msg.name:
+        raise MessageError(topic, "name", list(msg.name), "has no 'blade' joint")
+    i = list(msg.name).index("blade")
+    if i >= len(msg.position) or i >= len(msg.effort):
+        raise MessageError(
+            topic,
+            "position/effort",
+            (len(msg.position), len(msg.effort)),
+            "missing the blade's entry",
+        )
+    pos, force = float(msg.position[i]), float(msg.effort[i])
+    if not (math.isfinite(pos) and math.isfinite(force)):
+        raise MessageError(topic, "blade", (pos, force), "position and effort must be finite")
+    codes = (BLADE_BELOW, BLADE_LEVEL, BLADE_ABOVE, BLADE_HOME)
+    blade = min(codes, key=lambda c: abs(geometry.position(c) - pos))
+    volume = int(round(max(force, 0.0) / geometry.max_force * MAX_LOAD))
+    return blade, volume
+
+
+def heights_to_units(heights_m: np.ndarray, height_unit: float) -> np.ndarray:
+    """Metres to whole soil units (rounded); NaN stays unknown as ``INT32_MIN``."""
+    units = np.full(heights_m.shape, np.iinfo(np.int32).min, dtype=np.int32)
+    known = np.isfinite(heights_m)
+    units[known] = np.round(heights_m[known] / height_unit).astype(np.int32)
+    return units

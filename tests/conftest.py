@@ -1,0 +1,50 @@
+"""Shared fixtures. ROS tests stay on loopback with a domain of their own."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import time
+
+import pytest
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+_DOMAINS = itertools.count(100 + os.getpid() % 60)
+
+
+@pytest.fixture
+def ros():
+    """A fresh rclpy context on its own ROS domain, with a spin-until helper."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    context = Context()
+    domain = next(_DOMAINS) % 200 + 20
+    rclpy.init(context=context, domain_id=domain)
+    executor = SingleThreadedExecutor(context=context)
+
+    class Ros:
+        def __init__(self):
+            self.context = context
+            self.executor = executor
+            self.domain = domain
+
+        def add(self, node):
+            executor.add_node(node)
+            return node
+
+        def spin_until(self, condition, timeout=10.0):
+            deadline = time.monotonic() + timeout
+            while time.monotonic() < deadline:
+                if condition():
+                    return True
+                executor.spin_once(timeout_sec=0.05)
+            return condition()
+
+    yield Ros()
+    for node in list(executor.get_nodes()):
+        executor.remove_node(node)
+        node.destroy_node()
+    executor.shutdown()
+    rclpy.try_shutdown(context=context)
