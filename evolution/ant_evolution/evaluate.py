@@ -101,7 +101,7 @@ class Controller:
 _EMPTY_TISSUE = compile_tissue(Genome(tissue=TissueGene(), cells=()))
 
 
-@nb.njit(cache=True, _nrt=False)
+@nb.njit(cache=True, _nrt=False, error_model="numpy")
 def _run_steps(
     heights,
     zones,
@@ -122,8 +122,9 @@ def _run_steps(
     """The per-step loop, compiled without numba's reference counting (``_nrt=False``).
 
     It allocates nothing; with reference counting on, every call that passes arrays costs
-    tens of nanoseconds in reference-count traffic even when its branch is not taken
-    (measured in docs/benchmarks.md).
+    tens of nanoseconds in reference-count traffic even when its branch is not taken. The
+    numpy error model drops Python's division checks (every division here is guarded).
+    Both measured in docs/benchmarks.md.
     """
     n = robots.shape[0]
     cache_keys, cache_masks = cache
