@@ -7,10 +7,11 @@ import json
 import numpy as np
 import pytest
 
+from ant_controller.controller import Controller
 from ant_controller.genome import random_genome
 from ant_controller.genome_io import save_genome
 from ant_evolution.cli_eval import main
-from ant_evolution.evaluate import Controller, evaluate, scenario_worlds
+from ant_evolution.evaluate import evaluate, scenario_worlds
 from blueprint_server.blueprint import default_blueprint
 
 

@@ -22,8 +22,9 @@ from multiprocessing import get_context
 
 import numpy as np
 
+from ant_controller.controller import Controller
 from ant_controller.genome import Genome
-from ant_evolution.evaluate import Controller, ScenarioSet
+from ant_evolution.evaluate import ScenarioSet
 
 
 def genome_fitness(genome: Genome, sets: list[ScenarioSet]) -> float:

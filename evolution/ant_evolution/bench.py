@@ -25,10 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ant_controller.controller import Controller
 from ant_controller.genome import random_genome
 from ant_controller.genome_io import genome_from_dict, genome_to_dict, load_genome
 from ant_evolution.backends import Evaluator, genome_fitness
-from ant_evolution.evaluate import Controller, ScenarioSet
+from ant_evolution.evaluate import ScenarioSet
 from blueprint_server.blueprint import default_blueprint
 
 ROBOTS = 4

@@ -19,11 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ant_controller.controller import Controller
 from ant_controller.errors import GenomeFormatError
 from ant_evolution.evaluate import (
     DEFAULT_ROBOTS,
     DEFAULT_STEPS,
-    Controller,
     advance,
     evaluate,
     scenario_worlds,

@@ -20,24 +20,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numba as nb
 import numpy as np
 
-from ant_controller.genome import Genome, TissueGene
-from ant_controller.genome_io import load_genome
+from ant_controller.controller import KIND_HAND_CODED, Controller
 from ant_controller.hand_coded import hand_coded_decide
 from ant_controller.layout import N_SENSORS
-from ant_controller.tissue import (
-    CACHE_BITS,
-    CompiledTissue,
-    compile_tissue,
-    decide,
-    decide_cached,
-    new_cache,
-    new_scratch,
-)
+from ant_controller.tissue import CACHE_BITS, decide_cached, new_cache, new_scratch
 from blueprint_server.blueprint import Blueprint
 from excavation_sim.world import (
     DEFAULT_PARAMS,
@@ -50,55 +40,10 @@ from excavation_sim.world import (
     sense_all,
 )
 
-KIND_ANT = 0
-KIND_HAND_CODED = 1
-
 DEFAULT_STEPS = 300
 """Timesteps per scenario. Long enough for the hand-coded controller's fitness to level
 off on the default blueprint with four robots (see docs/world-model.md)."""
 DEFAULT_ROBOTS = 4
-
-
-@dataclass(frozen=True)
-class Controller:
-    """What decides a robot's behaviours: a compiled ANT tissue or the hand-coded rules.
-
-    Attributes:
-        kind: ``KIND_ANT`` or ``KIND_HAND_CODED``.
-        tissue: The compiled tissue (an empty one for the hand-coded controller).
-        name: Label for reports.
-        robots: The genome's N gene, if it has one.
-    """
-
-    kind: int
-    tissue: CompiledTissue
-    name: str
-    robots: int | None = None
-
-    @classmethod
-    def from_genome(cls, genome: Genome, name: str = "genome") -> Controller:
-        """Compile a genome once into a controller."""
-        return cls(KIND_ANT, compile_tissue(genome), name, genome.tissue.robots)
-
-    @classmethod
-    def from_file(cls, path: str | Path) -> Controller:
-        """Load, validate and compile a genome file."""
-        return cls.from_genome(load_genome(path), name=str(path))
-
-    @classmethod
-    def hand_coded(cls) -> Controller:
-        """The appendix's hand-coded controller."""
-        return cls(KIND_HAND_CODED, _EMPTY_TISSUE, "hand-coded")
-
-    def decide(self, codes: np.ndarray) -> int:
-        """Behaviour mask for one sensor vector."""
-        c = np.asarray(codes, dtype=np.int64)
-        if self.kind == KIND_HAND_CODED:
-            return int(hand_coded_decide(c))
-        return int(decide(c, self.tissue.arrays()))
-
-
-_EMPTY_TISSUE = compile_tissue(Genome(tissue=TissueGene(), cells=()))
 
 
 @nb.njit(cache=True, _nrt=False, error_model="numpy")

@@ -17,8 +17,9 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from ant_controller.controller import Controller
 from ant_controller.errors import GenomeFormatError
-from ant_evolution.evaluate import DEFAULT_STEPS, Controller, evaluate
+from ant_evolution.evaluate import DEFAULT_STEPS, evaluate
 
 
 def _int_list(text: str) -> list[int]:

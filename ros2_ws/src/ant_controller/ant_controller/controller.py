@@ -1,0 +1,142 @@
+"""A controller as the field sees it: sensor vector in, behaviour mask out, memory bit kept.
+
+:class:`Controller` wraps what decides (a compiled ANT tissue or the hand-coded rules).
+:class:`ControllerCore` is the per-robot state machine a ROS controller node runs: from
+arrays decoded from messages (heights and goal in soil units, zones, poses, blade code and
+load, stuck flag) it computes the sensor vector with :func:`ant_controller.sensing.sense`,
+the same function the simulator uses, asks the controller, and updates the memory bit the
+way the simulator does (bit set, then bit clear, in Table 2 order). R1 (tilt) is computed
+from the height map as in the simulator. ``tests/test_controller_core.py`` runs whole
+episodes through messages and this core and gets the offline evaluator's results exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ant_controller.genome import Genome, TissueGene
+from ant_controller.genome_io import load_genome
+from ant_controller.hand_coded import hand_coded_decide
+from ant_controller.layout import BIT_CLEAR, BIT_SET, N_SENSORS
+from ant_controller.sensing import POSE_COL, POSE_HEADING, POSE_ROW, is_tilted_down, sense
+from ant_controller.tissue import CompiledTissue, compile_tissue, decide
+
+KIND_ANT = 0
+KIND_HAND_CODED = 1
+
+
+@dataclass(frozen=True)
+class Controller:
+    """What decides a robot's behaviours: a compiled ANT tissue or the hand-coded rules.
+
+    Attributes:
+        kind: ``KIND_ANT`` or ``KIND_HAND_CODED``.
+        tissue: The compiled tissue (an empty one for the hand-coded controller).
+        name: Label for reports.
+        robots: The genome's N gene, if it has one.
+    """
+
+    kind: int
+    tissue: CompiledTissue
+    name: str
+    robots: int | None = None
+
+    @classmethod
+    def from_genome(cls, genome: Genome, name: str = "genome") -> Controller:
+        """Compile a genome once into a controller."""
+        return cls(KIND_ANT, compile_tissue(genome), name, genome.tissue.robots)
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> Controller:
+        """Load, validate and compile a genome file (``GenomeFormatError`` when bad)."""
+        return cls.from_genome(load_genome(path), name=str(path))
+
+    @classmethod
+    def hand_coded(cls) -> Controller:
+        """The appendix's hand-coded controller."""
+        return cls(KIND_HAND_CODED, _EMPTY_TISSUE, "hand-coded")
+
+    def decide(self, codes: np.ndarray) -> int:
+        """Behaviour mask for one sensor vector."""
+        c = np.asarray(codes, dtype=np.int64)
+        if self.kind == KIND_HAND_CODED:
+            return int(hand_coded_decide(c))
+        return int(decide(c, self.tissue.arrays()))
+
+
+_EMPTY_TISSUE = compile_tissue(Genome(tissue=TissueGene(), cells=()))
+
+
+@dataclass
+class ControllerCore:
+    """One robot's controller state between ticks.
+
+    Attributes:
+        controller: What decides.
+        memory: The memory bit M1.
+    """
+
+    controller: Controller
+    memory: int = 0
+    _codes: np.ndarray = field(default_factory=lambda: np.zeros(N_SENSORS, dtype=np.int64))
+
+    def decide(
+        self,
+        heights: np.ndarray,
+        zones: np.ndarray,
+        goal: np.ndarray,
+        poses: np.ndarray,
+        k: int,
+        blade: int,
+        load_volume: int,
+        stuck: bool,
+        active: np.ndarray | None = None,
+    ) -> int:
+        """Behaviour mask for robot ``k`` this tick; updates the memory bit.
+
+        Args:
+            heights: Soil heights in soil units, ``[rows, cols]``.
+            zones: Blueprint zones.
+            goal: Goal heights in soil units.
+            poses: ``[n, 3]`` ``(row, col, heading)`` of every robot (k is this one).
+            k: This robot's index in ``poses``.
+            blade: B1 code.
+            load_volume: Soil units against the blade (from the push force).
+            stuck: U1 as reported by the robot (or the simulator).
+            active: Robots to take into account (default: all).
+        """
+        poses = np.ascontiguousarray(poses, dtype=np.int64)
+        heights = np.ascontiguousarray(heights, dtype=np.int32)
+        if active is None:
+            active = np.ones(len(poses), dtype=np.bool_)
+        tilted = is_tilted_down(
+            heights, poses[k, POSE_ROW], poses[k, POSE_COL], poses[k, POSE_HEADING]
+        )
+        sense(
+            heights,
+            np.ascontiguousarray(zones, dtype=np.uint8),
+            np.ascontiguousarray(goal, dtype=np.int32),
+            poses,
+            np.ascontiguousarray(active, dtype=np.bool_),
+            k,
+            blade,
+            load_volume,
+            bool(stuck),
+            bool(tilted),
+            self.memory,
+            self._codes,
+        )
+        mask = self.controller.decide(self._codes)
+        if mask >> BIT_SET & 1:
+            self.memory = 1
+        if mask >> BIT_CLEAR & 1:
+            self.memory = 0
+        return mask
+
+    @property
+    def codes(self) -> np.ndarray:
+        """The last sensor vector (a copy)."""
+        return self._codes.copy()
