@@ -11,7 +11,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {
-    "ant_controller": ["genome_info"],
+    "ant_controller": ["genome_info", "controller"],
     "blueprint_server": ["blueprint_info", "server"],
     "excavation_sim": [],
 }

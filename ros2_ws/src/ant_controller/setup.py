@@ -22,6 +22,9 @@ setup(
     description="ANT controller core: genome, tissue, sensing, behaviours, hand-coded rules.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": ["genome_info = ant_controller.genome_info:main"],
+        "console_scripts": [
+            "genome_info = ant_controller.genome_info:main",
+            "controller = ant_controller.controller_node:main",
+        ],
     },
 )

@@ -1,0 +1,304 @@
+"""``ros2 run ant_controller controller --genome best.json``: one robot's ANT controller.
+
+Run one per robot in its namespace (add ``-p robot_id:=K`` for robot K)::
+
+    ros2 run ant_controller controller --genome best.json --ros-args -r __ns:=/robot_0 -p robots:=4
+
+Inputs (relative names resolve in the robot's namespace): ``pose``
+(PoseWithCovarianceStamped) and the other robots' ``/robot_j/pose``,
+``/worksite/height_map`` (Image 32FC1), ``/blueprint/goal``, ``/blueprint/zones``,
+``/worksite/map_info`` (latched), ``blade/joint_states`` (JointState), ``stuck``
+(std_msgs/Bool). Output: ``behaviour`` (std_msgs/UInt16, bit i = behaviour i + 1 of Table 2)
+and ``/diagnostics``.
+
+Every ``1 / rate`` seconds the node checks its inputs. When all are present and fresh (own
+and other poses within ``pose_timeout``, height map within ``map_timeout``, joint state and
+stuck flag within ``joint_timeout``; the blueprint is latched and never stale), it decides
+with :class:`ant_controller.controller.ControllerCore` and publishes the mask. Otherwise it
+publishes 0, which moves nothing, and says which input is missing or stale on
+``/diagnostics`` (level WARN). Malformed messages are dropped and reported (ERROR).
+
+A missing or malformed genome file ends the program before ROS starts, with the loader's
+message (file, field, value) and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from nav_msgs.msg import MapMetaData
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.time import Time
+from rclpy.utilities import remove_ros_args
+from sensor_msgs.msg import Image, JointState
+from std_msgs.msg import Bool, UInt16
+
+from ant_controller.controller import Controller, ControllerCore
+from ant_controller.errors import GenomeFormatError
+from ant_controller.messages import (
+    BladeGeometry,
+    MessageError,
+    blade_from_joint,
+    heights_to_units,
+    image_to_grid,
+    pose_to_grid,
+)
+
+LATCHED = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
+UNKNOWN = np.iinfo(np.int32).min
+
+
+class ControllerNode(Node):
+    """Thin ROS plumbing around :class:`ControllerCore`."""
+
+    def __init__(self, controller: Controller, **kwargs) -> None:
+        super().__init__("controller", **kwargs)
+        p = self.declare_parameter
+        self.robot_id = int(p("robot_id", 0).value)
+        self.n_robots = int(p("robots", 1).value)
+        self.height_unit = float(p("height_unit", 0.05).value)
+        self.pose_timeout = float(p("pose_timeout", 1.0).value)
+        self.map_timeout = float(p("map_timeout", 5.0).value)
+        self.joint_timeout = float(p("joint_timeout", 1.0).value)
+        rate = float(p("rate", 10.0).value)
+        self.geometry = BladeGeometry(
+            depth=float(p("blade_depth", 0.02).value),
+            home=float(p("blade_home", 0.10).value),
+            max_force=float(p("max_force", 10.0).value),
+        )
+        self.core = ControllerCore(controller)
+        self.poses: dict[int, tuple[Time, tuple[int, int, int]]] = {}
+        self.heights: tuple[Time, np.ndarray] | None = None
+        self.joint: tuple[Time, tuple[int, int]] | None = None
+        self.stuck: tuple[Time, bool] | None = None
+        self.zones: np.ndarray | None = None
+        self.goal: np.ndarray | None = None
+        self.cell_size: float | None = None
+        self.errors: dict[str, str] = {}
+        self.last_reason = "starting"
+        self.last_mask = 0
+
+        self.behaviour_pub = self.create_publisher(UInt16, "behaviour", 10)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        for j in range(self.n_robots):
+            topic = "pose" if j == self.robot_id else f"/robot_{j}/pose"
+            self.create_subscription(
+                PoseWithCovarianceStamped, topic, lambda m, j=j, t=topic: self.on_pose(j, t, m), 10
+            )
+        self.create_subscription(Image, "/worksite/height_map", self.on_heights, LATCHED)
+        self.create_subscription(Image, "/blueprint/goal", self.on_goal, LATCHED)
+        self.create_subscription(Image, "/blueprint/zones", self.on_zones, LATCHED)
+        self.create_subscription(MapMetaData, "/worksite/map_info", self.on_info, LATCHED)
+        self.create_subscription(JointState, "blade/joint_states", self.on_joint, 10)
+        self.create_subscription(Bool, "stuck", self.on_stuck, 10)
+        self.create_timer(1.0 / rate, self.tick)
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def _now(self) -> Time:
+        return self.get_clock().now()
+
+    def _guard(self, topic: str, fn) -> None:
+        try:
+            fn()
+            self.errors.pop(topic, None)
+        except MessageError as exc:
+            self.errors[topic] = str(exc)
+            self.get_logger().warning(str(exc), throttle_duration_sec=5.0)
+
+    def on_info(self, msg: MapMetaData) -> None:
+        """Cell size of the worksite."""
+        self.cell_size = float(msg.resolution) if msg.resolution > 0 else None
+
+    def on_pose(self, j: int, topic: str, msg: PoseWithCovarianceStamped) -> None:
+        """A robot's pose, snapped to the grid."""
+        if self.cell_size is None:
+            return
+        self._guard(
+            topic,
+            lambda: self.poses.__setitem__(
+                j, (self._now(), pose_to_grid(msg, self.cell_size, topic))
+            ),
+        )
+
+    def _grid(self, msg: Image, encoding: str, topic: str) -> np.ndarray:
+        shape = self.zones.shape if self.zones is not None else None
+        return image_to_grid(msg, encoding, topic, shape)
+
+    def on_heights(self, msg: Image) -> None:
+        """The height map, in soil units."""
+        self._guard(
+            "/worksite/height_map",
+            lambda: setattr(
+                self,
+                "heights",
+                (
+                    self._now(),
+                    heights_to_units(
+                        self._grid(msg, "32FC1", "/worksite/height_map"), self.height_unit
+                    ),
+                ),
+            ),
+        )
+
+    def on_goal(self, msg: Image) -> None:
+        """Goal heights, in soil units."""
+        self._guard(
+            "/blueprint/goal",
+            lambda: setattr(
+                self,
+                "goal",
+                heights_to_units(image_to_grid(msg, "32FC1", "/blueprint/goal"), self.height_unit),
+            ),
+        )
+
+    def on_zones(self, msg: Image) -> None:
+        """Blueprint zones."""
+        self._guard(
+            "/blueprint/zones",
+            lambda: setattr(self, "zones", image_to_grid(msg, "mono8", "/blueprint/zones")),
+        )
+
+    def on_joint(self, msg: JointState) -> None:
+        """Blade setting and load."""
+        self._guard(
+            "blade/joint_states",
+            lambda: setattr(
+                self,
+                "joint",
+                (self._now(), blade_from_joint(msg, self.geometry, "blade/joint_states")),
+            ),
+        )
+
+    def on_stuck(self, msg: Bool) -> None:
+        """U1 as the robot reports it."""
+        self.stuck = (self._now(), bool(msg.data))
+
+    # --- decision ---------------------------------------------------------------------------
+
+    def _age(self, stamp: Time) -> float:
+        return (self._now() - stamp).nanoseconds * 1e-9
+
+    def missing_input(self) -> str | None:
+        """Why the controller cannot act now, or ``None`` when every input is fresh."""
+        if self.cell_size is None:
+            return "no /worksite/map_info"
+        if self.zones is None or self.goal is None:
+            return "no blueprint (/blueprint/zones, /blueprint/goal)"
+        if self.goal.shape != self.zones.shape:
+            return "blueprint goal and zones differ in size"
+        for j in range(self.n_robots):
+            name = "own pose" if j == self.robot_id else f"pose of robot {j}"
+            if j not in self.poses:
+                return f"no {name}"
+            if self._age(self.poses[j][0]) > self.pose_timeout:
+                return f"{name} is stale ({self._age(self.poses[j][0]):.2f} s)"
+        for name, value, limit in (
+            ("height map", self.heights, self.map_timeout),
+            ("blade joint state", self.joint, self.joint_timeout),
+            ("stuck flag", self.stuck, self.joint_timeout),
+        ):
+            if value is None:
+                return f"no {name}"
+            if self._age(value[0]) > limit:
+                return f"{name} is stale ({self._age(value[0]):.2f} s)"
+        if self.heights[1].shape != self.zones.shape:
+            return "height map and blueprint differ in size"
+        row, col, _ = self.poses[self.robot_id][1]
+        rows, cols = self.zones.shape
+        if not (0 <= row < rows - 1 and 0 <= col < cols - 1):
+            return f"own pose ({row}, {col}) is off the {rows} x {cols} worksite"
+        window = self.heights[1][max(row - 2, 0) : row + 4, max(col - 2, 0) : col + 4]
+        if (window == UNKNOWN).any():
+            return "unknown terrain around the robot"
+        return None
+
+    def tick(self) -> None:
+        """Decide and publish once (0 when an input is missing or stale)."""
+        reason = self.missing_input()
+        mask = 0
+        if reason is None:
+            poses = np.array([self.poses[j][1] for j in range(self.n_robots)], dtype=np.int64)
+            blade, volume = self.joint[1]
+            mask = self.core.decide(
+                self.heights[1],
+                self.zones,
+                self.goal,
+                poses,
+                self.robot_id,
+                blade,
+                volume,
+                self.stuck[1],
+            )
+        self.last_reason, self.last_mask = reason, mask
+        self.behaviour_pub.publish(UInt16(data=mask))
+        self.publish_diagnostics()
+
+    def publish_diagnostics(self) -> None:
+        """OK when acting, WARN when holding still (with why), ERROR on malformed input."""
+        status = DiagnosticStatus(
+            name=f"{self.get_namespace().rstrip('/')}/controller",
+            hardware_id=f"robot_{self.robot_id}",
+        )
+        if self.errors:
+            status.level = DiagnosticStatus.ERROR
+            status.message = "; ".join(self.errors.values())
+        elif self.last_reason is not None:
+            status.level = DiagnosticStatus.WARN
+            status.message = f"holding still: {self.last_reason}"
+        else:
+            status.level = DiagnosticStatus.OK
+            status.message = "acting"
+        status.values = [
+            KeyValue(key="controller", value=self.core.controller.name),
+            KeyValue(key="behaviour", value=str(self.last_mask)),
+            KeyValue(key="memory", value=str(self.core.memory)),
+        ]
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self._now().to_msg()
+        self.diag_pub.publish(msg)
+
+
+def parse_args(argv: list[str]) -> argparse.Namespace:
+    """``--genome FILE`` or ``--hand-coded`` (ROS arguments removed first)."""
+    parser = argparse.ArgumentParser(prog="controller", description=__doc__.split("\n\n")[0])
+    who = parser.add_mutually_exclusive_group(required=True)
+    who.add_argument("--genome", metavar="FILE", help="ant-genome/1 file")
+    who.add_argument("--hand-coded", action="store_true", help="the paper's hand-coded rules")
+    return parser.parse_args(argv)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run ant_controller controller``."""
+    argv = sys.argv if args is None else args
+    options = parse_args(remove_ros_args(argv)[1:])
+    try:
+        controller = (
+            Controller.hand_coded() if options.hand_coded else Controller.from_file(options.genome)
+        )
+    except GenomeFormatError as exc:
+        print(f"controller: error: {exc}", file=sys.stderr)
+        return 2
+    rclpy.init(args=argv)
+    node = ControllerNode(controller)
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
