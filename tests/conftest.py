@@ -12,6 +12,11 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 _DOMAINS = itertools.count(100 + os.getpid() % 60)
 
 
+def next_domain() -> int:
+    """A ROS domain id no other test of this session uses."""
+    return next(_DOMAINS) % 200 + 20
+
+
 @pytest.fixture
 def ros():
     """A fresh rclpy context on its own ROS domain, with a spin-until helper."""
@@ -20,7 +25,7 @@ def ros():
     from rclpy.executors import SingleThreadedExecutor
 
     context = Context()
-    domain = next(_DOMAINS) % 200 + 20
+    domain = next_domain()
     rclpy.init(context=context, domain_id=domain)
     executor = SingleThreadedExecutor(context=context)
 

@@ -35,8 +35,7 @@ from excavation_sim.world import (
     WorldParams,
     apply_all,
     fitness,
-    place_robots,
-    seed_state,
+    scenario_start,
     sense_all,
 )
 
@@ -221,11 +220,10 @@ class ScenarioSet:
         all_robots = np.zeros((scenarios, n_max, 6), dtype=np.int64)
         active = np.zeros((scenarios, n_max), dtype=np.bool_)
         rng_states = np.zeros(scenarios, dtype=np.uint64)
-        for i, child in enumerate(np.random.SeedSequence(seed).spawn(scenarios)):
-            rng = np.random.default_rng(child)
-            all_robots[i] = place_robots(shape, n_max, rng)
-            active[i, : counts[i % len(counts)]] = True
-            rng_states[i] = seed_state(int(rng.integers(0, 2**63)))[0]
+        for i in range(scenarios):
+            all_robots[i], active[i], rng_states[i] = scenario_start(
+                shape, n_max, counts[i % len(counts)], seed, i
+            )
         return cls(
             heights=np.zeros((scenarios, *shape), dtype=np.int32),
             zones=blueprint.zones,

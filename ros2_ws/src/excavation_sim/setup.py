@@ -22,6 +22,10 @@ setup(
     description="Simulated worksite: soil, bulldozer robots, blade model and fitness.",
     license="Apache-2.0",
     entry_points={
-        "console_scripts": [],
+        "console_scripts": [
+            "sim = excavation_sim.sim_node:main",
+            "trial = excavation_sim.trial:main",
+            "ant-trial = excavation_sim.trial:main",
+        ],
     },
 )

@@ -11,12 +11,15 @@ Inputs (relative names resolve in the robot's namespace): ``pose``
 (std_msgs/Bool). Output: ``behaviour`` (std_msgs/UInt16, bit i = behaviour i + 1 of Table 2)
 and ``/diagnostics``.
 
-Every ``1 / rate`` seconds the node checks its inputs. When all are present and fresh (own
-and other poses within ``pose_timeout``, height map within ``map_timeout``, joint state and
-stuck flag within ``joint_timeout``; the blueprint is latched and never stale), it decides
-with :class:`ant_controller.controller.ControllerCore` and publishes the mask. Otherwise it
-publishes 0, which moves nothing, and says which input is missing or stale on
-``/diagnostics`` (level WARN). Malformed messages are dropped and reported (ERROR).
+With ``lockstep: true`` (used with ``excavation_sim sim``) the node decides exactly once per
+simulator tick, when all of that tick's inputs have arrived (same stamp), and never
+publishes in between. Otherwise, every ``1 / rate`` seconds the node checks its inputs:
+when all are present and fresh (poses within ``pose_timeout``, height map within
+``map_timeout``, joint state and stuck flag within ``joint_timeout``; the blueprint is
+latched and never stale) it decides with :class:`ant_controller.controller.ControllerCore`
+and publishes the mask; otherwise it publishes 0, which moves nothing, and says which
+input is missing or stale on ``/diagnostics`` (level WARN). Malformed messages are dropped
+and reported (ERROR).
 
 A missing or malformed genome file ends the program before ROS starts, with the loader's
 message (file, field, value) and exit code 2.
@@ -70,6 +73,7 @@ class ControllerNode(Node):
         self.map_timeout = float(p("map_timeout", 5.0).value)
         self.joint_timeout = float(p("joint_timeout", 1.0).value)
         rate = float(p("rate", 10.0).value)
+        self.lockstep = bool(p("lockstep", False).value)
         self.geometry = BladeGeometry(
             depth=float(p("blade_depth", 0.02).value),
             home=float(p("blade_home", 0.10).value),
@@ -86,6 +90,9 @@ class ControllerNode(Node):
         self.errors: dict[str, str] = {}
         self.last_reason = "starting"
         self.last_mask = 0
+        self.stamps: dict[str, tuple[int, int]] = {}
+        self.fresh_stuck = 0
+        self.decided_stamp: tuple[int, int] | None = None
 
         self.behaviour_pub = self.create_publisher(UInt16, "behaviour", 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -107,85 +114,92 @@ class ControllerNode(Node):
     def _now(self) -> Time:
         return self.get_clock().now()
 
-    def _guard(self, topic: str, fn) -> None:
+    def _decode(self, topic: str, decode):
+        """Run ``decode()``; a MessageError is recorded for diagnostics and gives None."""
         try:
-            fn()
-            self.errors.pop(topic, None)
+            value = decode()
         except MessageError as exc:
             self.errors[topic] = str(exc)
             self.get_logger().warning(str(exc), throttle_duration_sec=5.0)
+            return None
+        self.errors.pop(topic, None)
+        return value
+
+    def _stamped(self, key: str, msg) -> None:
+        """Record the stamp of a tick input; in lockstep mode maybe decide."""
+        self.stamps[key] = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        if self.lockstep:
+            self.try_lockstep()
 
     def on_info(self, msg: MapMetaData) -> None:
         """Cell size of the worksite."""
         self.cell_size = float(msg.resolution) if msg.resolution > 0 else None
+        if self.lockstep:
+            self.try_lockstep()
 
     def on_pose(self, j: int, topic: str, msg: PoseWithCovarianceStamped) -> None:
         """A robot's pose, snapped to the grid."""
         if self.cell_size is None:
             return
-        self._guard(
-            topic,
-            lambda: self.poses.__setitem__(
-                j, (self._now(), pose_to_grid(msg, self.cell_size, topic))
-            ),
-        )
-
-    def _grid(self, msg: Image, encoding: str, topic: str) -> np.ndarray:
-        shape = self.zones.shape if self.zones is not None else None
-        return image_to_grid(msg, encoding, topic, shape)
+        pose = self._decode(topic, lambda: pose_to_grid(msg, self.cell_size, topic))
+        if pose is not None:
+            self.poses[j] = (self._now(), pose)
+            self._stamped(f"pose{j}", msg)
 
     def on_heights(self, msg: Image) -> None:
         """The height map, in soil units."""
-        self._guard(
-            "/worksite/height_map",
-            lambda: setattr(
-                self,
-                "heights",
-                (
-                    self._now(),
-                    heights_to_units(
-                        self._grid(msg, "32FC1", "/worksite/height_map"), self.height_unit
-                    ),
-                ),
-            ),
-        )
+        topic = "/worksite/height_map"
+        shape = self.zones.shape if self.zones is not None else None
+        grid = self._decode(topic, lambda: image_to_grid(msg, "32FC1", topic, shape))
+        if grid is not None:
+            self.heights = (self._now(), heights_to_units(grid, self.height_unit))
+            self._stamped("heights", msg)
 
     def on_goal(self, msg: Image) -> None:
         """Goal heights, in soil units."""
-        self._guard(
-            "/blueprint/goal",
-            lambda: setattr(
-                self,
-                "goal",
-                heights_to_units(image_to_grid(msg, "32FC1", "/blueprint/goal"), self.height_unit),
-            ),
+        grid = self._decode(
+            "/blueprint/goal", lambda: image_to_grid(msg, "32FC1", "/blueprint/goal")
         )
+        if grid is not None:
+            self.goal = heights_to_units(grid, self.height_unit)
+            if self.lockstep:
+                self.try_lockstep()
 
     def on_zones(self, msg: Image) -> None:
         """Blueprint zones."""
-        self._guard(
-            "/blueprint/zones",
-            lambda: setattr(self, "zones", image_to_grid(msg, "mono8", "/blueprint/zones")),
+        grid = self._decode(
+            "/blueprint/zones", lambda: image_to_grid(msg, "mono8", "/blueprint/zones")
         )
+        if grid is not None:
+            self.zones = grid
+            if self.lockstep:
+                self.try_lockstep()
 
     def on_joint(self, msg: JointState) -> None:
         """Blade setting and load."""
-        self._guard(
-            "blade/joint_states",
-            lambda: setattr(
-                self,
-                "joint",
-                (self._now(), blade_from_joint(msg, self.geometry, "blade/joint_states")),
-            ),
-        )
+        topic = "blade/joint_states"
+        blade = self._decode(topic, lambda: blade_from_joint(msg, self.geometry, topic))
+        if blade is not None:
+            self.joint = (self._now(), blade)
+            self._stamped("joint", msg)
 
     def on_stuck(self, msg: Bool) -> None:
         """U1 as the robot reports it."""
         self.stuck = (self._now(), bool(msg.data))
+        self.fresh_stuck += 1
+        if self.lockstep:
+            self.try_lockstep()
 
     # --- decision ---------------------------------------------------------------------------
 
     def _age(self, stamp: Time) -> float:
+        """Seconds since an input arrived (0 in lockstep mode).
+
+        In lockstep mode stamps say what is fresh: a loaded machine may take longer than a
+        timeout between two simulator ticks.
+        """
+        if self.lockstep:
+            return 0.0
         return (self._now() - stamp).nanoseconds * 1e-9
 
     def missing_input(self) -> str | None:
@@ -222,8 +236,35 @@ class ControllerNode(Node):
             return "unknown terrain around the robot"
         return None
 
-    def tick(self) -> None:
-        """Decide and publish once (0 when an input is missing or stale)."""
+    def try_lockstep(self) -> None:
+        """Lockstep mode: decide once per simulator tick, when every input of that tick is in.
+
+        A tick's inputs are the poses, height map and joint state stamped with the same
+        time, newer than the last tick decided, plus a stuck flag received since then.
+        """
+        keys = [f"pose{j}" for j in range(self.n_robots)] + ["heights", "joint"]
+        stamps = {self.stamps.get(k) for k in keys}
+        if len(stamps) != 1 or None in stamps or self.fresh_stuck == 0:
+            return
+        (stamp,) = stamps
+        if self.decided_stamp is not None and stamp <= self.decided_stamp:
+            return
+        if self.missing_input() is not None:
+            return  # not ready (e.g. no blueprint yet): decided when the blueprint arrives
+        self.decided_stamp = stamp
+        self.fresh_stuck = 0
+        self.tick(lockstep_decision=True)
+
+    def tick(self, lockstep_decision: bool = False) -> None:
+        """Decide and publish once (0 when an input is missing or stale).
+
+        In lockstep mode the timer only refreshes diagnostics; commands go out once per
+        simulator tick from :meth:`try_lockstep`.
+        """
+        if self.lockstep and not lockstep_decision:
+            self.last_reason = self.missing_input() or self.last_reason
+            self.publish_diagnostics()
+            return
         reason = self.missing_input()
         mask = 0
         if reason is None:

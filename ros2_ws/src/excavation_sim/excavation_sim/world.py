@@ -377,6 +377,26 @@ def place_robots(
     return robots
 
 
+def scenario_start(
+    shape: tuple[int, int], n_robots: int, active_robots: int, seed: int, index: int
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Placements, active flags and random-turn state of scenario ``index`` of ``seed``.
+
+    The one definition of a seeded scenario, shared by the offline evaluator and the
+    simulator node: scenario i draws from ``SeedSequence(seed).spawn(...)[i]``, whose
+    randomness does not depend on how many scenarios are spawned.
+
+    Returns:
+        ``(robots [n_robots, ROBOT_FIELDS], active [n_robots], rng_state)``.
+    """
+    child = np.random.SeedSequence(seed, spawn_key=(index,))
+    rng = np.random.default_rng(child)
+    robots = place_robots(shape, n_robots, rng)
+    active = np.zeros(n_robots, dtype=np.bool_)
+    active[:active_robots] = True
+    return robots, active, int(seed_state(int(rng.integers(0, 2**63)))[0])
+
+
 @dataclass
 class World:
     """A worksite ready to step: arrays plus the blueprint they are measured against.

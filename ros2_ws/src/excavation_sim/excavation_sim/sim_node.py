@@ -1,0 +1,265 @@
+"""``ros2 run excavation_sim sim``: the simulated worksite as a ROS node, in lockstep.
+
+The node owns a :class:`excavation_sim.world.World` (scenario 0 of ``seed``, the same as
+``ant-eval --seed K``) and steps it once per tick:
+
+1. publish the state of tick t, stamped with sim time ``t * dt`` (``/clock`` too): every
+   robot's ``/robot_k/pose``, ``/robot_k/blade/joint_states``, ``/robot_k/stuck`` and
+   ``/robot_k/imu``, then ``/worksite/height_map`` (latched), ``/worksite/fitness`` and
+   ``/worksite/markers``;
+2. wait for one ``/robot_k/behaviour`` command from every robot (``command_timeout``; a
+   robot that does not answer idles this tick, which is reported on ``/diagnostics``);
+3. apply the commands in robot order (the offline rule) and go on with tick t + 1.
+
+Tick 0 is published once every robot's controller is on the graph (it publishes
+``/robot_k/behaviour`` and subscribes ``/robot_k/pose``) and ``startup_period`` has passed
+since, so no controller misses it; nothing is ever published twice for one tick, which is
+what lets a controller pair the unstamped ``stuck`` flag with its tick. After ``steps``
+ticks the node publishes the final state and fitness and stops stepping (``finished``).
+
+Parameters: ``blueprint`` (``default``, ``default:D``, ``landing-pad`` or a file),
+``robots`` (4), ``steps`` (300), ``seed`` (0), ``dt`` (1.0 s of sim time per tick),
+``command_timeout`` (1.0 s), ``startup_period`` (0.5 s).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time as TimeMsg
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Image, Imu, JointState
+from std_msgs.msg import Bool, Float32, UInt16
+from visualization_msgs.msg import Marker, MarkerArray
+
+from ant_controller.messages import BladeGeometry, blade_joint, grid_to_image, pose_message
+from ant_controller.sensing import blade_volume, is_tilted_down
+from blueprint_server.blueprint_info import resolve
+from excavation_sim.world import (
+    BLADE,
+    COL,
+    DEFAULT_PARAMS,
+    HEADING,
+    MAX_LOAD,
+    ROW,
+    STUCK,
+    World,
+    scenario_start,
+)
+
+LATCHED = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
+TILT_PITCH = 0.2
+"""Pitch (rad, nose down) the simulated IMU reports when R1 holds."""
+
+
+def scenario_world(blueprint_spec: str, robots: int, seed: int):
+    """Scenario 0 of ``seed``: the world ``ant-eval --seed`` starts from."""
+    bp = resolve(blueprint_spec)
+    placed, active, rng_state = scenario_start(bp.shape, robots, robots, seed, 0)
+    world = World(
+        heights=np.zeros(bp.shape, dtype=np.int32),
+        zones=bp.zones,
+        goal=bp.goal,
+        robots=placed,
+        active=active,
+        rng=np.array([rng_state], dtype=np.uint64),
+        params=DEFAULT_PARAMS.as_array(),
+    )
+    return bp, world
+
+
+class SimNode(Node):
+    """Lockstep simulator node."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("sim", **kwargs)
+        p = self.declare_parameter
+        self.n = int(p("robots", 4).value)
+        self.steps = int(p("steps", 300).value)
+        self.dt = float(p("dt", 1.0).value)
+        self.timeout = float(p("command_timeout", 1.0).value)
+        self.startup_period = float(p("startup_period", 0.5).value)
+        self.blueprint, self.world = scenario_world(
+            str(p("blueprint", "default").value), self.n, int(p("seed", 0).value)
+        )
+        self.geometry = BladeGeometry()
+        self.tick = 0
+        self.finished = False
+        self.commands: dict[int, int] = {}
+        self.answered_once: set[int] = set()
+        self.missed: dict[int, int] = {k: 0 for k in range(self.n)}
+        self.fitness_trace = [self.world.fitness()]
+        self.applied: list[list[int]] = []
+        self.wait_started = None
+        self.last_publish = None
+        self.ready_since = None
+
+        self.pose_pubs, self.joint_pubs, self.stuck_pubs, self.imu_pubs = [], [], [], []
+        for k in range(self.n):
+            ns = f"/robot_{k}"
+            self.pose_pubs.append(
+                self.create_publisher(PoseWithCovarianceStamped, f"{ns}/pose", 10)
+            )
+            self.joint_pubs.append(
+                self.create_publisher(JointState, f"{ns}/blade/joint_states", 10)
+            )
+            self.stuck_pubs.append(self.create_publisher(Bool, f"{ns}/stuck", 10))
+            self.imu_pubs.append(self.create_publisher(Imu, f"{ns}/imu", 10))
+            self.create_subscription(
+                UInt16, f"{ns}/behaviour", lambda m, k=k: self.on_command(k, m), 10
+            )
+        self.heights_pub = self.create_publisher(Image, "/worksite/height_map", LATCHED)
+        self.fitness_pub = self.create_publisher(Float32, "/worksite/fitness", 10)
+        self.markers_pub = self.create_publisher(MarkerArray, "/worksite/markers", 10)
+        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(0.001, self.step)
+
+    def _stamp(self) -> TimeMsg:
+        seconds = self.tick * self.dt
+        return TimeMsg(sec=int(seconds), nanosec=int(round((seconds % 1) * 1e9)))
+
+    def publish_state(self) -> None:
+        """Everything the controllers need for the current tick, stamped with its sim time."""
+        stamp = self._stamp()
+        self.clock_pub.publish(Clock(clock=stamp))
+        w, cell = self.world, self.blueprint.cell_size
+        heights = grid_to_image(
+            (w.heights * self.blueprint.height_unit).astype(np.float32), "32FC1", stamp=stamp
+        )
+        self.heights_pub.publish(heights)
+        for k in range(self.n):
+            r = w.robots[k]
+            row, col, h, blade = int(r[ROW]), int(r[COL]), int(r[HEADING]), int(r[BLADE])
+            self.stuck_pubs[k].publish(Bool(data=bool(r[STUCK])))
+            force = blade_volume(w.heights, row, col, h, blade) * self.geometry.max_force / MAX_LOAD
+            self.joint_pubs[k].publish(blade_joint(blade, force, self.geometry, stamp))
+            imu = Imu()
+            imu.header.stamp = stamp
+            imu.header.frame_id = f"robot_{k}/base_link"
+            pitch = TILT_PITCH if is_tilted_down(w.heights, row, col, h) else 0.0
+            imu.orientation.y = math.sin(pitch / 2)
+            imu.orientation.w = math.cos(pitch / 2)
+            self.imu_pubs[k].publish(imu)
+            self.pose_pubs[k].publish(
+                pose_message(row, col, h, cell, (0.05 * cell) ** 2, 0.01, stamp)
+            )
+        self.fitness_pub.publish(Float32(data=float(w.fitness())))
+        self.markers_pub.publish(self.markers(stamp))
+        self.last_publish = self.get_clock().now()
+        self.wait_started = self.last_publish
+
+    def markers(self, stamp) -> MarkerArray:
+        """One cube per robot (for RViz or Foxglove)."""
+        out = MarkerArray()
+        cell = self.blueprint.cell_size
+        for k in range(self.n):
+            r = self.world.robots[k]
+            m = Marker()
+            m.header.stamp = stamp
+            m.header.frame_id = "map"
+            m.ns, m.id, m.type, m.action = "robots", k, Marker.CUBE, Marker.ADD
+            m.pose = pose_message(int(r[ROW]), int(r[COL]), int(r[HEADING]), cell, 0, 0).pose.pose
+            m.scale.x = m.scale.y = 2 * cell
+            m.scale.z = cell
+            m.color.r, m.color.g, m.color.b, m.color.a = 0.9, 0.5, 0.1, 0.8
+            out.markers.append(m)
+        return out
+
+    def controllers_present(self) -> bool:
+        """Every robot's controller publishes its behaviour and listens to its pose."""
+        return all(
+            self.count_publishers(f"/robot_{k}/behaviour") > 0
+            and self.count_subscribers(f"/robot_{k}/pose") > 0
+            for k in range(self.n)
+        )
+
+    def on_command(self, k: int, msg: UInt16) -> None:
+        """A robot's behaviour mask for the current tick (the first one counts)."""
+        if not self.finished and k not in self.commands:
+            self.commands[k] = int(msg.data) & 0xFFF
+            self.answered_once.add(k)
+
+    def step(self) -> None:
+        """The lockstep state machine (runs every millisecond)."""
+        if self.finished:
+            return
+        now = self.get_clock().now()
+        if self.last_publish is None:
+            if not self.controllers_present():
+                self.ready_since = None
+                return
+            if self.ready_since is None:
+                self.ready_since = now
+            if (now - self.ready_since).nanoseconds * 1e-9 >= self.startup_period:
+                self.publish_state()
+            return
+        waited = (now - self.wait_started).nanoseconds * 1e-9
+        if len(self.commands) < self.n and waited < self.timeout:
+            return
+        masks = np.array([self.commands.get(k, 0) for k in range(self.n)], dtype=np.int64)
+        for k in range(self.n):
+            if k not in self.commands:
+                self.missed[k] += 1
+        if len(self.commands) < self.n:
+            self.report(
+                f"tick {self.tick}: no command from robots "
+                f"{sorted(set(range(self.n)) - set(self.commands))}; they idle"
+            )
+        self.commands.clear()
+        self.applied.append([int(m) for m in masks])
+        self.world.step(masks)
+        self.fitness_trace.append(self.world.fitness())
+        self.tick += 1
+        if self.tick >= self.steps:
+            self.finished = True
+        self.publish_state()
+        if self.finished:
+            self.report(f"finished {self.steps} ticks, fitness {self.world.fitness():.4f}")
+
+    def report(self, message: str, level=DiagnosticStatus.OK) -> None:
+        """One diagnostics status for the simulator."""
+        missed = sum(self.missed.values())
+        status = DiagnosticStatus(
+            name="sim: lockstep",
+            hardware_id="excavation_sim",
+            level=DiagnosticStatus.WARN if missed and level == DiagnosticStatus.OK else level,
+            message=message,
+            values=[
+                KeyValue(key="tick", value=str(self.tick)),
+                KeyValue(key="fitness", value=f"{self.world.fitness():.6f}"),
+            ]
+            + [KeyValue(key=f"robot_{k}_missed", value=str(v)) for k, v in self.missed.items()],
+        )
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self._stamp()
+        self.diag_pub.publish(msg)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run excavation_sim sim``."""
+    rclpy.init(args=args)
+    node = SimNode()
+    try:
+        while rclpy.ok() and not node.finished:
+            rclpy.spin_once(node, timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
