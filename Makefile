@@ -36,12 +36,15 @@ else
 endif
 
 # The demo: the hand-coded baseline, a short evolution (progress bar; about two minutes on
-# two cores), then the shipped evolved genome with terrain snapshots.
+# two cores), the shipped evolved genome with terrain snapshots, and the same genome's
+# scenario 0 offline (ant-eval) and through the ROS nodes (ant-trial): the two agree.
 demo: setup
 	$(BIN)/ant-eval --hand-coded --robots 4 --scenarios 100 --seed 0 --snapshots $(DEMO_OUT)/hand_coded
 	rm -rf $(DEMO_OUT)/evolve
 	$(BIN)/ant-evolve --out $(DEMO_OUT)/evolve --population 40 --generations 25 --scenarios 20 --seed 0
 	$(BIN)/ant-eval --genome genomes/best.json --robots 4 --depth 1 --scenarios 100 --seed 0 --snapshots $(DEMO_OUT)/evolved
+	$(BIN)/ant-eval --genome genomes/best.json --robots 4 --depth 1 --scenarios 1 --seed 0
+	ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST $(BIN)/ant-trial --genome genomes/best.json --robots 4 --blueprint default:1 --steps 300 --seed 0
 	@echo "Terrain snapshots: $(DEMO_OUT)/hand_coded/strip.png $(DEMO_OUT)/evolved/strip.png"
 	@echo "Short evolution: $(DEMO_OUT)/evolve/fitness.png, $(DEMO_OUT)/evolve/best.json"
 
