@@ -13,8 +13,9 @@ from sensor_msgs.msg import Image
 from std_srvs.srv import Trigger
 
 from ant_controller.messages import image_to_grid
+from ant_controller.ros import LATCHED
 from blueprint_server.blueprint import default_blueprint
-from blueprint_server.server_node import LATCHED, BlueprintServer
+from blueprint_server.server_node import BlueprintServer
 
 
 def listener(ros):

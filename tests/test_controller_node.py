@@ -19,8 +19,9 @@ from ant_controller.messages import (
     grid_to_image,
     pose_message,
 )
+from ant_controller.ros import LATCHED
 from blueprint_server.blueprint import default_blueprint
-from blueprint_server.server_node import LATCHED, BlueprintServer
+from blueprint_server.server_node import BlueprintServer
 
 POSES = [(5, 5, 0), (10, 3, 1)]  # robot 0 faces north into the pit, robot 1 east
 

@@ -31,13 +31,10 @@ import argparse
 import sys
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import Image, JointState
@@ -53,10 +50,8 @@ from ant_controller.messages import (
     image_to_grid,
     pose_to_grid,
 )
+from ant_controller.ros import LATCHED, spin_node
 
-LATCHED = QoSProfile(
-    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
-)
 UNKNOWN = np.iinfo(np.int32).min
 
 
@@ -329,16 +324,7 @@ def main(args: list[str] | None = None) -> int:
     except GenomeFormatError as exc:
         print(f"controller: error: {exc}", file=sys.stderr)
         return 2
-    rclpy.init(args=argv)
-    node = ControllerNode(controller)
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return spin_node(lambda: ControllerNode(controller), argv)
 
 
 if __name__ == "__main__":

@@ -23,23 +23,17 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import MapMetaData
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
 from std_srvs.srv import Trigger
 
 from ant_controller.messages import grid_to_image, map_info
+from ant_controller.ros import LATCHED, spin_node
 from blueprint_server.blueprint import DIG, Blueprint
 from blueprint_server.blueprint_info import resolve
 from blueprint_server.errors import BlueprintError
-
-LATCHED = QoSProfile(
-    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
-)
 
 
 def blueprint_messages(bp: Blueprint, stamp=None) -> tuple[Image, Image, MapMetaData]:
@@ -122,16 +116,7 @@ class BlueprintServer(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``ros2 run blueprint_server server``."""
-    rclpy.init(args=args)
-    node = BlueprintServer()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return spin_node(BlueprintServer, args)
 
 
 if __name__ == "__main__":

@@ -28,19 +28,17 @@ import math
 import sys
 
 import numpy as np
-import rclpy
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, Imu, JointState
 from std_msgs.msg import Bool, Float32, UInt16
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ant_controller.messages import BladeGeometry, blade_joint, grid_to_image, pose_message
+from ant_controller.ros import LATCHED, spin_node
 from ant_controller.sensing import blade_volume, is_tilted_down
 from blueprint_server.blueprint_info import resolve
 from excavation_sim.world import (
@@ -55,9 +53,6 @@ from excavation_sim.world import (
     scenario_start,
 )
 
-LATCHED = QoSProfile(
-    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
-)
 TILT_PITCH = 0.2
 """Pitch (rad, nose down) the simulated IMU reports when R1 holds."""
 
@@ -247,18 +242,8 @@ class SimNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Entry point of ``ros2 run excavation_sim sim``."""
-    rclpy.init(args=args)
-    node = SimNode()
-    try:
-        while rclpy.ok() and not node.finished:
-            rclpy.spin_once(node, timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    """Entry point of ``ros2 run excavation_sim sim`` (ends after the last tick)."""
+    return spin_node(SimNode, args, until=lambda node: node.finished)
 
 
 if __name__ == "__main__":
