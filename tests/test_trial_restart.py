@@ -1,0 +1,65 @@
+"""Killing a controller mid-trial: the simulator idles that robot, reports it, and a
+restarted controller rejoins."""
+
+from __future__ import annotations
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ant_controller.controller import Controller
+from ant_controller.controller_node import ControllerNode
+from blueprint_server.server_node import BlueprintServer
+from excavation_sim.sim_node import SimNode
+
+
+def controller(ros, k):
+    return ros.add(
+        ControllerNode(
+            Controller.hand_coded(),
+            context=ros.context,
+            namespace=f"/robot_{k}",
+            parameter_overrides=[
+                Parameter("robot_id", value=k),
+                Parameter("robots", value=2),
+                Parameter("lockstep", value=True),
+            ],
+        )
+    )
+
+
+def test_killed_controller_idles_then_rejoins(ros):
+    ros.add(BlueprintServer(context=ros.context))
+    sim = ros.add(
+        SimNode(
+            context=ros.context,
+            parameter_overrides=[
+                Parameter("robots", value=2),
+                Parameter("steps", value=400),
+                Parameter("command_timeout", value=0.3),
+            ],
+        )
+    )
+    reports = []
+    watcher = ros.add(Node("watcher", context=ros.context))
+    watcher.create_subscription(
+        DiagnosticArray,
+        "/diagnostics",
+        lambda m: reports.extend(s.message for s in m.status if s.name == "sim: lockstep"),
+        10,
+    )
+    controller(ros, 0)
+    victim = controller(ros, 1)
+    assert ros.spin_until(lambda: sim.tick >= 5, timeout=30)
+    assert sim.missed == {0: 0, 1: 0}
+    ros.executor.remove_node(victim)  # the process dies
+    victim.destroy_node()
+    killed_at = sim.tick
+    assert ros.spin_until(lambda: sim.missed[1] >= 3, timeout=30)
+    assert sim.tick > killed_at and sim.missed[0] == 0  # the others keep stepping
+    assert any("no command from robots [1]" in r for r in reports)
+    controller(ros, 1)  # restarted
+    missed = sim.missed[1]
+    assert ros.spin_until(lambda: sim.tick >= killed_at + missed + 10, timeout=60)
+    assert sim.missed[1] <= missed + 1  # at most the tick it joined during
+    assert sim.missed[0] == 0
