@@ -21,7 +21,7 @@ from ant_controller.genome import Genome, TissueGene
 from ant_controller.genome_io import load_genome
 from ant_controller.hand_coded import hand_coded_decide
 from ant_controller.layout import BIT_CLEAR, BIT_SET, N_SENSORS
-from ant_controller.sensing import POSE_COL, POSE_HEADING, POSE_ROW, is_tilted_down, sense
+from ant_controller.sensing import is_tilted_down, sensor_vector
 from ant_controller.tissue import CompiledTissue, compile_tissue, decide
 
 KIND_ANT = 0
@@ -110,24 +110,19 @@ class ControllerCore:
         """
         poses = np.ascontiguousarray(poses, dtype=np.int64)
         heights = np.ascontiguousarray(heights, dtype=np.int32)
-        if active is None:
-            active = np.ones(len(poses), dtype=np.bool_)
-        tilted = is_tilted_down(
-            heights, poses[k, POSE_ROW], poses[k, POSE_COL], poses[k, POSE_HEADING]
-        )
-        sense(
+        row, col, heading = poses[k]
+        self._codes = sensor_vector(
             heights,
-            np.ascontiguousarray(zones, dtype=np.uint8),
-            np.ascontiguousarray(goal, dtype=np.int32),
+            zones,
+            goal,
             poses,
-            np.ascontiguousarray(active, dtype=np.bool_),
             k,
-            blade,
-            load_volume,
-            bool(stuck),
-            bool(tilted),
-            self.memory,
-            self._codes,
+            blade=blade,
+            load_volume=load_volume,
+            stuck=bool(stuck),
+            tilted=bool(is_tilted_down(heights, row, col, heading)),
+            memory=bool(self.memory),
+            active=active,
         )
         mask = self.controller.decide(self._codes)
         if mask >> BIT_SET & 1:

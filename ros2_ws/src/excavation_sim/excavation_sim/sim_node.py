@@ -44,13 +44,11 @@ from blueprint_server.blueprint_info import resolve
 from excavation_sim.world import (
     BLADE,
     COL,
-    DEFAULT_PARAMS,
     HEADING,
     MAX_LOAD,
     ROW,
     STUCK,
     World,
-    scenario_start,
 )
 
 TILT_PITCH = 0.2
@@ -60,16 +58,7 @@ TILT_PITCH = 0.2
 def scenario_world(blueprint_spec: str, robots: int, seed: int):
     """Scenario 0 of ``seed``: the world ``ant-eval --seed`` starts from."""
     bp = resolve(blueprint_spec)
-    placed, active, rng_state = scenario_start(bp.shape, robots, robots, seed, 0)
-    world = World(
-        heights=np.zeros(bp.shape, dtype=np.int32),
-        zones=bp.zones,
-        goal=bp.goal,
-        robots=placed,
-        active=active,
-        rng=np.array([rng_state], dtype=np.uint64),
-        params=DEFAULT_PARAMS.as_array(),
-    )
+    world = World.scenario(bp.zones, bp.goal, robots, seed)
     return bp, world
 
 

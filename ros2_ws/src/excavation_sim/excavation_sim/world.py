@@ -446,6 +446,28 @@ class World:
             params=params.as_array(),
         )
 
+    @classmethod
+    def scenario(
+        cls,
+        zones: np.ndarray,
+        goal: np.ndarray,
+        n_robots: int,
+        seed: int,
+        index: int = 0,
+        params: WorldParams = DEFAULT_PARAMS,
+    ) -> World:
+        """Scenario ``index`` of ``seed`` on a flat site (see :func:`scenario_start`)."""
+        robots, active, rng_state = scenario_start(zones.shape, n_robots, n_robots, seed, index)
+        return cls(
+            heights=np.zeros(zones.shape, dtype=np.int32),
+            zones=np.ascontiguousarray(zones, dtype=np.uint8),
+            goal=np.ascontiguousarray(goal, dtype=np.int32),
+            robots=robots,
+            active=active,
+            rng=np.array([rng_state], dtype=np.uint64),
+            params=params.as_array(),
+        )
+
     @property
     def n_robots(self) -> int:
         """Number of robots."""
