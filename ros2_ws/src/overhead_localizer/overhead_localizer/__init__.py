@@ -1,0 +1,1 @@
+"""Overhead LED-beacon localizer and camera calibration (paper, section 6.2)."""

@@ -1,0 +1,9 @@
+"""Errors of the terrain mapper (every one names the file or topic, the field and the value)."""
+
+from __future__ import annotations
+
+from ant_controller.errors import FieldError
+
+
+class MapperError(FieldError):
+    """Bad mapper input: a configuration, a map file or a scan that cannot be used."""

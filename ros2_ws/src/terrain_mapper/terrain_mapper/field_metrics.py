@@ -1,0 +1,155 @@
+"""``field-metrics``: the paper's field-trial table from a before and an after height map.
+
+Usage::
+
+    field-metrics before.npy after.npy --blueprint default:1 [--png diff.png] [--json]
+
+Maps are ``.npy`` (float, metres, ``[rows, cols]``, row 0 = southern edge, NaN = not
+measured; what the mapper node writes with ``save_dir``) or ``.csv`` (same, comma
+separated, the southern row first). The blueprint (``default``, ``default:D``,
+``landing-pad`` or a file) gives zones, goal depths and the soil unit; the tolerance is a
+quarter of a soil unit unless ``--tolerance`` (metres) says otherwise. ``--png`` draws the
+difference (after - before) as a heat map with the dig and dump zones outlined. A bad file
+ends with exit code 2 and a message naming the file, the field and the value.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from terrain_mapper.errors import MapperError
+from terrain_mapper.metrics import DIG, DUMP, FieldMetrics, difference, field_metrics
+
+
+def load_map(path: str, shape: tuple[int, int] | None = None) -> np.ndarray:
+    """A height map from ``.npy`` or ``.csv``.
+
+    Raises:
+        MapperError: Missing or unreadable file, wrong dtype, dimension or shape.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise MapperError(path, "file", None, "does not exist")
+    try:
+        if p.suffix == ".npy":
+            grid = np.load(p, allow_pickle=False)
+        elif p.suffix == ".csv":
+            grid = np.loadtxt(p, delimiter=",", ndmin=2)
+        else:
+            raise MapperError(path, "suffix", p.suffix, "expected .npy or .csv")
+    except (ValueError, OSError) as exc:
+        raise MapperError(path, "content", None, f"cannot be read: {exc}") from None
+    if grid.ndim != 2 or grid.dtype.kind not in "fiu":
+        raise MapperError(path, "array", f"{grid.dtype} {grid.shape}", "expected a 2-D number grid")
+    if shape is not None and grid.shape != tuple(shape):
+        raise MapperError(path, "shape", grid.shape, f"the blueprint is {shape[0]} x {shape[1]}")
+    return grid.astype(np.float64)
+
+
+def draw_difference(
+    before: np.ndarray,
+    after: np.ndarray,
+    zones: np.ndarray,
+    metrics: FieldMetrics,
+    path: str,
+    unit: str = "m",
+) -> None:
+    """Heat map of ``after - before`` (north up) with the dig and dump zones outlined."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    diff = difference(before, after)
+    rows, cols = diff.shape
+    span = float(np.nanmax(np.abs(diff))) if np.isfinite(diff).any() else 1.0
+    fig, ax = plt.subplots(figsize=(6, 5.2), dpi=100)
+    im = ax.imshow(
+        diff,
+        origin="lower",
+        cmap="RdBu",
+        vmin=-span or -1,
+        vmax=span or 1,
+        extent=(0, cols, 0, rows),
+    )
+    for code, colour in ((DIG, "black"), (DUMP, "green")):
+        ax.contour(
+            (zones == code).astype(float),
+            levels=[0.5],
+            colors=colour,
+            linewidths=1.5,
+            extent=(0, cols, 0, rows),
+            origin="lower",
+        )
+    fig.colorbar(im, ax=ax, label=f"after - before ({unit}); red = dug, blue = raised")
+    ax.set_xlabel("column (east)")
+    ax.set_ylabel("row (north)")
+    ax.set_title(
+        f"towards goal {metrics.towards_goal:.0%}, above {metrics.above_goal:.0%}, "
+        f"indeterminate {metrics.indeterminate:.0%}\n"
+        f"deposited soil in dump zones {metrics.dump_share:.0%} "
+        "(black: dig area, green: dump zones)",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def format_table(m: FieldMetrics) -> str:
+    """The metrics as the paper's field-trial table (plain text)."""
+    lines = [
+        "area   system response",
+        f"{m.towards_goal:6.1%} correctly excavated towards goal depth",
+        f"{m.above_goal:6.1%} above goal depth",
+        f"{m.below_goal:6.1%} below goal depth",
+        f"{m.indeterminate:6.1%} indeterminate",
+        f"deposited soil in dump zones: {m.dump_share:.1%} "
+        f"(removed {m.removed:.3f}, deposited {m.deposited:.3f}, map unit x cells)",
+    ]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``field-metrics``."""
+    parser = argparse.ArgumentParser(prog="field-metrics", description=__doc__.split("\n\n")[0])
+    parser.add_argument("before", help="height map before the run (.npy or .csv, metres)")
+    parser.add_argument("after", help="height map after the run (.npy or .csv, metres)")
+    parser.add_argument("--blueprint", default="default", help="blueprint spec or file")
+    parser.add_argument("--tolerance", type=float, default=None, help="metres (unit / 4)")
+    parser.add_argument("--png", help="draw the difference heat map here")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    args = parser.parse_args(argv)
+    from ant_controller.errors import FieldError
+    from blueprint_server.blueprint_info import resolve
+
+    try:
+        bp = resolve(args.blueprint)
+        before = load_map(args.before, bp.shape)
+        after = load_map(args.after, bp.shape)
+    except FieldError as exc:
+        print(f"field-metrics: error: {exc}", file=sys.stderr)
+        return 2
+    tolerance = bp.height_unit / 4 if args.tolerance is None else args.tolerance
+    if not tolerance >= 0:
+        print(f"field-metrics: error: --tolerance = {tolerance}: must be >= 0", file=sys.stderr)
+        return 2
+    m = field_metrics(before, after, bp.zones, bp.goal * bp.height_unit, tolerance)
+    if args.json:
+        print(json.dumps(m.as_dict()))
+    else:
+        print(format_table(m))
+    if args.png:
+        draw_difference(before, after, bp.zones, m, args.png)
+        if not args.json:
+            print(f"difference heat map: {args.png}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
