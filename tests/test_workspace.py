@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {
     "ant_controller": ["genome_info", "controller"],
     "blueprint_server": ["blueprint_info", "server"],
-    "excavation_sim": ["sim", "trial", "ant-trial"],
+    "excavation_sim": ["sim", "trial", "ant-trial", "bag", "ant-bag"],
 }
 
 

@@ -26,6 +26,8 @@ setup(
             "sim = excavation_sim.sim_node:main",
             "trial = excavation_sim.trial:main",
             "ant-trial = excavation_sim.trial:main",
+            "bag = excavation_sim.bag.cli:main",
+            "ant-bag = excavation_sim.bag.cli:main",
         ],
     },
 )

@@ -1,0 +1,227 @@
+"""``ant-bag``: record, replay, inspect, recover and report ROS 2 bags of the node suite.
+
+Examples::
+
+    ant-bag record --out bags/run1                      # every suite topic, until Ctrl-C
+    ant-bag record --out bags/run1 --topics '/robot_*/pose' /worksite/height_map --duration 60
+    ant-bag info bags/sample
+    ant-bag play bags/sample --rate 2 --loop
+    ant-bag play bags/sample --lockstep --topics /blueprint/* /worksite/* '/robot_*/pose'
+    ant-bag report bags/sample --out report/
+    ant-bag recover crashed_bag --out repaired_bag      # a bag whose recorder was killed
+
+``ros2 run excavation_sim bag ...`` is the same program. ROS traffic stays on this machine
+unless ``ROS_AUTOMATIC_DISCOVERY_RANGE`` says otherwise; ``--domain`` picks the ROS domain.
+A bad bag or argument ends with exit code 2 and a message naming the bag, field and value.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+from ant_controller.errors import FieldError
+
+
+def _spin(node_factory, domain: int | None, until) -> object:
+    """Init rclpy on ``domain``, spin the node until ``until(node)`` or shutdown."""
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    context = Context()
+    if domain is None:
+        domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
+    rclpy.init(context=context, domain_id=domain)
+    executor = SingleThreadedExecutor(context=context)
+    node = None
+    try:
+        node = node_factory(context)
+        executor.add_node(node)
+        while context.ok() and not until(node):
+            executor.spin_once(timeout_sec=0.05)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            close = getattr(node, "close", None)
+            if close is not None:
+                close()
+            executor.remove_node(node)
+            node.destroy_node()
+        executor.shutdown()
+        rclpy.try_shutdown(context=context)
+    return node
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    """``ant-bag record``."""
+    from rclpy.parameter import Parameter
+
+    from excavation_sim.bag.recorder_node import RecorderNode
+
+    overrides = [
+        Parameter("out", value=args.out),
+        Parameter("flush_period", value=float(args.flush_period)),
+        Parameter("height_unit", value=float(args.height_unit)),
+    ]
+    if args.topics:
+        overrides.append(Parameter("topics", value=list(args.topics)))
+    started = time.monotonic()
+
+    def until(_node) -> bool:
+        return args.duration is not None and time.monotonic() - started >= args.duration
+
+    print(f"ant-bag: recording into {args.out} (Ctrl-C stops)", file=sys.stderr, flush=True)
+    node = _spin(
+        lambda ctx: RecorderNode(context=ctx, parameter_overrides=overrides), args.domain, until
+    )
+    if node is not None:
+        counts = node.recorded
+        print(f"ant-bag: {sum(counts.values())} messages on {len(counts)} topics in {args.out}")
+        for topic, reason in node.skipped.items():
+            print(f"ant-bag: warning: {topic} not recorded: {reason}", file=sys.stderr)
+    return 0
+
+
+def cmd_play(args: argparse.Namespace) -> int:
+    """``ant-bag play``."""
+    from rclpy.parameter import Parameter
+
+    from excavation_sim.bag.player_node import PlayerNode
+    from excavation_sim.bag.storage import open_bag
+
+    bag = open_bag(args.bag)
+    for w in bag.warnings:
+        print(f"ant-bag: warning: {w}", file=sys.stderr)
+    overrides = [
+        Parameter("rate", value=float(args.rate)),
+        Parameter("loop", value=bool(args.loop)),
+        Parameter("lockstep", value=bool(args.lockstep)),
+    ]
+    if args.topics:
+        overrides.append(Parameter("topics", value=list(args.topics)))
+    if args.wait_for:
+        overrides.append(Parameter("wait_for", value=list(args.wait_for)))
+    node = _spin(
+        lambda ctx: PlayerNode(bag, context=ctx, parameter_overrides=overrides),
+        args.domain,
+        lambda n: n.finished,
+    )
+    if node is not None:
+        print(f"ant-bag: published {node.published} messages from {args.bag}")
+    return 0
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """``ant-bag info``."""
+    from excavation_sim.bag.storage import latched, open_bag
+
+    bag = open_bag(args.bag)
+    print(f"bag:       {bag.path}")
+    print(f"file:      {bag.mcap.name} ({bag.mcap.stat().st_size} bytes)")
+    print(f"producer:  {bag.producer or 'unknown'}   ros_distro: {bag.ros_distro or 'unknown'}")
+    print(f"messages:  {bag.message_count}" + ("   TRUNCATED" if bag.truncated else ""))
+    width = max((len(t) for t in bag.topics), default=5)
+    for t in bag.topics.values():
+        flag = "latched" if latched(t.qos) else ""
+        print(f"  {t.name:<{width}}  {t.msgtype:<45} {t.count:>7}  {flag}")
+    for w in bag.warnings:
+        print(f"warning: {w}")
+    return 0
+
+
+def cmd_recover(args: argparse.Namespace) -> int:
+    """``ant-bag recover``."""
+    from excavation_sim.bag.storage import open_bag, recover_bag
+
+    bag = open_bag(args.bag)
+    new = recover_bag(args.bag, args.out)
+    state = f"truncated ({bag.truncated})" if bag.truncated else "complete"
+    print(f"ant-bag: {args.bag} was {state}; wrote {new.message_count} messages to {args.out}")
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """``ant-bag report``."""
+    from excavation_sim.bag.report import make_report
+    from excavation_sim.bag.storage import open_bag
+
+    bag = open_bag(args.bag)
+    report = make_report(
+        bag, args.out, args.height_unit, gif=not args.no_gif, gif_stride=args.gif_stride
+    )
+    for w in report.warnings:
+        print(f"ant-bag: warning: {w}", file=sys.stderr)
+    for section, why in report.skipped.items():
+        print(f"ant-bag: skipped {section}: {why}", file=sys.stderr)
+    print(f"ant-bag: report in {report.out}: {', '.join(report.files)}")
+    return 0
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command line."""
+    p = argparse.ArgumentParser(
+        prog="ant-bag",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="\n\n".join(__doc__.split("\n\n")[1:3]),
+    )
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("record", help="record topics into a new bag directory")
+    r.add_argument("--out", required=True, metavar="DIR")
+    r.add_argument("--topics", nargs="+", metavar="TOPIC", help="names or globs (default: suite)")
+    r.add_argument("--duration", type=float, default=None, metavar="S")
+    r.add_argument("--flush-period", type=float, default=0.5, metavar="S")
+    r.add_argument("--height-unit", type=float, default=0.05, metavar="M")
+    r.add_argument("--domain", type=int, default=None)
+    r.set_defaults(run=cmd_record)
+
+    pl = sub.add_parser("play", help="republish a bag")
+    pl.add_argument("bag", metavar="DIR")
+    pl.add_argument("--rate", type=float, default=1.0)
+    pl.add_argument("--topics", nargs="+", metavar="TOPIC")
+    pl.add_argument("--loop", action="store_true")
+    pl.add_argument("--lockstep", action="store_true", help="tick by tick, waiting for replies")
+    pl.add_argument("--wait-for", nargs="+", metavar="TOPIC")
+    pl.add_argument("--domain", type=int, default=None)
+    pl.set_defaults(run=cmd_play)
+
+    i = sub.add_parser("info", help="topics, counts and QoS of a bag")
+    i.add_argument("bag", metavar="DIR")
+    i.set_defaults(run=cmd_info)
+
+    rc = sub.add_parser("recover", help="write a complete copy of a truncated bag")
+    rc.add_argument("bag", metavar="DIR")
+    rc.add_argument("--out", required=True, metavar="DIR")
+    rc.set_defaults(run=cmd_recover)
+
+    rp = sub.add_parser("report", help="figures and a summary of a recorded trial")
+    rp.add_argument("bag", metavar="DIR")
+    rp.add_argument("--out", required=True, metavar="DIR")
+    rp.add_argument("--height-unit", type=float, default=None, metavar="M")
+    rp.add_argument("--no-gif", action="store_true")
+    rp.add_argument("--gif-stride", type=int, default=None, metavar="N")
+    rp.set_defaults(run=cmd_report)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``ant-bag`` (and ``ros2 run excavation_sim bag``)."""
+    from rclpy.utilities import remove_ros_args
+
+    argv = sys.argv[1:] if argv is None else argv
+    args = parser().parse_args(remove_ros_args(["ant-bag", *argv])[1:])
+    try:
+        return args.run(args)
+    except (FieldError, ValueError, OSError) as exc:
+        print(f"ant-bag: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
