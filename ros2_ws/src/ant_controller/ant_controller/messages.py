@@ -169,6 +169,11 @@ class BladeGeometry:
             BLADE_HOME: self.home,
         }[blade]
 
+    def nearest(self, position: float) -> int:
+        """The blade code whose joint position is nearest to ``position``."""
+        codes = (BLADE_BELOW, BLADE_LEVEL, BLADE_ABOVE, BLADE_HOME)
+        return min(codes, key=lambda c: abs(self.position(c) - position))
+
 
 def blade_joint(blade: int, force: float, geometry: BladeGeometry, stamp=None) -> JointState:
     """The ``blade`` joint state for a blade code and push force."""
@@ -206,8 +211,7 @@ def blade_from_joint(
     pos, force = float(msg.position[i]), float(msg.effort[i])
     if not (math.isfinite(pos) and math.isfinite(force)):
         raise MessageError(topic, "blade", (pos, force), "position and effort must be finite")
-    codes = (BLADE_BELOW, BLADE_LEVEL, BLADE_ABOVE, BLADE_HOME)
-    blade = min(codes, key=lambda c: abs(geometry.position(c) - pos))
+    blade = geometry.nearest(pos)
     volume = int(round(max(force, 0.0) / geometry.max_force * MAX_LOAD))
     return blade, volume
 

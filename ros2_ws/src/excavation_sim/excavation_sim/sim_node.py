@@ -19,11 +19,19 @@ ticks the node publishes the final state and fitness and stops stepping (``finis
 
 Parameters: ``blueprint`` (``default``, ``default:D``, ``landing-pad`` or a file),
 ``robots`` (4), ``steps`` (300), ``seed`` (0), ``dt`` (1.0 s of sim time per tick),
-``command_timeout`` (1.0 s), ``startup_period`` (0.5 s).
+``command_timeout`` (1.0 s), ``first_command_timeout`` (30.0 s: tick 0 waits longer, while
+controllers load their compiled kernels), ``startup_period`` (0.5 s),
+``diagnostics_period`` (1.0 s), ``blade_driver`` (false), ``result_file`` (JSON written at
+the end; empty: none). With ``blade_driver: true`` every robot has a
+``blade_driver driver`` (sim backend): the node publishes ``/robot_k/blade/servo_state``
+instead of ``blade/joint_states``, also waits for each driver's
+``/robot_k/blade/servo_command`` of the tick, applies the words without their blade bits and
+then sets each blade to the driver's set-point (nearest setting).
 """
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 
@@ -37,6 +45,13 @@ from sensor_msgs.msg import Image, Imu, JointState
 from std_msgs.msg import Bool, Float32, UInt16
 from visualization_msgs.msg import Marker, MarkerArray
 
+from ant_controller.files import write_text_atomic
+from ant_controller.layout import (
+    BLADE_ABOVE_CMD,
+    BLADE_BELOW_CMD,
+    BLADE_HOME_CMD,
+    BLADE_LEVEL_CMD,
+)
 from ant_controller.messages import BladeGeometry, blade_joint, grid_to_image, pose_message
 from ant_controller.ros import LATCHED, spin_node
 from ant_controller.sensing import blade_volume, is_tilted_down
@@ -50,6 +65,11 @@ from excavation_sim.world import (
     STUCK,
     World,
 )
+
+BLADE_BITS = sum(
+    1 << b for b in (BLADE_ABOVE_CMD, BLADE_BELOW_CMD, BLADE_LEVEL_CMD, BLADE_HOME_CMD)
+)
+"""The four blade behaviours of a word (Table 2, 7-10)."""
 
 TILT_PITCH = 0.2
 """Pitch (rad, nose down) the simulated IMU reports when R1 holds."""
@@ -72,7 +92,10 @@ class SimNode(Node):
         self.steps = int(p("steps", 300).value)
         self.dt = float(p("dt", 1.0).value)
         self.timeout = float(p("command_timeout", 1.0).value)
+        self.first_timeout = float(p("first_command_timeout", 30.0).value)
         self.startup_period = float(p("startup_period", 0.5).value)
+        self.blade_driver = bool(p("blade_driver", False).value)
+        self.result_file = str(p("result_file", "").value)
         self.blueprint, self.world = scenario_world(
             str(p("blueprint", "default").value), self.n, int(p("seed", 0).value)
         )
@@ -80,6 +103,8 @@ class SimNode(Node):
         self.tick = 0
         self.finished = False
         self.commands: dict[int, int] = {}
+        self.servo_commands: dict[int, float] = {}
+        self.missed_servo: dict[int, int] = {k: 0 for k in range(self.n)}
         self.answered_once: set[int] = set()
         self.missed: dict[int, int] = {k: 0 for k in range(self.n)}
         self.fitness_trace = [self.world.fitness()]
@@ -94,9 +119,15 @@ class SimNode(Node):
             self.pose_pubs.append(
                 self.create_publisher(PoseWithCovarianceStamped, f"{ns}/pose", 10)
             )
-            self.joint_pubs.append(
-                self.create_publisher(JointState, f"{ns}/blade/joint_states", 10)
-            )
+            blade_topic = "blade/servo_state" if self.blade_driver else "blade/joint_states"
+            self.joint_pubs.append(self.create_publisher(JointState, f"{ns}/{blade_topic}", 10))
+            if self.blade_driver:
+                self.create_subscription(
+                    JointState,
+                    f"{ns}/blade/servo_command",
+                    lambda m, k=k: self.on_servo_command(k, m),
+                    10,
+                )
             self.stuck_pubs.append(self.create_publisher(Bool, f"{ns}/stuck", 10))
             self.imu_pubs.append(self.create_publisher(Imu, f"{ns}/imu", 10))
             self.create_subscription(
@@ -108,6 +139,7 @@ class SimNode(Node):
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(0.001, self.step)
+        self.create_timer(float(p("diagnostics_period", 1.0).value), self.report_state)
 
     def _stamp(self) -> TimeMsg:
         seconds = self.tick * self.dt
@@ -161,12 +193,32 @@ class SimNode(Node):
         return out
 
     def controllers_present(self) -> bool:
-        """Every robot's controller publishes its behaviour and listens to its pose."""
+        """Every robot's controller (and blade driver) is on the graph."""
         return all(
             self.count_publishers(f"/robot_{k}/behaviour") > 0
             and self.count_subscribers(f"/robot_{k}/pose") > 0
+            and (
+                not self.blade_driver
+                or (
+                    self.count_publishers(f"/robot_{k}/blade/servo_command") > 0
+                    and self.count_subscribers(f"/robot_{k}/blade/servo_state") > 0
+                )
+            )
             for k in range(self.n)
         )
+
+    def on_servo_command(self, k: int, msg: JointState) -> None:
+        """A blade driver's set-point for the current tick (stamped with it; others dropped)."""
+        stamp = self._stamp()
+        if self.finished or (msg.header.stamp.sec, msg.header.stamp.nanosec) != (
+            stamp.sec,
+            stamp.nanosec,
+        ):
+            return
+        if "blade" in msg.name and len(msg.position) > msg.name.index("blade"):
+            value = float(msg.position[list(msg.name).index("blade")])
+            if math.isfinite(value):
+                self.servo_commands.setdefault(k, value)
 
     def on_command(self, k: int, msg: UInt16) -> None:
         """A robot's behaviour mask for the current tick (the first one counts)."""
@@ -189,7 +241,11 @@ class SimNode(Node):
                 self.publish_state()
             return
         waited = (now - self.wait_started).nanoseconds * 1e-9
-        if len(self.commands) < self.n and waited < self.timeout:
+        waiting = len(self.commands) < self.n
+        if self.blade_driver:
+            waiting = waiting or len(self.servo_commands) < self.n
+        timeout = self.first_timeout if self.tick == 0 else self.timeout
+        if waiting and waited < max(timeout, self.timeout):
             return
         masks = np.array([self.commands.get(k, 0) for k in range(self.n)], dtype=np.int64)
         for k in range(self.n):
@@ -202,7 +258,10 @@ class SimNode(Node):
             )
         self.commands.clear()
         self.applied.append([int(m) for m in masks])
-        self.world.step(masks)
+        if self.blade_driver:
+            self.step_with_drivers(masks)
+        else:
+            self.world.step(masks)
         self.fitness_trace.append(self.world.fitness())
         self.tick += 1
         if self.tick >= self.steps:
@@ -210,6 +269,51 @@ class SimNode(Node):
         self.publish_state()
         if self.finished:
             self.report(f"finished {self.steps} ticks, fitness {self.world.fitness():.4f}")
+            if self.result_file:
+                self.write_result(self.result_file)
+
+    def result(self) -> dict:
+        """The trial's outcome: fitness, its trace, final heights, commands, missed ticks."""
+        return {
+            "fitness": float(self.world.fitness()),
+            "trace": [float(f) for f in self.fitness_trace],
+            "heights": self.world.heights.tolist(),
+            "missed": {str(k): v for k, v in self.missed.items()},
+            "missed_blade_setpoints": {str(k): v for k, v in self.missed_servo.items()},
+            "commands": self.applied,
+        }
+
+    def write_result(self, path: str) -> None:
+        """Write :meth:`result` as JSON, atomically (``ant-trial --processes`` reads it)."""
+        write_text_atomic(path, json.dumps(self.result()))
+
+    def step_with_drivers(self, masks: np.ndarray) -> None:
+        """Apply the words without their blade bits, then each driver's set-point.
+
+        Blade behaviours come after every move in Table 2 order, so setting the blade after
+        the step is the same as the words' own blade bits when a driver follows them. A
+        driver that sent nothing for this tick leaves its blade where it was.
+        """
+        self.world.step(masks & ~BLADE_BITS)
+        silent = []
+        for k in range(self.n):
+            if k in self.servo_commands:
+                self.world.robots[k, BLADE] = self.geometry.nearest(self.servo_commands[k])
+            else:
+                self.missed_servo[k] += 1
+                silent.append(k)
+        self.servo_commands.clear()
+        if silent:
+            self.report(f"tick {self.tick}: no blade set-point from robots {silent}; blade held")
+
+    def report_state(self) -> None:
+        """The periodic status: waiting for the team, stepping, or finished."""
+        if self.finished:
+            self.report(f"finished {self.steps} ticks, fitness {self.world.fitness():.4f}")
+        elif self.last_publish is None:
+            self.report("waiting for every robot's controller to join")
+        else:
+            self.report(f"stepping: tick {self.tick} of {self.steps}")
 
     def report(self, message: str, level=DiagnosticStatus.OK) -> None:
         """One diagnostics status for the simulator."""
@@ -223,7 +327,12 @@ class SimNode(Node):
                 KeyValue(key="tick", value=str(self.tick)),
                 KeyValue(key="fitness", value=f"{self.world.fitness():.6f}"),
             ]
-            + [KeyValue(key=f"robot_{k}_missed", value=str(v)) for k, v in self.missed.items()],
+            + [KeyValue(key=f"robot_{k}_missed", value=str(v)) for k, v in self.missed.items()]
+            + [
+                KeyValue(key=f"robot_{k}_missed_blade_setpoints", value=str(v))
+                for k, v in self.missed_servo.items()
+                if self.blade_driver
+            ],
         )
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self._stamp()

@@ -1,14 +1,18 @@
-"""``ant-trial``: one excavation trial through the ROS nodes, in one process.
+"""``ant-trial``: one excavation trial through the ROS nodes.
 
-Starts the blueprint server, the lockstep simulator and one controller per robot (composed
-on one executor, the way ``executors/composed.py`` of ros2/examples composes nodes; this
-environment has no launch), runs ``--steps`` ticks, prints the fitness and stops every node.
-The result equals ``ant-eval --scenarios 1`` with the same seed (``tests/test_trial.py``).
+Starts the blueprint server, the lockstep simulator, and per robot a controller and a blade
+driver (``--no-blade-driver`` leaves the drivers out; the simulator then publishes the
+blade's joint state itself). By default the nodes are composed on one executor in one
+process (the way ``executors/composed.py`` of ros2/examples composes nodes; this
+environment has no launch); ``--processes`` starts each node as its own process, as
+separate ``ros2 run`` commands would, and collects the result from the simulator's
+``result_file``. Either way it runs ``--steps`` ticks, prints the fitness and stops every
+node. The result equals ``ant-eval --scenarios 1`` with the same seed (``tests/test_trial.py``).
 
 Examples::
 
     ant-trial --genome genomes/best.json --robots 4 --steps 300 --seed 0
-    ant-trial --hand-coded --robots 1 --blueprint site.yaml
+    ant-trial --hand-coded --robots 1 --blueprint site.yaml --processes
 
 Traffic stays on this machine when ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (set here
 unless already set); ``--domain`` picks the ROS domain (default: ``ROS_DOMAIN_ID`` or 0).
@@ -19,9 +23,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
+import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -38,6 +46,10 @@ class TrialResult:
     commands: list[list[int]]
 
 
+def _controller_args(controller_spec: str) -> list[str]:
+    return ["--hand-coded"] if controller_spec == "hand-coded" else ["--genome", controller_spec]
+
+
 def run_trial(
     controller_spec: str,
     robots: int,
@@ -47,6 +59,8 @@ def run_trial(
     domain: int | None = None,
     command_timeout: float = 2.0,
     timeout: float = 600.0,
+    blade_driver: bool = True,
+    processes: bool = False,
 ) -> TrialResult:
     """Run a trial through the nodes and return its result.
 
@@ -59,22 +73,17 @@ def run_trial(
         domain: ROS domain id (default: ``ROS_DOMAIN_ID`` or 0).
         command_timeout: Seconds the simulator waits for a command.
         timeout: Give up after this many seconds.
+        blade_driver: One ``blade_driver`` node per robot between controller and simulator.
+        processes: Each node in its own process instead of one composed process.
 
     Raises:
         TimeoutError: When the trial does not finish in time.
+        RuntimeError: ``processes``: a node process failed (its log is in the message).
         ant_controller.errors.GenomeFormatError: For a bad genome file.
     """
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-
     from ant_controller.controller import Controller
-    from ant_controller.controller_node import ControllerNode
-    from blueprint_server.server_node import BlueprintServer
-    from excavation_sim.sim_node import SimNode
 
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     ctl = (
         Controller.hand_coded()
         if controller_spec == "hand-coded"
@@ -82,6 +91,43 @@ def run_trial(
     )
     if domain is None:
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
+    run = _run_processes if processes else _run_composed
+    return run(
+        ctl,
+        controller_spec,
+        robots,
+        steps,
+        seed,
+        blueprint,
+        domain,
+        command_timeout,
+        timeout,
+        blade_driver,
+    )
+
+
+def _run_composed(
+    ctl,
+    controller_spec,
+    robots,
+    steps,
+    seed,
+    blueprint,
+    domain,
+    command_timeout,
+    timeout,
+    blade_driver,
+) -> TrialResult:
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+
+    from ant_controller.controller_node import ControllerNode
+    from blade_driver.driver_node import BladeDriverNode
+    from blueprint_server.server_node import BlueprintServer
+    from excavation_sim.sim_node import SimNode
+
     context = Context()
     rclpy.init(context=context, domain_id=domain)
     executor = SingleThreadedExecutor(context=context)
@@ -101,6 +147,7 @@ def run_trial(
                 Parameter("steps", value=steps),
                 Parameter("seed", value=seed),
                 Parameter("command_timeout", value=float(command_timeout)),
+                Parameter("blade_driver", value=blade_driver),
             ],
         )
         nodes.append(sim)
@@ -119,6 +166,8 @@ def run_trial(
                     ],
                 )
             )
+            if blade_driver:
+                nodes.append(BladeDriverNode(context=context, namespace=f"/robot_{k}"))
         for node in nodes:
             executor.add_node(node)
         while not sim.finished:
@@ -141,6 +190,122 @@ def run_trial(
         rclpy.try_shutdown(context=context)
 
 
+def _run_processes(
+    ctl,
+    controller_spec,
+    robots,
+    steps,
+    seed,
+    blueprint,
+    domain,
+    command_timeout,
+    timeout,
+    blade_driver,
+) -> TrialResult:
+    from blueprint_server.blueprint_info import resolve
+
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
+    height_unit = resolve(blueprint).height_unit
+    started = time.monotonic()
+    with tempfile.TemporaryDirectory(prefix="ant-trial-") as tmp:
+        result_file = Path(tmp) / "result.json"
+
+        def node(name: str, module: str, *args: str) -> list[str]:
+            return [sys.executable, "-m", module, *args, "--ros-args", "-r", f"__node:={name}"]
+
+        commands = {
+            "server": node("server", "blueprint_server.server_node")
+            + ["-p", f"blueprint:={blueprint}"],
+            "sim": node("sim", "excavation_sim.sim_node")
+            + [
+                "-p",
+                f"blueprint:={blueprint}",
+                "-p",
+                f"robots:={robots}",
+                "-p",
+                f"steps:={steps}",
+                "-p",
+                f"seed:={seed}",
+                "-p",
+                f"command_timeout:={float(command_timeout)!r}",
+                "-p",
+                f"blade_driver:={str(blade_driver).lower()}",
+                "-p",
+                f"result_file:={result_file}",
+            ],
+        }
+        for k in range(robots):
+            commands[f"controller_{k}"] = node(
+                "controller", "ant_controller.controller_node", *_controller_args(controller_spec)
+            ) + [
+                "-r",
+                f"__ns:=/robot_{k}",
+                "-p",
+                f"robot_id:={k}",
+                "-p",
+                f"robots:={robots}",
+                "-p",
+                f"height_unit:={float(height_unit)!r}",
+                "-p",
+                "lockstep:=true",
+            ]
+            if blade_driver:
+                commands[f"blade_driver_{k}"] = node("blade_driver", "blade_driver.driver_node") + [
+                    "-r",
+                    f"__ns:=/robot_{k}",
+                    "-p",
+                    "backend:=sim",
+                ]
+        procs: dict[str, tuple[subprocess.Popen, Path]] = {}
+        try:
+            for name, cmd in commands.items():
+                log = Path(tmp) / f"{name}.log"
+                with open(log, "wb") as out:
+                    procs[name] = (
+                        subprocess.Popen(cmd, env=env, stdout=out, stderr=subprocess.STDOUT),
+                        log,
+                    )
+            sim = procs["sim"][0]
+            while sim.poll() is None:
+                if time.monotonic() - started > timeout:
+                    raise TimeoutError(f"trial did not finish within {timeout} s")
+                for name, (proc, log) in procs.items():
+                    if proc.poll() is not None and proc.returncode != 0:
+                        raise RuntimeError(f"{name} exited with {proc.returncode}:\n{_tail(log)}")
+                time.sleep(0.1)
+            if sim.returncode != 0 or not result_file.exists():
+                raise RuntimeError(f"sim exited with {sim.returncode}:\n{_tail(procs['sim'][1])}")
+            data = json.loads(result_file.read_text())
+        finally:
+            _stop(procs)
+    return TrialResult(
+        data["fitness"],
+        data["trace"],
+        np.array(data["heights"], dtype=np.int64),
+        {int(k): v for k, v in data["missed"].items()},
+        time.monotonic() - started,
+        data["commands"],
+    )
+
+
+def _tail(log: Path, lines: int = 20) -> str:
+    return "\n".join(log.read_text(errors="replace").splitlines()[-lines:])
+
+
+def _stop(procs: dict) -> None:
+    """SIGINT every node still running (as Ctrl-C would), then kill what is left."""
+    for proc, _ in procs.values():
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+    deadline = time.monotonic() + 10.0
+    for proc, _ in procs.values():
+        try:
+            proc.wait(timeout=max(0.1, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ant-trial``."""
     p = argparse.ArgumentParser(prog="ant-trial", description=__doc__.split("\n\n")[0])
@@ -152,6 +317,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, default=300)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--domain", type=int, default=None)
+    p.add_argument(
+        "--no-blade-driver",
+        action="store_true",
+        help="no blade_driver nodes (sim publishes the blade)",
+    )
+    p.add_argument("--processes", action="store_true", help="each node in its own process")
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     from ant_controller.errors import FieldError
@@ -164,8 +335,10 @@ def main(argv: list[str] | None = None) -> int:
             args.seed,
             args.blueprint,
             args.domain,
+            blade_driver=not args.no_blade_driver,
+            processes=args.processes,
         )
-    except (FieldError, TimeoutError) as exc:
+    except (FieldError, TimeoutError, RuntimeError) as exc:
         print(f"ant-trial: error: {exc}", file=sys.stderr)
         return 2
     if args.json:

@@ -1,0 +1,281 @@
+"""The blade driver's logic, without ROS: behaviours to servo set-points (paper, sections 3 and 6).
+
+A robot's controller sends one behaviour word per tick (bit i = behaviour i+1 of Table 2).
+Four of the twelve behaviours set the bulldozer blade: above, below, level and home (7-10).
+They run in table order within a tick, so the last blade bit set wins, and a word with no
+blade bit leaves the blade where it is: the rule the simulator's world model follows.
+
+On top of that nominal setting the driver adds what a real blade needs:
+
+* **Constant-force pushing.** The dome robots trim the blade height with a PID loop so that the
+  push force stays constant while they cut or push (blade below or level, moving forward).
+  The trim is bounded by ``trim_limit``, less than half the step between two settings, so a
+  trimmed blade still reads as the setting the controller chose.
+* **Limits.** Set-points are clipped to ``[position_min, position_max]`` and move at most
+  ``max_speed`` per second.
+* **Watchdog.** No behaviour word for ``watchdog_timeout`` seconds: the blade goes home (no
+  soil contact) and stays there until commands return.
+* **Operator override.** A set-point from ``blade/commands`` wins over the controller while it
+  is younger than ``override_timeout``.
+
+Time is whatever the caller passes: wall-clock seconds on hardware, simulated seconds in a
+lockstep trial, so the same core is deterministic in both.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+
+from ant_controller.layout import (
+    BLADE_ABOVE,
+    BLADE_ABOVE_CMD,
+    BLADE_BELOW,
+    BLADE_BELOW_CMD,
+    BLADE_HOME,
+    BLADE_HOME_CMD,
+    BLADE_LEVEL,
+    BLADE_LEVEL_CMD,
+    MOVE_FORWARD,
+)
+from ant_controller.messages import BladeGeometry
+from blade_driver.errors import DriverConfigError
+
+BLADE_NAMES = {BLADE_BELOW: "below", BLADE_LEVEL: "level", BLADE_ABOVE: "above", BLADE_HOME: "home"}
+
+# Table 2 order: the last blade behaviour executed in a tick decides the setting.
+_BLADE_BITS = (
+    (BLADE_ABOVE_CMD, BLADE_ABOVE),
+    (BLADE_BELOW_CMD, BLADE_BELOW),
+    (BLADE_LEVEL_CMD, BLADE_LEVEL),
+    (BLADE_HOME_CMD, BLADE_HOME),
+)
+
+
+def blade_setting(word: int, current: int) -> int:
+    """The blade setting after a behaviour word.
+
+    The word's last blade bit in Table 2 order, or ``current`` when it has none.
+    """
+    setting = current
+    for bit, code in _BLADE_BITS:
+        if (word >> bit) & 1:
+            setting = code
+    return setting
+
+
+@dataclass(frozen=True)
+class DriverParams:
+    """Parameters of the blade driver (ROS parameters of the same names).
+
+    Attributes:
+        depth: Blade edge below / above the wheels for the "below" / "above" settings (m).
+        home: Blade edge height when retracted (m).
+        max_force: Push force (N) of a full blade (24 soil units; the dome robots: 10 N).
+        position_min: Lowest set-point the blade mechanism allows (m).
+        position_max: Highest set-point (m).
+        max_speed: Largest set-point change per second (m/s).
+        push_force: Force the constant-force loop holds while pushing (N).
+        kp: Proportional gain of the force loop (m per N).
+        ki: Integral gain (m per N s).
+        kd: Derivative gain (m s per N).
+        trim_limit: Largest trim the force loop may add to a setting (m); must stay below
+            half the distance between neighbouring settings.
+        watchdog_timeout: Seconds without a behaviour word before the blade goes home.
+        override_timeout: Seconds an operator set-point stays in charge.
+    """
+
+    depth: float = 0.02
+    home: float = 0.10
+    max_force: float = 10.0
+    position_min: float = -0.03
+    position_max: float = 0.12
+    max_speed: float = 0.25
+    push_force: float = 6.0
+    kp: float = 0.0008
+    ki: float = 0.002
+    kd: float = 0.0
+    trim_limit: float = 0.008
+    watchdog_timeout: float = 1.5
+    override_timeout: float = 0.5
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not math.isfinite(value):
+                raise DriverConfigError("<parameters>", f.name, value, "must be finite")
+        positive = ("depth", "home", "max_force", "max_speed", "watchdog_timeout")
+        for name in positive + ("override_timeout",):
+            if getattr(self, name) <= 0:
+                raise DriverConfigError("<parameters>", name, getattr(self, name), "must be > 0")
+        for name in ("push_force", "kp", "ki", "kd", "trim_limit"):
+            if getattr(self, name) < 0:
+                raise DriverConfigError("<parameters>", name, getattr(self, name), "must be >= 0")
+        if self.home <= self.depth:
+            raise DriverConfigError("<parameters>", "home", self.home, "must be above `depth`")
+        if not self.position_min <= -self.depth or not self.position_max >= self.home:
+            raise DriverConfigError(
+                "<parameters>",
+                "position_min/position_max",
+                (self.position_min, self.position_max),
+                f"must include every setting, [-{self.depth}, {self.home}]",
+            )
+        if self.trim_limit >= self.depth / 2:
+            raise DriverConfigError(
+                "<parameters>",
+                "trim_limit",
+                self.trim_limit,
+                f"must be below half the step between settings ({self.depth / 2})",
+            )
+
+    @property
+    def geometry(self) -> BladeGeometry:
+        """The joint positions of the four settings, as the message conventions define them."""
+        return BladeGeometry(self.depth, self.home, self.max_force)
+
+
+@dataclass
+class Pid:
+    """A PID loop with a clamped output and a clamped integrator (no wind-up).
+
+    ``update(error, dt)`` returns ``kp e + ki sum(e dt) + kd de/dt`` clipped to
+    ``[-limit, limit]``; the integral term alone is held within the same bounds, so it never
+    winds up beyond what the output can use.
+    """
+
+    kp: float
+    ki: float
+    kd: float
+    limit: float
+    integral: float = 0.0
+    previous: float | None = None
+
+    def update(self, error: float, dt: float) -> float:
+        """One step of the loop; ``dt`` in seconds (0 skips the integral and derivative)."""
+        derivative = 0.0
+        if dt > 0 and self.previous is not None:
+            derivative = (error - self.previous) / dt
+        self.previous = error
+        self.integral += error * dt
+        if self.ki > 0:
+            bound = self.limit / self.ki
+            self.integral = min(bound, max(-bound, self.integral))
+        out = self.kp * error + self.ki * self.integral + self.kd * derivative
+        return min(self.limit, max(-self.limit, out))
+
+    def reset(self) -> None:
+        """Forget the integral and the last error."""
+        self.integral = 0.0
+        self.previous = None
+
+
+@dataclass
+class DriverState:
+    """What the driver is doing now (reported on ``/diagnostics``)."""
+
+    setting: int = BLADE_HOME
+    setpoint: float = 0.10
+    trim: float = 0.0
+    source: str = "startup"
+    watchdog_tripped: bool = False
+    last_command: float | None = None
+    override: float | None = None
+    override_time: float | None = None
+    clipped: int = 0
+
+
+@dataclass
+class BladeDriverCore:
+    """Turns behaviour words, operator set-points and force readings into blade set-points.
+
+    Call ``command(word, now)`` for each behaviour word, ``override(position, now)`` for each
+    operator set-point, and ``update(now, force)`` once per control step; ``update`` returns
+    the set-point to send to the servo. ``now`` is in seconds (wall or simulated).
+    """
+
+    params: DriverParams = field(default_factory=DriverParams)
+    state: DriverState = field(default_factory=DriverState)
+    pushing: bool = False
+    _pid: Pid | None = None
+    _last_update: float | None = None
+
+    def __post_init__(self) -> None:
+        p = self.params
+        self._pid = Pid(p.kp, p.ki, p.kd, p.trim_limit)
+        self.state.setpoint = p.home
+
+    def command(self, word: int, now: float) -> None:
+        """A behaviour word from the controller."""
+        self.state.setting = blade_setting(int(word), self.state.setting)
+        self.pushing = bool((int(word) >> MOVE_FORWARD) & 1)
+        self.state.last_command = now
+        self.state.watchdog_tripped = False
+
+    def override(self, position: float, now: float) -> None:
+        """An operator set-point (m); clipped to the limits (counted in ``state.clipped``)."""
+        p = self.params
+        if not math.isfinite(position):
+            raise DriverConfigError("blade/commands", "data[0]", position, "must be finite")
+        clipped = min(p.position_max, max(p.position_min, float(position)))
+        if clipped != position:
+            self.state.clipped += 1
+        self.state.override = clipped
+        self.state.override_time = now
+
+    def override_active(self, now: float) -> bool:
+        """An operator set-point younger than ``override_timeout``."""
+        t = self.state.override_time
+        return t is not None and now - t <= self.params.override_timeout
+
+    def watchdog_due(self, now: float) -> bool:
+        """Commands stopped for longer than ``watchdog_timeout`` (none yet does not count)."""
+        last = self.state.last_command
+        return last is not None and now - last > self.params.watchdog_timeout
+
+    def needs_no_controller(self, now: float) -> bool:
+        """The set-point at ``now`` does not wait for a behaviour word (override or watchdog)."""
+        return self.override_active(now) or self.watchdog_due(now)
+
+    def update(self, now: float, force: float | None) -> float:
+        """Advance to time ``now`` with the measured push force (N, None if unknown).
+
+        Returns:
+            The servo set-point (m), within the limits; after the first call it moves at
+            most ``max_speed * (now - previous now)``.
+        """
+        p, s = self.params, self.state
+        first = self._last_update is None
+        dt = 0.0 if first else max(0.0, now - self._last_update)
+        self._last_update = now
+        if self.override_active(now):
+            target, s.source, s.trim = s.override, "operator override", 0.0
+            self._pid.reset()
+        else:
+            if self.watchdog_due(now):
+                s.watchdog_tripped = True
+                s.setting = BLADE_HOME
+                s.source = "watchdog: blade home, no command"
+            elif s.last_command is None:
+                s.source = "no command yet"
+            else:
+                s.source = "controller"
+            nominal = p.geometry.position(s.setting)
+            if (
+                s.source == "controller"
+                and self.pushing
+                and s.setting in (BLADE_BELOW, BLADE_LEVEL)
+                and force is not None
+            ):
+                # More force than wanted: raise the blade (positive trim) to cut less.
+                s.trim = self._pid.update(force - p.push_force, dt)
+            else:
+                s.trim = 0.0
+                self._pid.reset()
+            target = nominal + s.trim
+            s.source = s.source if not s.trim else s.source + " (constant force)"
+        target = min(p.position_max, max(p.position_min, target))
+        if not first:
+            step = p.max_speed * dt
+            target = min(s.setpoint + step, max(s.setpoint - step, target))
+        s.setpoint = target
+        return target

@@ -1,0 +1,180 @@
+"""The blade driver's pure core: settings, limits, watchdog, override, force loop, protocol."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from ant_controller.layout import (
+    BLADE_ABOVE,
+    BLADE_ABOVE_CMD,
+    BLADE_BELOW,
+    BLADE_BELOW_CMD,
+    BLADE_HOME,
+    BLADE_HOME_CMD,
+    BLADE_LEVEL,
+    BLADE_LEVEL_CMD,
+    MOVE_FORWARD,
+)
+from blade_driver.core import BladeDriverCore, DriverParams, Pid, blade_setting
+from blade_driver.errors import BoardError, DriverConfigError
+from blade_driver.protocol import ServoCalibration, checksum, decode, encode
+
+
+def word(*bits: int) -> int:
+    return sum(1 << b for b in bits)
+
+
+@pytest.mark.parametrize(
+    ("bits", "expected"),
+    [
+        ((), BLADE_LEVEL),  # no blade bit: unchanged
+        ((BLADE_ABOVE_CMD,), BLADE_ABOVE),
+        ((BLADE_BELOW_CMD,), BLADE_BELOW),
+        ((BLADE_HOME_CMD,), BLADE_HOME),
+        ((BLADE_ABOVE_CMD, BLADE_BELOW_CMD), BLADE_BELOW),  # table order: the last one wins
+        ((BLADE_BELOW_CMD, BLADE_LEVEL_CMD), BLADE_LEVEL),
+        ((BLADE_ABOVE_CMD, BLADE_HOME_CMD, BLADE_LEVEL_CMD), BLADE_HOME),
+        ((MOVE_FORWARD,), BLADE_LEVEL),
+    ],
+)
+def test_blade_setting_follows_table_order(bits, expected):
+    assert blade_setting(word(*bits), BLADE_LEVEL) == expected
+
+
+def test_blade_setting_agrees_with_the_world_model():
+    import numpy as np
+
+    from blueprint_server.blueprint import default_blueprint
+    from excavation_sim.world import BLADE, World
+
+    bp = default_blueprint(1)
+    start = World.scenario(bp.zones, bp.goal, 1, 0)
+    for w in range(1 << 12):
+        world = start.copy()
+        before = int(world.robots[0, BLADE])
+        world.step(np.array([w & ~word(1, 2)], dtype=np.int64))  # no moves: blade only
+        assert world.robots[0, BLADE] == blade_setting(w, before)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        ("trim_limit", 0.01, "half the step"),
+        ("watchdog_timeout", 0.0, "must be > 0"),
+        ("kp", -1.0, "must be >= 0"),
+        ("max_speed", math.nan, "must be finite"),
+        ("position_max", 0.05, "include every setting"),
+        ("home", 0.01, "above `depth`"),
+    ],
+)
+def test_bad_parameters_name_the_field(field, value, match):
+    with pytest.raises(DriverConfigError, match=match) as info:
+        DriverParams(**{field: value})
+    assert field in str(info.value)
+
+
+def test_settings_map_to_joint_positions():
+    core = BladeDriverCore()
+    assert core.update(0.0, None) == pytest.approx(0.10)  # home before any command
+    for t, (bit, pos) in enumerate(
+        [(BLADE_BELOW_CMD, -0.02), (BLADE_LEVEL_CMD, 0.0), (BLADE_ABOVE_CMD, 0.02)], start=1
+    ):
+        core.command(word(bit), float(t))
+        assert core.update(float(t), 0.0) == pytest.approx(pos)
+        assert core.state.source == "controller"
+
+
+def test_speed_limit_and_position_limits():
+    core = BladeDriverCore(DriverParams(max_speed=0.1))
+    core.update(0.0, None)
+    core.command(word(BLADE_BELOW_CMD), 0.0)
+    assert core.update(0.1, 0.0) == pytest.approx(0.10 - 0.01)  # 0.1 m/s for 0.1 s
+    assert core.update(0.5, 0.0) == pytest.approx(0.10 - 0.05)
+    core.command(word(BLADE_BELOW_CMD), 1.0)
+    assert core.update(2.0, 0.0) == pytest.approx(-0.02)
+    core.override(1.0, 2.0)  # far above the mechanism: clipped
+    assert core.state.override == pytest.approx(0.12)
+    assert core.state.clipped == 1
+    with pytest.raises(DriverConfigError, match="finite"):
+        core.override(math.inf, 2.0)
+
+
+def test_watchdog_sends_the_blade_home_and_commands_bring_it_back():
+    p = DriverParams(watchdog_timeout=1.5)
+    core = BladeDriverCore(p)
+    core.command(word(BLADE_BELOW_CMD), 0.0)
+    assert core.update(0.0, 0.0) == pytest.approx(-0.02)
+    assert not core.needs_no_controller(1.5)
+    assert core.update(1.5, 0.0) == pytest.approx(-0.02)  # exactly at the limit: still fine
+    assert core.needs_no_controller(1.6)
+    assert core.update(1.6, 0.0) == pytest.approx(-0.02 + 0.25 * 0.1)  # homing, speed-limited
+    assert core.state.watchdog_tripped and "watchdog" in core.state.source
+    assert core.update(2.5, 0.0) == pytest.approx(0.10)
+    core.command(word(MOVE_FORWARD), 3.0)  # a word without blade bits: the blade stays home
+    assert core.update(3.0, 0.0) == pytest.approx(0.10)
+    assert not core.state.watchdog_tripped and core.state.source == "controller"
+
+
+def test_operator_override_wins_while_fresh():
+    core = BladeDriverCore(DriverParams(override_timeout=0.5))
+    core.command(word(BLADE_LEVEL_CMD), 0.0)
+    core.override(0.05, 0.1)
+    assert core.update(0.2, 0.0) == pytest.approx(0.05)
+    assert core.state.source == "operator override"
+    core.command(word(BLADE_BELOW_CMD), 0.3)  # the controller is overruled...
+    assert core.update(0.6, 0.0) == pytest.approx(0.05)
+    core.command(word(BLADE_BELOW_CMD), 0.9)
+    assert core.update(0.9, 0.0) < 0.05  # ...until the override is stale
+    assert core.state.source == "controller"
+    assert core.update(1.2, 0.0) == pytest.approx(-0.02)
+
+
+def test_constant_force_loop_holds_the_push_force():
+    """Blade below, moving forward, soil force k * (surface - height): the loop settles."""
+    p = DriverParams(push_force=6.0)
+    core = BladeDriverCore(p)
+    stiffness, surface = 400.0, 0.0
+    height, t = p.home, 0.0
+    for _ in range(400):
+        core.command(word(MOVE_FORWARD, BLADE_BELOW_CMD), t)
+        force = stiffness * max(0.0, surface - height)
+        height = core.update(t, force)
+        t += 0.05
+    assert stiffness * (surface - height) == pytest.approx(6.0, abs=0.05)
+    assert abs(core.state.trim) <= p.trim_limit
+    assert "constant force" in core.state.source
+    core.command(word(BLADE_BELOW_CMD), t)  # not moving: no trimming
+    assert core.update(t, 8.0) == pytest.approx(-0.02)
+
+
+def test_pid_clamps_and_does_not_wind_up():
+    pid = Pid(kp=0.0, ki=1.0, kd=0.0, limit=0.01)
+    for _ in range(1000):
+        out = pid.update(5.0, 0.1)
+    assert out == pytest.approx(0.01)
+    assert pid.integral <= 0.01 + 1e-12
+    out = pid.update(-5.0, 0.1)  # the error flips: the output leaves saturation at once
+    assert out < 0.01
+
+
+def test_protocol_round_trip_and_errors():
+    line = encode("SET", "92.50")
+    assert line == b"SET 92.50*" + checksum(b"SET 92.50").encode() + b"\n"
+    assert decode(line) == ["SET", "92.50"]
+    with pytest.raises(BoardError, match="checksum"):
+        decode(b"SET 92.50*00\n", "/dev/ttyX")
+    with pytest.raises(BoardError, match="no checksum"):
+        decode(b"SET 92.50\n")
+    with pytest.raises(BoardError, match="timeout"):
+        decode(b"", "/dev/ttyX")
+    with pytest.raises(BoardError, match="incomplete"):
+        decode(b"SET 9")
+
+
+def test_calibration_round_trip_and_clipping():
+    c = ServoCalibration(zero_deg=90.0, deg_per_m=600.0)
+    for pos in (-0.02, 0.0, 0.02, 0.10):
+        assert c.position(c.angle(pos)) == pytest.approx(pos)
+    assert c.angle(1.0) == 180.0 and c.angle(-1.0) == 0.0
