@@ -14,6 +14,7 @@ PACKAGES = {
     "ant_controller": ["genome_info", "controller"],
     "blueprint_server": ["blueprint_info", "server"],
     "excavation_sim": ["sim", "trial", "ant-trial", "bag", "ant-bag"],
+    "blade_driver": ["driver", "fake_board"],
 }
 
 
