@@ -1,0 +1,184 @@
+"""Synthetic overhead laser: a line scanner on a pan/tilt mount sweeping the site (paper, 6.2).
+
+The dome's soil heights came from periodic scans of an overhead laser range finder.
+:class:`OverheadLaser` produces those scans from the simulator's truth: the worksite is a
+height field of flat-topped cells (soil heights in metres; the dome floor around it is at
+ground level) with the robots as boxes standing on their 2 x 2 footprints, and every beam
+is traced through it exactly (a grid walk, :func:`trace`). One sweep steps the tilt from
+``tilt_min`` to ``tilt_max`` in ``sweep_scans`` scans; each scan is the ranges of one
+``sensor_msgs/LaserScan`` plus the pan and tilt it was taken at (the mount geometry is
+:mod:`terrain_mapper.geometry`, shared with the mapper).
+
+Noise: Gaussian range noise (``range_noise``); a share ``dropout`` of beams return nothing,
+half of them reported as NaN (no echo measured) and half as +inf (out of range, the
+LaserScan convention); beams that hit nothing within ``range_max`` are +inf. All random
+draws come from the ``numpy.random.Generator`` passed in. Pure module (numpy, numba).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from terrain_mapper.geometry import beam_directions
+
+
+@dataclass(frozen=True)
+class LaserParams:
+    """The scanner, its mount and its noise.
+
+    Attributes:
+        mount: Pan/tilt centre ``(x, y, z)`` in ``map``, metres.
+        pan: Pan angle during the sweep, radians.
+        angle_min: First beam's scan angle, radians.
+        angle_max: Last beam's scan angle, radians.
+        beams: Beams per scan.
+        tilt_min: Tilt of the first scan of a sweep, radians.
+        tilt_max: Tilt of the last scan of a sweep, radians.
+        sweep_scans: Scans per sweep.
+        range_min: Shortest range reported, metres.
+        range_max: Longest range reported, metres.
+        range_noise: Range noise, standard deviation, metres.
+        dropout: Share of beams without a return.
+        robot_height: Height of a robot's body above its footprint's highest soil, metres.
+    """
+
+    mount: tuple[float, float, float] = (2.0, 2.0, 4.0)
+    pan: float = 0.0
+    angle_min: float = -0.5
+    angle_max: float = 0.5
+    beams: int = 241
+    tilt_min: float = -0.5
+    tilt_max: float = 0.5
+    sweep_scans: int = 64
+    range_min: float = 0.1
+    range_max: float = 8.0
+    range_noise: float = 0.008
+    dropout: float = 0.01
+    robot_height: float = 0.2
+
+    @property
+    def angle_increment(self) -> float:
+        """Angle between neighbouring beams, radians."""
+        return (self.angle_max - self.angle_min) / (self.beams - 1)
+
+    def angles(self) -> np.ndarray:
+        """Scan angles of the beams."""
+        return self.angle_min + self.angle_increment * np.arange(self.beams)
+
+    def tilts(self) -> np.ndarray:
+        """Tilt of every scan of a sweep."""
+        return np.linspace(self.tilt_min, self.tilt_max, self.sweep_scans)
+
+
+@numba.njit(cache=True)
+def trace(surface, cell, origin, dirs, range_max, out):  # pragma: no cover - numba
+    """Distance along each unit direction to the first surface hit (inf if none).
+
+    ``surface[r, c]`` is the top of cell ``(r, c)`` (metres); everything off the grid is
+    at height 0. Walks the cells the ray's ground track crosses; a ray hits the top of a
+    cell where it comes down through it, or the side of a cell it enters below its top.
+    """
+    rows, cols = surface.shape
+    ox, oy, oz = origin[0], origin[1], origin[2]
+    for i in range(dirs.shape[0]):
+        dx, dy, dz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+        out[i] = np.inf
+        if dz >= 0.0:
+            continue
+        c = math.floor(ox / cell)
+        r = math.floor(oy / cell)
+        step_c = 1 if dx > 0 else -1
+        step_r = 1 if dy > 0 else -1
+        if dx != 0.0:
+            next_x = (c + (1 if dx > 0 else 0)) * cell
+            t_x = (next_x - ox) / dx
+            dt_x = cell / abs(dx)
+        else:
+            t_x = np.inf
+            dt_x = np.inf
+        if dy != 0.0:
+            next_y = (r + (1 if dy > 0 else 0)) * cell
+            t_y = (next_y - oy) / dy
+            dt_y = cell / abs(dy)
+        else:
+            t_y = np.inf
+            dt_y = np.inf
+        t = 0.0
+        while t <= range_max:
+            top = surface[r, c] if (0 <= r < rows and 0 <= c < cols) else 0.0
+            if oz + t * dz < top:  # entered through the side of a higher cell
+                out[i] = t
+                break
+            t_exit = min(t_x, t_y)
+            if oz + t_exit * dz <= top:  # comes down onto this cell's top
+                out[i] = (top - oz) / dz
+                break
+            t = t_exit
+            if t_x < t_y:
+                t_x += dt_x
+                c += step_c
+            else:
+                t_y += dt_y
+                r += step_r
+        if out[i] > range_max:
+            out[i] = np.inf
+
+
+def surface_with_robots(
+    heights_m: np.ndarray, anchors: np.ndarray, robot_height: float
+) -> np.ndarray:
+    """Soil heights with every robot's 2 x 2 footprint raised to its body's top.
+
+    Args:
+        heights_m: Soil heights, metres, ``[rows, cols]``.
+        anchors: Robots' footprint anchors ``(row, col)``, ``int [n, 2]``.
+        robot_height: Body height above the footprint's highest soil, metres.
+    """
+    surface = np.array(heights_m, dtype=np.float64)
+    for r, c in np.asarray(anchors, dtype=np.int64).reshape(-1, 2):
+        block = surface[r : r + 2, c : c + 2]
+        block[...] = np.asarray(heights_m)[r : r + 2, c : c + 2].max() + robot_height
+    return surface
+
+
+class OverheadLaser:
+    """Sweeps of the overhead laser over a height field (see the module docstring)."""
+
+    def __init__(self, params: LaserParams | None = None, cell_size: float = 0.25) -> None:
+        """A laser over a grid of ``cell_size`` metre cells."""
+        self.params = params or LaserParams()
+        self.cell_size = float(cell_size)
+        self._angles = self.params.angles()
+
+    def scan(self, surface: np.ndarray, tilt: float, rng: np.random.Generator) -> np.ndarray:
+        """Ranges (``float32 [beams]``) of one scan at ``tilt`` over ``surface``."""
+        p = self.params
+        dirs = beam_directions(p.pan, tilt, self._angles)
+        ranges = np.empty(len(dirs))
+        trace(
+            np.ascontiguousarray(surface, dtype=np.float64),
+            self.cell_size,
+            np.asarray(p.mount, dtype=np.float64),
+            dirs,
+            p.range_max,
+            ranges,
+        )
+        ranges = ranges + rng.normal(0.0, p.range_noise, len(ranges))
+        lost = rng.random(len(ranges)) < p.dropout
+        nan = rng.random(len(ranges)) < 0.5
+        ranges[lost & nan] = np.nan
+        ranges[lost & ~nan] = np.inf
+        ranges[ranges < p.range_min] = np.nan
+        return ranges.astype(np.float32)
+
+    def sweep(
+        self, surface: np.ndarray, rng: np.random.Generator
+    ) -> list[tuple[float, float, np.ndarray]]:
+        """One sweep: ``(pan, tilt, ranges)`` for every scan, tilt from min to max."""
+        return [
+            (self.params.pan, float(t), self.scan(surface, t, rng)) for t in self.params.tilts()
+        ]

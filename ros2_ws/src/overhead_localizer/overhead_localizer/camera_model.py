@@ -1,0 +1,235 @@
+"""The calibrated overhead camera: pixels <-> ``map`` points (paper, 6.2).
+
+A :class:`CameraModel` is a pinhole camera with radial distortion (OpenCV's model: camera
+matrix, ``k1, k2, p1, p2, k3``) and its pose over the worksite (``rvec``, ``tvec`` from
+``map`` to the camera). On the ground plane (z = 0) the undistorted image and the map are
+related by the homography ``H = K [r1 r2 t]``, which the calibration file also stores; an
+LED at height ``z`` is found by intersecting its pixel's ray with the plane at that height,
+which is the same homography for the plane ``z`` (``K [r1 r2 z r3 + t]``).
+
+:func:`calibrate` fits the model to marked points (pixels and their ``map`` coordinates,
+ground markers at z = 0 and, better, a few at a known height such as a parked robot's LEDs)
+and :func:`save_model` / :func:`load_model` write and read the YAML the localizer loads
+(``format: overhead-camera/1``). Pure module (numpy, OpenCV, PyYAML), no ``rclpy``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from ant_controller.files import write_text_atomic
+from overhead_localizer.errors import LocalizerConfigError
+
+FORMAT = "overhead-camera/1"
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """Intrinsics, distortion and pose of the overhead camera.
+
+    Attributes:
+        width: Image width, pixels.
+        height: Image height, pixels.
+        camera_matrix: 3 x 3 intrinsic matrix.
+        dist_coeffs: ``(k1, k2, p1, p2, k3)``.
+        rvec: Rotation ``map`` -> camera (Rodrigues vector).
+        tvec: Translation ``map`` -> camera, metres.
+        rms_px: Reprojection error of the calibration, pixels.
+    """
+
+    width: int
+    height: int
+    camera_matrix: np.ndarray
+    dist_coeffs: np.ndarray
+    rvec: np.ndarray
+    tvec: np.ndarray
+    rms_px: float = 0.0
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """Rotation matrix ``map`` -> camera."""
+        return cv2.Rodrigues(np.asarray(self.rvec, dtype=np.float64))[0]
+
+    @property
+    def centre(self) -> np.ndarray:
+        """Camera centre in ``map``, metres."""
+        return -self.rotation.T @ np.asarray(self.tvec, dtype=np.float64)
+
+    def homography(self, z: float = 0.0) -> np.ndarray:
+        """Homography from the plane at height ``z`` (``map`` x, y) to undistorted pixels."""
+        r = self.rotation
+        h = self.camera_matrix @ np.column_stack([r[:, 0], r[:, 1], z * r[:, 2] + self.tvec])
+        return h / h[2, 2]
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Distorted pixel coordinates ``[n, 2]`` of ``map`` points ``[n, 3]``."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 1, 3)
+        px, _ = cv2.projectPoints(pts, self.rvec, self.tvec, self.camera_matrix, self.dist_coeffs)
+        return px.reshape(-1, 2)
+
+    def rays(self, pixels: np.ndarray) -> np.ndarray:
+        """Unit-free ray directions ``[n, 3]`` in ``map`` through distorted pixels ``[n, 2]``."""
+        px = np.asarray(pixels, dtype=np.float64).reshape(-1, 1, 2)
+        norm = cv2.undistortPoints(px, self.camera_matrix, self.dist_coeffs).reshape(-1, 2)
+        return np.column_stack([norm, np.ones(len(norm))]) @ self.rotation
+
+    def to_map(self, pixels: np.ndarray, z: np.ndarray | float) -> np.ndarray:
+        """``map`` ``(x, y)`` ``[n, 2]`` of pixels seen on the horizontal plane(s) at ``z``."""
+        rays = self.rays(pixels)
+        c = self.centre
+        s = (np.asarray(z, dtype=np.float64) - c[2]) / rays[:, 2]
+        return np.column_stack([c[0] + s * rays[:, 0], c[1] + s * rays[:, 1]])
+
+    def metres_per_pixel(self, pixels: np.ndarray, z: np.ndarray | float) -> np.ndarray:
+        """Ground distance of a one-pixel step at each pixel (mean of the u and v steps)."""
+        px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        base = self.to_map(px, z)
+        du = self.to_map(px + [1.0, 0.0], z) - base
+        dv = self.to_map(px + [0.0, 1.0], z) - base
+        return 0.5 * (np.hypot(du[:, 0], du[:, 1]) + np.hypot(dv[:, 0], dv[:, 1]))
+
+
+def calibrate(
+    image_points: np.ndarray,
+    map_points: np.ndarray,
+    size: tuple[int, int],
+    focal: float | None = None,
+    distortion: bool = True,
+) -> CameraModel:
+    """Fit the camera to marked points.
+
+    Args:
+        image_points: Pixels ``[n, 2]`` of the marks (as seen, distorted).
+        map_points: Their ``map`` coordinates ``[n, 2]`` (on the ground) or ``[n, 3]``.
+        size: ``(width, height)`` of the image.
+        focal: Known focal length in pixels (fixed), or ``None`` to estimate it.
+        distortion: Estimate radial distortion ``k1, k2`` (else none).
+
+    Returns:
+        The fitted model, with its reprojection error.
+
+    Raises:
+        ValueError: Fewer than 6 points, or shapes that do not match.
+    """
+    img = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)
+    obj = np.asarray(map_points, dtype=np.float64)
+    if obj.ndim == 2 and obj.shape[1] == 2:
+        obj = np.column_stack([obj, np.zeros(len(obj))])
+    if obj.shape != (len(img), 3):
+        raise ValueError(f"{len(img)} pixels but map points of shape {obj.shape}")
+    if len(img) < 6:
+        raise ValueError(f"{len(img)} points: at least 6 are needed")
+    width, height = size
+    guess = float(focal) if focal else float(max(width, height))
+    k0 = np.array([[guess, 0, (width - 1) / 2], [0, guess, (height - 1) / 2], [0, 0, 1.0]])
+    flags = (
+        cv2.CALIB_USE_INTRINSIC_GUESS
+        | cv2.CALIB_FIX_PRINCIPAL_POINT
+        | cv2.CALIB_FIX_ASPECT_RATIO
+        | cv2.CALIB_ZERO_TANGENT_DIST
+        | cv2.CALIB_FIX_K3
+    )
+    if focal:
+        flags |= cv2.CALIB_FIX_FOCAL_LENGTH
+    if not distortion:
+        flags |= cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2
+    # The pose first (planar PnP on the ground marks), then the joint refinement.
+    rms, k, dist, rvecs, tvecs = cv2.calibrateCamera(
+        [obj.astype(np.float32)],
+        [img.astype(np.float32).reshape(-1, 1, 2)],
+        (width, height),
+        k0,
+        np.zeros(5),
+        flags=flags,
+        criteria=(cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12),
+    )
+    return CameraModel(
+        int(width),
+        int(height),
+        k,
+        dist.ravel()[:5],
+        rvecs[0].ravel(),
+        tvecs[0].ravel(),
+        float(rms),
+    )
+
+
+def save_model(model: CameraModel, path: str | Path) -> None:
+    """Write the calibration YAML the localizer loads (atomically)."""
+    doc = {
+        "format": FORMAT,
+        "image_width": model.width,
+        "image_height": model.height,
+        "camera_matrix": np.asarray(model.camera_matrix).round(6).tolist(),
+        "dist_coeffs": np.asarray(model.dist_coeffs).round(8).tolist(),
+        "rvec": np.asarray(model.rvec).round(9).tolist(),
+        "tvec": np.asarray(model.tvec).round(9).tolist(),
+        "ground_homography": model.homography(0.0).round(9).tolist(),
+        "camera_centre": model.centre.round(6).tolist(),
+        "rms_px": round(float(model.rms_px), 6),
+    }
+    header = (
+        "# Overhead camera calibration (overhead_localizer calibrate). ground_homography maps\n"
+        "# map (x, y, 1) on the ground plane to undistorted pixels; camera_centre is in map.\n"
+    )
+    write_text_atomic(Path(path), header + yaml.safe_dump(doc, sort_keys=False))
+
+
+def _matrix(where: str, doc: dict, key: str, shape: tuple[int, ...]) -> np.ndarray:
+    value = doc.get(key)
+    try:
+        arr = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise LocalizerConfigError(
+            where, key, value, f"expected numbers of shape {shape}"
+        ) from None
+    if arr.shape != shape or not np.isfinite(arr).all():
+        raise LocalizerConfigError(where, key, value, f"expected finite numbers of shape {shape}")
+    return arr
+
+
+def load_model(path: str | Path) -> CameraModel:
+    """Read a calibration YAML.
+
+    Raises:
+        LocalizerConfigError: Missing file, wrong format, a missing or malformed field.
+    """
+    where = str(path)
+    try:
+        doc = yaml.safe_load(Path(path).read_text())
+    except FileNotFoundError:
+        raise LocalizerConfigError(
+            where, "file", None, "does not exist (run `calibrate` to make one)"
+        ) from None
+    except (OSError, yaml.YAMLError) as exc:
+        raise LocalizerConfigError(where, "file", None, f"cannot be read: {exc}") from None
+    if not isinstance(doc, dict):
+        raise LocalizerConfigError(where, "<root>", type(doc).__name__, "expected a mapping")
+    if doc.get("format") != FORMAT:
+        raise LocalizerConfigError(where, "format", doc.get("format"), f"expected {FORMAT!r}")
+    size = []
+    for key in ("image_width", "image_height"):
+        value = doc.get(key)
+        if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+            raise LocalizerConfigError(where, key, value, "expected a positive integer")
+        size.append(value)
+    rms = doc.get("rms_px", 0.0)
+    if isinstance(rms, bool) or not isinstance(rms, (int, float)) or not rms >= 0:
+        raise LocalizerConfigError(where, "rms_px", rms, "expected a number >= 0")
+    k = _matrix(where, doc, "camera_matrix", (3, 3))
+    if k[0, 0] <= 0 or k[1, 1] <= 0:
+        raise LocalizerConfigError(where, "camera_matrix", k.tolist(), "focal lengths must be > 0")
+    return CameraModel(
+        size[0],
+        size[1],
+        k,
+        _matrix(where, doc, "dist_coeffs", (5,)),
+        _matrix(where, doc, "rvec", (3,)),
+        _matrix(where, doc, "tvec", (3,)),
+        float(rms),
+    )

@@ -1,0 +1,183 @@
+"""Laser scans -> a per-cell height map of the worksite (paper, 6.2).
+
+:class:`TerrainMapper` turns the overhead laser's scans into the height map the controllers
+read (one value per cell, metres, NaN unknown):
+
+1. **Project** (:meth:`TerrainMapper.add_scan`): every finite return within the scan's
+   ``[range_min, range_max]`` becomes a ``map`` point ``mount + range * direction``
+   (:mod:`terrain_mapper.geometry`); NaN, inf and out-of-range returns are dropped and
+   counted.
+2. **Bin** (:meth:`TerrainMapper.finish_sweep`): points within ``robot_margin`` of a
+   robot's footprint (known poses) are dropped, and so are points closer than
+   ``edge_margin`` (a fraction of a cell) to a cell border, where a beam may have hit the
+   side of a neighbouring cell; each cell with at least ``min_returns`` points gets the
+   median of their heights.
+3. **Fuse**: a cell measured again within ``change_threshold`` of its map value is
+   averaged with it (up to ``max_count`` sweeps' weight); one that moved further (soil was
+   dug or dumped) takes the new value. Cells not measured in a sweep (under a robot, in a
+   beam's shadow) keep their value; cells never measured hold ``prior_height`` (NaN:
+   unknown; the closed-loop trial uses 0, a level site surveyed before the robots enter).
+
+Pure module (numpy), no ``rclpy``; ``mapper_node`` wraps it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from terrain_mapper.errors import MapperError
+from terrain_mapper.geometry import beam_directions
+
+
+@dataclass(frozen=True)
+class MapperParams:
+    """Grid, mount and estimation settings (``config/mapper.yaml``).
+
+    Attributes:
+        rows: Worksite rows.
+        cols: Worksite columns.
+        cell_size: Metres per cell.
+        mount_x: Laser pan/tilt centre, metres east.
+        mount_y: Laser pan/tilt centre, metres north.
+        mount_z: Laser pan/tilt centre, metres up.
+        edge_margin: Points closer than this fraction of a cell to its border are dropped.
+        min_returns: Points a cell needs in a sweep to be measured.
+        robot_margin: Points this close (metres) to a robot's footprint are dropped.
+        change_threshold: A new value further than this (metres) from the map replaces it.
+        max_count: Most sweeps averaged into a cell.
+        prior_height: Value of never-measured cells (NaN = unknown).
+    """
+
+    rows: int = 16
+    cols: int = 16
+    cell_size: float = 0.25
+    mount_x: float = 2.0
+    mount_y: float = 2.0
+    mount_z: float = 4.0
+    edge_margin: float = 0.12
+    min_returns: int = 3
+    robot_margin: float = 0.06
+    change_threshold: float = 0.02
+    max_count: int = 8
+    prior_height: float = math.nan
+
+
+@dataclass(frozen=True)
+class SweepStats:
+    """What one sweep gave: points used, returns dropped, cells measured and masked."""
+
+    points: int
+    invalid: int
+    masked: int
+    measured: int
+
+
+def scan_ranges_check(
+    n: int, angle_min: float, angle_max: float, angle_increment: float, source: str
+) -> None:
+    """Raise :class:`MapperError` unless ``n`` ranges fit the scan's angles."""
+    if not (math.isfinite(angle_increment) and angle_increment > 0):
+        raise MapperError(source, "angle_increment", angle_increment, "must be > 0")
+    if not (math.isfinite(angle_min) and math.isfinite(angle_max) and angle_max >= angle_min):
+        raise MapperError(source, "angle_min/angle_max", (angle_min, angle_max), "bad interval")
+    expected = int(round((angle_max - angle_min) / angle_increment)) + 1
+    if n != expected:
+        raise MapperError(source, "ranges", f"{n} values", f"angles give {expected} beams")
+
+
+class TerrainMapper:
+    """Scans in, fused height map out (see the module docstring)."""
+
+    def __init__(self, params: MapperParams | None = None) -> None:
+        """An empty map (``prior_height`` everywhere)."""
+        self.params = p = params or MapperParams()
+        self.heights = np.full((p.rows, p.cols), p.prior_height, dtype=np.float64)
+        self.counts = np.zeros((p.rows, p.cols), dtype=np.int64)
+        self.mount = np.array([p.mount_x, p.mount_y, p.mount_z])
+        self._points: list[np.ndarray] = []
+        self.invalid = 0
+        self.scans = 0
+
+    def add_scan(
+        self,
+        ranges: np.ndarray,
+        angle_min: float,
+        angle_increment: float,
+        range_min: float,
+        range_max: float,
+        pan: float,
+        tilt: float,
+    ) -> int:
+        """Project one scan's valid returns into the current sweep.
+
+        Returns:
+            The number of valid returns (0 for a scan with none).
+        """
+        r = np.asarray(ranges, dtype=np.float64)
+        angles = angle_min + angle_increment * np.arange(len(r))
+        with np.errstate(invalid="ignore"):
+            ok = np.isfinite(r) & (r >= range_min) & (r <= range_max)
+        self.invalid += int(len(r) - ok.sum())
+        self.scans += 1
+        if ok.any():
+            dirs = beam_directions(pan, tilt, angles[ok])
+            self._points.append(self.mount + r[ok, None] * dirs)
+        return int(ok.sum())
+
+    def finish_sweep(self, robots: list[tuple[float, float, float]] = ()) -> SweepStats:
+        """Bin the sweep's points, fuse them into the map and start a new sweep.
+
+        Args:
+            robots: Known robot poses ``(x, y, yaw)`` (centre of the 2 x 2 footprint).
+        """
+        p = self.params
+        pts = np.concatenate(self._points) if self._points else np.zeros((0, 3))
+        invalid = self.invalid
+        self._points, self.invalid = [], 0
+        keep = np.ones(len(pts), dtype=bool)
+        half = p.cell_size + p.robot_margin
+        for x, y, yaw in robots:
+            c, s = math.cos(yaw), math.sin(yaw)
+            dx, dy = pts[:, 0] - x, pts[:, 1] - y
+            along, across = np.abs(c * dx + s * dy), np.abs(-s * dx + c * dy)
+            keep &= ~((along <= half) & (across <= half))
+        masked = int((~keep).sum())
+        u = pts[:, 0] / p.cell_size
+        v = pts[:, 1] / p.cell_size
+        col, row = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
+        fu, fv = u - col, v - row
+        m = p.edge_margin
+        keep &= (fu >= m) & (fu <= 1 - m) & (fv >= m) & (fv <= 1 - m)
+        keep &= (row >= 0) & (row < p.rows) & (col >= 0) & (col < p.cols)
+        idx = row[keep] * p.cols + col[keep]
+        z = pts[keep, 2]
+        measured = self._fuse(idx, z)
+        return SweepStats(int(keep.sum()), invalid, masked, measured)
+
+    def _fuse(self, idx: np.ndarray, z: np.ndarray) -> int:
+        """Median per cell of this sweep, fused into the map; returns the cells measured."""
+        p = self.params
+        if len(idx) == 0:
+            return 0
+        order = np.lexsort((z, idx))
+        idx, z = idx[order], z[order]
+        cells, start, count = np.unique(idx, return_index=True, return_counts=True)
+        enough = count >= p.min_returns
+        cells, start, count = cells[enough], start[enough], count[enough]
+        median = 0.5 * (z[start + (count - 1) // 2] + z[start + count // 2])
+        flat_h = self.heights.reshape(-1)
+        flat_n = self.counts.reshape(-1)
+        old, n = flat_h[cells], flat_n[cells]
+        with np.errstate(invalid="ignore"):
+            reset = ~np.isfinite(old) | (n == 0) | (np.abs(median - old) > p.change_threshold)
+        fused = np.where(reset, median, (old * n + median) / (n + 1))
+        flat_h[cells] = fused
+        flat_n[cells] = np.where(reset, 1, np.minimum(n + 1, p.max_count))
+        return int(len(cells))
+
+    def height_map(self) -> np.ndarray:
+        """The fused map, ``float32 [rows, cols]`` metres, NaN unknown."""
+        return self.heights.astype(np.float32)
