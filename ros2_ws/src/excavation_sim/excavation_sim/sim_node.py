@@ -27,6 +27,10 @@ the end; empty: none). With ``blade_driver: true`` every robot has a
 instead of ``blade/joint_states``, also waits for each driver's
 ``/robot_k/blade/servo_command`` of the tick, applies the words without their blade bits and
 then sets each blade to the driver's set-point (nearest setting).
+``truth_prefix`` (empty) moves the true poses and height map to ``PREFIX/robot_k/pose`` and
+``PREFIX/worksite/height_map``, for the perception nodes to stand in (``--perception full``
+of ``ant-trial``: the ``sensors`` node renders camera and laser from them); tick 0 then also
+waits for a subscriber of each truth pose.
 """
 
 from __future__ import annotations
@@ -96,6 +100,7 @@ class SimNode(Node):
         self.startup_period = float(p("startup_period", 0.5).value)
         self.blade_driver = bool(p("blade_driver", False).value)
         self.result_file = str(p("result_file", "").value)
+        self.truth_prefix = str(p("truth_prefix", "").value).rstrip("/")
         self.blueprint, self.world = scenario_world(
             str(p("blueprint", "default").value), self.n, int(p("seed", 0).value)
         )
@@ -117,7 +122,9 @@ class SimNode(Node):
         for k in range(self.n):
             ns = f"/robot_{k}"
             self.pose_pubs.append(
-                self.create_publisher(PoseWithCovarianceStamped, f"{ns}/pose", 10)
+                self.create_publisher(
+                    PoseWithCovarianceStamped, f"{self.truth_prefix}{ns}/pose", 10
+                )
             )
             blade_topic = "blade/servo_state" if self.blade_driver else "blade/joint_states"
             self.joint_pubs.append(self.create_publisher(JointState, f"{ns}/{blade_topic}", 10))
@@ -133,7 +140,9 @@ class SimNode(Node):
             self.create_subscription(
                 UInt16, f"{ns}/behaviour", lambda m, k=k: self.on_command(k, m), 10
             )
-        self.heights_pub = self.create_publisher(Image, "/worksite/height_map", LATCHED)
+        self.heights_pub = self.create_publisher(
+            Image, f"{self.truth_prefix}/worksite/height_map", LATCHED
+        )
         self.fitness_pub = self.create_publisher(Float32, "/worksite/fitness", 10)
         self.markers_pub = self.create_publisher(MarkerArray, "/worksite/markers", 10)
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
@@ -197,6 +206,7 @@ class SimNode(Node):
         return all(
             self.count_publishers(f"/robot_{k}/behaviour") > 0
             and self.count_subscribers(f"/robot_{k}/pose") > 0
+            and self.count_subscribers(f"{self.truth_prefix}/robot_{k}/pose") > 0
             and (
                 not self.blade_driver
                 or (

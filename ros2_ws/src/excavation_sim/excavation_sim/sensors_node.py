@@ -1,0 +1,203 @@
+"""``ros2 run excavation_sim sensors``: the dome's overhead camera and laser, from sim truth.
+
+Listens to the simulator's truth (``sim`` with ``truth_prefix:=/truth`` publishes
+``/truth/robot_k/pose`` and ``/truth/worksite/height_map`` instead of the standard names)
+and, once per new stamp for which every robot's pose and the height map have arrived,
+publishes what the field sensors would give for that instant:
+
+* ``/overhead/image_raw`` (sensor_msgs/Image ``bgr8``, :mod:`excavation_sim.camera`),
+  stamped with the truth's stamp;
+* one laser sweep (:mod:`excavation_sim.laser`): ``sweep_scans`` pairs of
+  ``/worksite/laser_mount/joint_states`` (JointState ``laser_pan``, ``laser_tilt``) and
+  ``/worksite/scan`` (LaserScan, frame ``overhead_laser``), scan i stamped ``i *
+  scan_period`` after the truth's stamp.
+
+The localizer and the mapper turn these back into ``/robot_k/pose`` and
+``/worksite/height_map`` (``ant-trial --perception full``). All noise comes from one
+generator seeded by ``seed``.
+
+Parameters: ``robots`` (4), ``seed`` (0), ``truth_prefix`` (``/truth``), ``cell_size``
+(0.25 m; ``/worksite/map_info`` overrides it), ``height_unit`` unused by the sensors
+(heights arrive in metres), camera ``width`` (1280), ``height`` (720), ``light`` (0.25),
+``noise`` (3.0), ``glare`` (1.5), ``dropout`` (0.0), ``occlude`` (e.g. ``"0:front,2:rear"``),
+``k1`` (-0.08), laser ``range_noise`` (0.008 m), ``laser_dropout`` (0.01),
+``sweep_scans`` (64), ``scan_period`` (0.01 s), and ``reliable`` (false: sensor-data QoS;
+true: reliable with ``queue`` depth, which the lockstep trial uses so that no scan of a
+sweep is lost), ``queue`` (200).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+from builtin_interfaces.msg import Time as TimeMsg
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from nav_msgs.msg import MapMetaData
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import Image, JointState, LaserScan
+
+from ant_controller.frames import robot_anchor
+from ant_controller.messages import MessageError, image_to_grid
+from ant_controller.ros import LATCHED, spin_node
+from excavation_sim.camera import CameraParams, OverheadCamera, RobotView, default_beacons
+from excavation_sim.laser import LaserParams, OverheadLaser, surface_with_robots
+from overhead_localizer.images import frame_to_message
+from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT
+
+
+def parse_occlude(text: str) -> frozenset[tuple[int, str]]:
+    """``"0:front,2:rear"`` -> ``{(0, "front"), (2, "rear")}``.
+
+    Raises:
+        ValueError: An entry that is not ``K:front`` or ``K:rear``.
+    """
+    out = set()
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        robot, _, side = item.partition(":")
+        if not robot.isdigit() or side not in ("front", "rear"):
+            raise ValueError(f"occlude: {item!r} is not K:front or K:rear")
+        out.add((int(robot), side))
+    return frozenset(out)
+
+
+def _add(stamp: TimeMsg, seconds: float) -> TimeMsg:
+    total = stamp.sec * 1_000_000_000 + stamp.nanosec + int(round(seconds * 1e9))
+    return TimeMsg(sec=total // 1_000_000_000, nanosec=total % 1_000_000_000)
+
+
+class SensorsNode(Node):
+    """Renders camera frames and laser sweeps from the simulator's truth."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("sensors", **kwargs)
+        p = self.declare_parameter
+        self.n = int(p("robots", 4).value)
+        self.rng = np.random.default_rng(int(p("seed", 0).value))
+        prefix = str(p("truth_prefix", "/truth").value).rstrip("/")
+        self.cell_size = float(p("cell_size", 0.25).value)
+        self.camera_params = CameraParams(
+            width=int(p("width", 1280).value),
+            height=int(p("height", 720).value),
+            light=float(p("light", 0.25).value),
+            noise=float(p("noise", 3.0).value),
+            glare=float(p("glare", 1.5).value),
+            dropout=float(p("dropout", 0.0).value),
+            k1=float(p("k1", -0.08).value),
+        )
+        self.hidden = parse_occlude(str(p("occlude", "").value))
+        self.laser_params = LaserParams(
+            range_noise=float(p("range_noise", 0.008).value),
+            dropout=float(p("laser_dropout", 0.01).value),
+            sweep_scans=int(p("sweep_scans", 64).value),
+        )
+        self.scan_period = float(p("scan_period", 0.01).value)
+        reliable = bool(p("reliable", False).value)
+        queue = int(p("queue", 200).value)
+        qos = (
+            QoSProfile(depth=queue, reliability=ReliabilityPolicy.RELIABLE)
+            if reliable
+            else qos_profile_sensor_data
+        )
+        self.camera: OverheadCamera | None = None
+        self.laser: OverheadLaser | None = None
+        self.poses: dict[int, tuple[tuple[int, int], tuple[float, float, float]]] = {}
+        self.heights: tuple[tuple[int, int], np.ndarray] | None = None
+        self.last: tuple[int, int] | None = None
+        self.frames = 0
+
+        self.image_pub = self.create_publisher(Image, "/overhead/image_raw", qos)
+        self.scan_pub = self.create_publisher(LaserScan, "/worksite/scan", qos)
+        self.mount_pub = self.create_publisher(
+            JointState, "/worksite/laser_mount/joint_states", qos
+        )
+        for k in range(self.n):
+            self.create_subscription(
+                PoseWithCovarianceStamped,
+                f"{prefix}/robot_{k}/pose",
+                lambda m, k=k: self.on_pose(k, m),
+                10,
+            )
+        self.create_subscription(Image, f"{prefix}/worksite/height_map", self.on_heights, LATCHED)
+        self.create_subscription(MapMetaData, "/worksite/map_info", self.on_info, LATCHED)
+
+    def on_info(self, msg: MapMetaData) -> None:
+        """Cell size of the worksite."""
+        if msg.resolution > 0 and self.camera is None:
+            self.cell_size = float(msg.resolution)
+
+    def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
+        """A robot's true pose."""
+        q, pos = msg.pose.pose.orientation, msg.pose.pose.position
+        yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+        key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        self.poses[k] = (key, (pos.x, pos.y, yaw))
+        self.maybe_render(msg.header.stamp)
+
+    def on_heights(self, msg: Image) -> None:
+        """The true height map (metres)."""
+        try:
+            grid = image_to_grid(msg, "32FC1", "truth height map")
+        except MessageError as exc:
+            self.get_logger().warning(str(exc), throttle_duration_sec=5.0)
+            return
+        self.heights = ((msg.header.stamp.sec, msg.header.stamp.nanosec), grid)
+        self.maybe_render(msg.header.stamp)
+
+    def maybe_render(self, stamp: TimeMsg) -> None:
+        """Render once every input of a new stamp is in."""
+        key = (stamp.sec, stamp.nanosec)
+        if self.heights is None or self.heights[0] != key or (self.last and key <= self.last):
+            return
+        if any(k not in self.poses or self.poses[k][0] != key for k in range(self.n)):
+            return
+        self.last = key
+        self.render(stamp, self.heights[1].astype(np.float64))
+
+    def render(self, stamp: TimeMsg, heights: np.ndarray) -> None:
+        """Publish one camera frame and one laser sweep of this instant."""
+        rows, cols = heights.shape
+        if self.camera is None:
+            self.camera = OverheadCamera(
+                self.camera_params, default_beacons(), rows, cols, self.cell_size
+            )
+            self.laser = OverheadLaser(self.laser_params, self.cell_size)
+        views, anchors = [], []
+        for k in range(self.n):
+            x, y, yaw = self.poses[k][1]
+            r, c = robot_anchor(x, y, self.cell_size)
+            anchors.append((r, c))
+            block = heights[max(r, 0) : r + 2, max(c, 0) : c + 2]
+            views.append(RobotView(x, y, yaw, float(block.mean()) if block.size else 0.0))
+        image, _ = self.camera.render(views, heights, self.rng, self.hidden)
+        self.image_pub.publish(frame_to_message(image, Image(), stamp=stamp))
+        lp = self.laser_params
+        surface = surface_with_robots(heights, np.array(anchors), lp.robot_height)
+        for i, (pan, tilt, ranges) in enumerate(self.laser.sweep(surface, self.rng)):
+            scan_stamp = _add(stamp, i * self.scan_period)
+            mount = JointState(name=[PAN_JOINT, TILT_JOINT], position=[pan, tilt])
+            mount.header.stamp = scan_stamp
+            self.mount_pub.publish(mount)
+            scan = LaserScan()
+            scan.header.stamp = scan_stamp
+            scan.header.frame_id = "overhead_laser"
+            scan.angle_min = lp.angle_min
+            scan.angle_max = lp.angle_max
+            scan.angle_increment = lp.angle_increment
+            scan.scan_time = self.scan_period
+            scan.range_min = lp.range_min
+            scan.range_max = lp.range_max
+            scan.ranges = ranges.tolist()
+            self.scan_pub.publish(scan)
+        self.frames += 1
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run excavation_sim sensors``."""
+    return spin_node(SensorsNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
