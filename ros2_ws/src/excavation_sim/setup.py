@@ -28,6 +28,7 @@ setup(
             "ant-trial = excavation_sim.trial:main",
             "bag = excavation_sim.bag.cli:main",
             "ant-bag = excavation_sim.bag.cli:main",
+            "sensors = excavation_sim.sensors_node:main",
         ],
     },
 )
