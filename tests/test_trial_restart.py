@@ -1,14 +1,17 @@
 """Killing a controller mid-trial: the simulator idles that robot, reports it, and a
-restarted controller rejoins."""
+restarted controller rejoins. With blade drivers, the orphaned robot's blade also goes home
+(the driver's watchdog, in simulated time)."""
 
 from __future__ import annotations
 
+import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from ant_controller.controller import Controller
 from ant_controller.controller_node import ControllerNode
+from ant_controller.layout import BLADE_HOME
 from blueprint_server.server_node import BlueprintServer
 from excavation_sim.sim_node import SimNode
 
@@ -28,7 +31,11 @@ def controller(ros, k):
     )
 
 
-def test_killed_controller_idles_then_rejoins(ros):
+@pytest.mark.parametrize("drivers", [False, True])
+def test_killed_controller_idles_then_rejoins(ros, drivers):
+    from blade_driver.driver_node import BladeDriverNode
+    from excavation_sim.world import BLADE
+
     ros.add(BlueprintServer(context=ros.context))
     sim = ros.add(
         SimNode(
@@ -37,9 +44,13 @@ def test_killed_controller_idles_then_rejoins(ros):
                 Parameter("robots", value=2),
                 Parameter("steps", value=400),
                 Parameter("command_timeout", value=0.3),
+                Parameter("blade_driver", value=drivers),
             ],
         )
     )
+    if drivers:
+        for k in range(2):
+            ros.add(BladeDriverNode(context=ros.context, namespace=f"/robot_{k}"))
     reports = []
     watcher = ros.add(Node("watcher", context=ros.context))
     watcher.create_subscription(
@@ -58,6 +69,9 @@ def test_killed_controller_idles_then_rejoins(ros):
     assert ros.spin_until(lambda: sim.missed[1] >= 3, timeout=30)
     assert sim.tick > killed_at and sim.missed[0] == 0  # the others keep stepping
     assert any("no command from robots [1]" in r for r in reports)
+    if drivers:
+        assert sim.world.robots[1, BLADE] == BLADE_HOME
+        assert sim.missed_servo[0] == 0 and sim.missed_servo[1] >= 1
     controller(ros, 1)  # restarted
     missed = sim.missed[1]
     assert ros.spin_until(lambda: sim.tick >= killed_at + missed + 10, timeout=60)

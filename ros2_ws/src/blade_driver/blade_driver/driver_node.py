@@ -102,6 +102,7 @@ class BladeDriverNode(Node):
         self.tick_stamp: TimeMsg | None = None
         self.sent_for: tuple[int, int] | None = None
         self.commands = 0
+        self._reported_source = ""
 
         self.joint_pub = self.create_publisher(JointState, "blade/joint_states", 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -182,12 +183,8 @@ class BladeDriverNode(Node):
         self.errors.pop(topic, None)
         self.tick_stamp = msg.header.stamp
         self.joint_pub.publish(joint_state(self.position, self.force, msg.header.stamp))
-        tripped = self.core.state.watchdog_tripped
         if self.core.needs_no_controller(self._now()):
             self.send_sim_setpoint()
-            if self.core.state.watchdog_tripped and not tripped:
-                self.get_logger().warning("no behaviour command: blade home")
-                self.publish_diagnostics()
 
     def send_sim_setpoint(self) -> None:
         """Sim backend: the set-point for the current tick (at most one per tick)."""
@@ -197,6 +194,7 @@ class BladeDriverNode(Node):
         self.sent_for = stamp
         setpoint = self.core.update(self._now(), self.force)
         self.servo_pub.publish(joint_state(setpoint, 0.0, self.tick_stamp))
+        self.report_changes()
 
     def on_control_step(self) -> None:
         """Serial backend: read the board, publish, run the force loop, send the set-point."""
@@ -207,7 +205,6 @@ class BladeDriverNode(Node):
             self.joint_pub.publish(
                 joint_state(self.position, self.force, self.get_clock().now().to_msg())
             )
-            tripped = self.core.state.watchdog_tripped
             self.board.set_position(self.core.update(self._now(), self.force))
         except BoardError as exc:
             if self.errors.get("board") != str(exc):
@@ -216,9 +213,17 @@ class BladeDriverNode(Node):
             return
         if self.errors.pop("board", None) is not None:
             self.get_logger().info(f"{self.port}: servo board answers again")
-        if self.core.state.watchdog_tripped and not tripped:
+        self.report_changes()
+
+    def report_changes(self) -> None:
+        """Log and publish diagnostics at once when who is in charge of the blade changes."""
+        source = self.core.state.source.split(" (")[0]
+        if source == self._reported_source:
+            return
+        self._reported_source = source
+        if source.startswith("watchdog"):
             self.get_logger().warning("no behaviour command: blade home")
-            self.publish_diagnostics()
+        self.publish_diagnostics()
 
     # --- diagnostics ------------------------------------------------------------------------
 
@@ -230,7 +235,8 @@ class BladeDriverNode(Node):
             hardware_id=self.port if self.board is not None else f"sim{self.get_namespace()}",
         )
         if self.errors:
-            status.level, status.message = DiagnosticStatus.ERROR, "; ".join(self.errors.values())
+            status.level = DiagnosticStatus.ERROR
+            status.message = "; ".join([*self.errors.values(), f"blade: {s.source}"])
         elif s.source.startswith("controller"):
             status.level, status.message = DiagnosticStatus.OK, s.source
         else:

@@ -1,0 +1,189 @@
+"""The blade driver on a pseudo-terminal servo board and against the simulator's topics."""
+
+from __future__ import annotations
+
+import os
+import threading
+
+import pytest
+
+from ant_controller.layout import BLADE_BELOW_CMD, BLADE_LEVEL_CMD, MOVE_FORWARD
+from blade_driver.errors import BoardError
+from blade_driver.fake_board import FakeBoard, open_pty
+from blade_driver.protocol import ServoCalibration
+from blade_driver.serial_backend import SerialBackend
+
+
+def word(*bits: int) -> int:
+    return sum(1 << b for b in bits)
+
+
+@pytest.fixture
+def board():
+    """A fake servo board answering on a pseudo-terminal: ``(board, port path)``."""
+    fake = FakeBoard()
+    master, path = open_pty()
+    stop = threading.Event()
+    thread = threading.Thread(target=fake.serve, args=(master, stop.is_set), daemon=True)
+    thread.start()
+    yield fake, path
+    stop.set()
+    thread.join(timeout=2)
+    os.close(master)
+
+
+def test_serial_backend_talks_to_the_board(board):
+    fake, path = board
+    link = SerialBackend(path, timeout=1.0)
+    try:
+        assert link.ping() == "fake_board/1"
+        angle = link.set_position(-0.02)
+        assert angle == pytest.approx(ServoCalibration().angle(-0.02))
+        assert fake.target == pytest.approx(angle)
+        position, force = link.read()
+        assert position == pytest.approx(-0.02)
+        assert force == pytest.approx(400.0 * 0.02)  # the board's soil spring
+        link.set_position(5.0)  # beyond the servo: clipped to its range, accepted
+        assert fake.target == 180.0
+    finally:
+        link.close()
+
+
+@pytest.mark.parametrize(
+    ("fault", "match"),
+    [("drop_every", "no answer from the servo board"), ("corrupt_every", "checksum")],
+)
+def test_serial_faults_are_clear_errors(board, fault, match):
+    fake, path = board
+    setattr(fake, fault, 2)
+    link = SerialBackend(path, timeout=0.3)
+    try:
+        link.ping()  # request 1 is answered
+        with pytest.raises(BoardError, match=match) as info:
+            link.read()  # request 2 is dropped or garbled
+        assert path in str(info.value)
+        assert link.ping() == "fake_board/1"  # the link recovers
+    finally:
+        link.close()
+
+
+def test_board_refusal_and_missing_port(board, tmp_path):
+    fake, path = board
+    link = SerialBackend(path, timeout=1.0, calibration=ServoCalibration(min_deg=-50.0))
+    try:
+        with pytest.raises(BoardError, match="board refused SET"):
+            link.set_position(-0.2)  # -30 deg: the board's range is 0..180
+    finally:
+        link.close()
+    with pytest.raises(BoardError, match="cannot open"):
+        SerialBackend(str(tmp_path / "no-such-tty"))
+
+
+def _driver(ros, **params):
+    from rclpy.parameter import Parameter
+
+    from blade_driver.driver_node import BladeDriverNode
+
+    return ros.add(
+        BladeDriverNode(
+            context=ros.context,
+            namespace="/robot_0",
+            parameter_overrides=[Parameter(k, value=v) for k, v in params.items()],
+        )
+    )
+
+
+def _probe(ros):
+    """A node that talks to the driver like a controller, an operator and a monitor."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray, UInt16
+
+    node = ros.add(Node("probe", context=ros.context))
+    node.joints, node.servo, node.diags = [], [], []
+    node.create_subscription(JointState, "/robot_0/blade/joint_states", node.joints.append, 10)
+    node.create_subscription(JointState, "/robot_0/blade/servo_command", node.servo.append, 10)
+    node.create_subscription(
+        DiagnosticArray,
+        "/diagnostics",
+        lambda m: node.diags.extend(s for s in m.status if s.name.endswith("blade_driver")),
+        10,
+    )
+    node.behaviour = node.create_publisher(UInt16, "/robot_0/behaviour", 10)
+    node.override = node.create_publisher(Float64MultiArray, "/robot_0/blade/commands", 10)
+    node.state = node.create_publisher(JointState, "/robot_0/blade/servo_state", 10)
+    return node
+
+
+def test_serial_driver_node_commands_the_board(ros, board):
+    from std_msgs.msg import Float64MultiArray, UInt16
+
+    fake, path = board
+    cal = ServoCalibration()
+    _driver(ros, backend="serial", port=path, rate=50.0, watchdog_timeout=0.6)
+    probe = _probe(ros)
+    assert ros.spin_until(lambda: len(probe.joints) > 3)  # reads the board and publishes
+    assert probe.joints[-1].position[0] == pytest.approx(0.10, abs=1e-4)  # starts home
+
+    def send_until(msg_pub, msg, cond, timeout=10.0):
+        def check():
+            msg_pub.publish(msg)
+            return cond()
+
+        return ros.spin_until(check, timeout)
+
+    level = UInt16(data=word(BLADE_LEVEL_CMD))
+    assert send_until(probe.behaviour, level, lambda: fake.target == cal.angle(0.0))
+    assert probe.joints[-1].name == ["blade"]
+    # The operator's set-point wins while it keeps coming...
+    override = Float64MultiArray(data=[0.05])
+    assert send_until(probe.override, override, lambda: fake.target == cal.angle(0.05))
+    assert any(s.message == "operator override" for s in probe.diags)
+    # ...a malformed one is reported and changes nothing...
+    bad = Float64MultiArray(data=[0.0, 1.0])
+    assert send_until(probe.override, bad, lambda: any(s.level == b"\x02" for s in probe.diags))
+    assert any("needs one value per joint" in s.message for s in probe.diags)
+    # ...and silence from the controller sends the blade home.
+    assert ros.spin_until(lambda: fake.target == cal.angle(0.10), timeout=10.0)
+    assert ros.spin_until(lambda: any("watchdog" in s.message for s in probe.diags), 5.0)
+    # Pushing below ground with the blade: the force loop trims the blade up (board force 8 N
+    # at -0.02 m is above the 6 N wanted).
+    push = UInt16(data=word(MOVE_FORWARD, BLADE_BELOW_CMD))
+    assert send_until(
+        probe.behaviour, push, lambda: cal.angle(-0.02) < fake.target < cal.angle(-0.012)
+    )
+
+
+def test_sim_driver_node_answers_each_tick_in_sim_time(ros):
+    from builtin_interfaces.msg import Time
+    from std_msgs.msg import UInt16
+
+    from blade_driver.driver_node import joint_state
+
+    _driver(ros, backend="sim", watchdog_timeout=1.5)
+    probe = _probe(ros)
+    assert ros.spin_until(lambda: probe.count_subscribers("/robot_0/blade/servo_state") > 0)
+
+    def tick(t, behaviour=None, force=0.0, position=0.10):
+        n_servo = len(probe.servo)
+        probe.state.publish(joint_state(position, force, Time(sec=t)))
+        assert ros.spin_until(lambda: probe.joints and probe.joints[-1].header.stamp.sec == t)
+        if behaviour is not None:
+            probe.behaviour.publish(UInt16(data=behaviour))
+            assert ros.spin_until(lambda: len(probe.servo) > n_servo)
+            return probe.servo[-1]
+        ros.spin_until(lambda: len(probe.servo) > n_servo, timeout=0.5)
+        return probe.servo[-1] if len(probe.servo) > n_servo else None
+
+    cmd = tick(0, word(BLADE_BELOW_CMD))
+    assert cmd.header.stamp.sec == 0 and cmd.position[0] == pytest.approx(-0.02)
+    assert probe.joints[-1].effort[0] == 0.0
+    cmd = tick(1, word(BLADE_LEVEL_CMD), position=-0.02)
+    assert cmd.header.stamp.sec == 1 and cmd.position[0] == pytest.approx(0.0)
+    # The controller goes quiet: at tick 2 the watchdog (1.5 s of sim time) is not due, so
+    # no set-point; at tick 3 it is, and the driver sends "home" without waiting.
+    assert tick(2) is None
+    cmd = tick(3)
+    assert cmd is not None and cmd.header.stamp.sec == 3
+    assert cmd.position[0] == pytest.approx(0.10)
