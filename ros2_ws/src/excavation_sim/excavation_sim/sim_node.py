@@ -18,7 +18,8 @@ what lets a controller pair the unstamped ``stuck`` flag with its tick. After ``
 ticks the node publishes the final state and fitness and stops stepping (``finished``).
 
 Parameters: ``blueprint`` (``default``, ``default:D``, ``landing-pad`` or a file),
-``robots`` (4), ``steps`` (300), ``seed`` (0), ``dt`` (1.0 s of sim time per tick),
+``robots`` (4), ``steps`` (300), ``seed`` (0), ``scenario`` (0, the index within ``seed``),
+``dt`` (1.0 s of sim time per tick),
 ``command_timeout`` (1.0 s), ``first_command_timeout`` (30.0 s: tick 0 waits longer, while
 controllers load their compiled kernels), ``startup_period`` (0.5 s),
 ``diagnostics_period`` (1.0 s), ``blade_driver`` (false), ``result_file`` (JSON written at
@@ -79,10 +80,10 @@ TILT_PITCH = 0.2
 """Pitch (rad, nose down) the simulated IMU reports when R1 holds."""
 
 
-def scenario_world(blueprint_spec: str, robots: int, seed: int):
-    """Scenario 0 of ``seed``: the world ``ant-eval --seed`` starts from."""
+def scenario_world(blueprint_spec: str, robots: int, seed: int, index: int = 0):
+    """Scenario ``index`` of ``seed`` (index 0: the world ``ant-eval --seed`` starts from)."""
     bp = resolve(blueprint_spec)
-    world = World.scenario(bp.zones, bp.goal, robots, seed)
+    world = World.scenario(bp.zones, bp.goal, robots, seed, index)
     return bp, world
 
 
@@ -102,7 +103,10 @@ class SimNode(Node):
         self.result_file = str(p("result_file", "").value)
         self.truth_prefix = str(p("truth_prefix", "").value).rstrip("/")
         self.blueprint, self.world = scenario_world(
-            str(p("blueprint", "default").value), self.n, int(p("seed", 0).value)
+            str(p("blueprint", "default").value),
+            self.n,
+            int(p("seed", 0).value),
+            int(p("scenario", 0).value),
         )
         self.geometry = BladeGeometry()
         self.tick = 0
