@@ -61,6 +61,9 @@ def run_trial(
     timeout: float = 600.0,
     blade_driver: bool = True,
     processes: bool = False,
+    record: str | None = None,
+    perception: str = "truth",
+    scenario: int = 0,
 ) -> TrialResult:
     """Run a trial through the nodes and return its result.
 
@@ -68,13 +71,20 @@ def run_trial(
         controller_spec: A genome file, or ``"hand-coded"``.
         robots: Number of robots.
         steps: Ticks to run.
-        seed: Scenario seed (scenario 0 of ``ant-eval --seed``).
+        seed: Scenario seed (with ``scenario`` 0: scenario 0 of ``ant-eval --seed``).
         blueprint: Blueprint spec for the server and the simulator.
         domain: ROS domain id (default: ``ROS_DOMAIN_ID`` or 0).
         command_timeout: Seconds the simulator waits for a command.
         timeout: Give up after this many seconds.
         blade_driver: One ``blade_driver`` node per robot between controller and simulator.
         processes: Each node in its own process instead of one composed process.
+        record: Bag directory to record every suite topic into (``ant-bag record``'s
+            recorder node on the same executor; composed mode only).
+        perception: ``"truth"``: controllers read the simulator's poses and heights;
+            ``"full"``: they read the overhead localizer's and the terrain mapper's, which
+            see the simulator through its synthetic camera and laser
+            (:mod:`excavation_sim.perception`; composed mode only).
+        scenario: Scenario index of ``seed`` (``ScenarioSet.create(..., seed)``'s i-th).
 
     Raises:
         TimeoutError: When the trial does not finish in time.
@@ -91,7 +101,17 @@ def run_trial(
     )
     if domain is None:
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
+    if record and processes:
+        raise ValueError("record: the recorder runs in the composed mode (without processes)")
     run = _run_processes if processes else _run_composed
+    extra = {"record": record} if record else {}
+    extra["scenario"] = scenario
+    if perception not in ("truth", "full"):
+        raise ValueError(f"perception = {perception!r}: expected 'truth' or 'full'")
+    if perception == "full":
+        if processes:
+            raise ValueError("perception: full runs in the composed mode (without processes)")
+        extra["perception"] = perception
     return run(
         ctl,
         controller_spec,
@@ -103,6 +123,7 @@ def run_trial(
         command_timeout,
         timeout,
         blade_driver,
+        **extra,
     )
 
 
@@ -117,6 +138,9 @@ def _run_composed(
     command_timeout,
     timeout,
     blade_driver,
+    record=None,
+    perception="truth",
+    scenario=0,
 ) -> TrialResult:
     import rclpy
     from rclpy.context import Context
@@ -132,8 +156,25 @@ def _run_composed(
     rclpy.init(context=context, domain_id=domain)
     executor = SingleThreadedExecutor(context=context)
     nodes = []
+    recorder = None
     started = time.monotonic()
     try:
+        if record:  # first, so that it sees every topic appear
+            from blueprint_server.blueprint_info import resolve
+            from excavation_sim.bag.recorder_node import RecorderNode
+
+            recorder = RecorderNode(
+                custom_data={
+                    "source": f"ant-trial {controller_spec} robots={robots} "
+                    f"steps={steps} seed={seed} blueprint={blueprint}"
+                },
+                context=context,
+                parameter_overrides=[
+                    Parameter("out", value=str(record)),
+                    Parameter("height_unit", value=float(resolve(blueprint).height_unit)),
+                ],
+            )
+            nodes.append(recorder)
         nodes.append(
             BlueprintServer(
                 context=context, parameter_overrides=[Parameter("blueprint", value=blueprint)]
@@ -146,11 +187,17 @@ def _run_composed(
                 Parameter("robots", value=robots),
                 Parameter("steps", value=steps),
                 Parameter("seed", value=seed),
+                Parameter("scenario", value=scenario),
                 Parameter("command_timeout", value=float(command_timeout)),
                 Parameter("blade_driver", value=blade_driver),
-            ],
+            ]
+            + ([Parameter("truth_prefix", value="/truth")] if perception == "full" else []),
         )
         nodes.append(sim)
+        if perception == "full":
+            from excavation_sim.perception import perception_nodes
+
+            nodes += perception_nodes(context, robots, seed, sim.blueprint)
         height_unit = sim.blueprint.height_unit
         for k in range(robots):
             nodes.append(
@@ -174,6 +221,13 @@ def _run_composed(
             if time.monotonic() - started > timeout:
                 raise TimeoutError(f"trial did not finish within {timeout} s (tick {sim.tick})")
             executor.spin_once(timeout_sec=0.05)
+        if recorder is not None:  # the last tick's state and the controllers' answers to it
+            last = time.monotonic() + 5.0
+            topics = ["/clock"] + [f"/robot_{k}/behaviour" for k in range(robots)]
+            while time.monotonic() < last and any(
+                recorder.recorded.get(t, 0) < steps + 1 for t in topics
+            ):
+                executor.spin_once(timeout_sec=0.05)
         return TrialResult(
             sim.world.fitness(),
             list(sim.fitness_trace),
@@ -183,6 +237,8 @@ def _run_composed(
             list(sim.applied),
         )
     finally:
+        if recorder is not None:
+            recorder.close()
         for node in nodes:
             executor.remove_node(node)
             node.destroy_node()
@@ -201,6 +257,7 @@ def _run_processes(
     command_timeout,
     timeout,
     blade_driver,
+    scenario=0,
 ) -> TrialResult:
     from blueprint_server.blueprint_info import resolve
 
@@ -226,6 +283,8 @@ def _run_processes(
                 f"steps:={steps}",
                 "-p",
                 f"seed:={seed}",
+                "-p",
+                f"scenario:={scenario}",
                 "-p",
                 f"command_timeout:={float(command_timeout)!r}",
                 "-p",
@@ -316,6 +375,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--blueprint", default="default")
     p.add_argument("--steps", type=int, default=300)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--scenario", type=int, default=0, help="scenario index of --seed")
+    p.add_argument(
+        "--command-timeout", type=float, default=2.0, help="s the simulator waits per tick"
+    )
     p.add_argument("--domain", type=int, default=None)
     p.add_argument(
         "--no-blade-driver",
@@ -323,6 +386,13 @@ def main(argv: list[str] | None = None) -> int:
         help="no blade_driver nodes (sim publishes the blade)",
     )
     p.add_argument("--processes", action="store_true", help="each node in its own process")
+    p.add_argument("--record", metavar="BAG", help="record every topic into this bag directory")
+    p.add_argument(
+        "--perception",
+        choices=("truth", "full"),
+        default="truth",
+        help="full: controllers see the sim only through the camera+localizer, laser+mapper",
+    )
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     from ant_controller.errors import FieldError
@@ -337,8 +407,12 @@ def main(argv: list[str] | None = None) -> int:
             args.domain,
             blade_driver=not args.no_blade_driver,
             processes=args.processes,
+            record=args.record,
+            perception=args.perception,
+            scenario=args.scenario,
+            command_timeout=args.command_timeout,
         )
-    except (FieldError, TimeoutError, RuntimeError) as exc:
+    except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
         print(f"ant-trial: error: {exc}", file=sys.stderr)
         return 2
     if args.json:

@@ -13,13 +13,16 @@ Two ways to pace the replay:
   simulator publishes ``/clock`` first in every tick). The player publishes one tick, then
   waits until each topic of ``wait_for`` (default: every ``*/behaviour`` topic of the bag
   that is not played) has carried one message, or ``lockstep_timeout`` passes, exactly
-  as the simulator node waits for the controllers' commands; messages before the first
-  ``/clock`` (the latched blueprint) go out first. Replaying a trial's inputs this way into
-  fresh controllers reproduces their recorded behaviours (``tests/test_bag_play.py``).
+  as the simulator node waits for the controllers' commands. Messages before the first
+  ``/clock`` (the latched blueprint and map info) go out first, ``startup_period`` before
+  the first tick, as the simulator's first tick comes well after the blueprint server's
+  maps (a controller drops poses that arrive before the map info). Replaying a trial's
+  inputs this way into fresh controllers reproduces their recorded behaviours
+  (``tests/test_bag_play.py``).
 
 Parameters: ``bag`` (directory), ``topics`` (names or globs; default all), ``rate`` (1.0),
 ``loop`` (false), ``lockstep`` (false), ``wait_for`` (topics), ``lockstep_timeout`` (5.0 s),
-``startup_period`` (0.5 s: in lockstep mode, time given to the subscribers after every
+``startup_period`` (1.0 s: in lockstep mode, time given to the subscribers after every
 ``wait_for`` topic has a publisher).
 """
 
@@ -78,7 +81,7 @@ class PlayerNode(Node):
         self.lockstep = bool(p("lockstep", False).value)
         wait_for = [t for t in p("wait_for", [""]).value if t]
         self.lockstep_timeout = float(p("lockstep_timeout", 5.0).value)
-        self.startup_period = float(p("startup_period", 0.5).value)
+        self.startup_period = float(p("startup_period", 1.0).value)
         self.bag = bag if bag is not None else open_bag(path)
         if not self.rate > 0:
             raise BagError(self.bag.path, "rate", self.rate, "must be > 0")
@@ -112,6 +115,7 @@ class PlayerNode(Node):
         self.ticks = lockstep_ticks(self.messages) if self.lockstep else []
         self.tick = 0
         self.replies: set[str] = set()
+        self.reply_subs = []
         if self.lockstep:
             self.wait_for = wait_for or [
                 t for t in self.bag.topics if t.endswith("/behaviour") and t not in self.publishers_
@@ -123,10 +127,13 @@ class PlayerNode(Node):
                     raise MissingTopicError(
                         self.bag.path, "wait_for", topic, "not in the bag with a known type"
                     )
-                self.create_subscription(
-                    cls, topic, lambda _m, t=topic: self.replies.add(t), 100, raw=True
+                self.reply_subs.append(
+                    self.create_subscription(
+                        cls, topic, lambda _m, t=topic: self.replies.add(t), 100, raw=True
+                    )
                 )
         self.ready_since: float | None = None
+        self.settle_until = 0.0
         self.waiting_since: float | None = None
         self.index = 0
         self.started: float | None = None
@@ -168,7 +175,17 @@ class PlayerNode(Node):
             self.finished = True
 
     def _subscribers_ready(self) -> bool:
-        return all(self.count_publishers(t) > 0 for t in self.wait_for)
+        """True when the replay can start without losing messages.
+
+        Every reply topic has a publisher matched to us, and every subscriber of a played
+        topic on the graph is matched to its publisher.
+        """
+        if not all(sub.get_publisher_count() > 0 for sub in self.reply_subs):
+            return False
+        return all(
+            pub.get_subscription_count() >= self.count_subscribers(topic)
+            for topic, pub in self.publishers_.items()
+        )
 
     def _step_lockstep(self) -> None:
         now = time.monotonic()
@@ -193,11 +210,15 @@ class PlayerNode(Node):
             else:
                 self.finished = True
                 return
+        if now < self.settle_until:
+            return
         self.replies.clear()
         for topic, _ts, raw in self.ticks[self.tick]:
             self._publish(topic, raw)
-        # the group before the first /clock (latched maps) needs no reply
-        expects_reply = self.tick > 0 or (self.ticks[0] and self.ticks[0][0][0] == "/clock")
         self.tick += 1
-        if expects_reply and self.wait_for:
+        if self.tick == 1:
+            # the group before the first /clock (latched maps) needs no reply, but the
+            # subscribers get time to take it before the first tick's inputs arrive
+            self.settle_until = now + self.startup_period
+        elif self.wait_for:
             self.waiting_since = now

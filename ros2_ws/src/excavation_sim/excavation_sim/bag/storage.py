@@ -76,6 +76,8 @@ SUITE_TOPICS: tuple[str, ...] = (
     "/robot_*/imu",
     "/robot_*/blade/joint_states",
     "/robot_*/blade/commands",
+    "/robot_*/blade/servo_command",
+    "/robot_*/blade/servo_state",
     "/diagnostics",
 )
 """The node suite's topics (DESIGN.md, docs/interfaces.md); ``*`` matches a robot index."""
