@@ -79,6 +79,20 @@ class CameraParams:
     led_power: float = 1.0
     pose_jitter: tuple[float, float] = (0.01, 0.03)
 
+    @classmethod
+    def for_site(cls, width_m: float, depth_m: float, **kwargs) -> CameraParams:
+        """The default camera scaled to a ``width_m`` x ``depth_m`` site (same view angles).
+
+        The defaults are for the 4 m x 4 m default site: the camera 7 m up, 0.3 m south of
+        the centre, aimed at the centre.
+        """
+        s = max(width_m, depth_m)
+        return cls(
+            position=(width_m / 2, depth_m / 2 - 0.075 * s, 1.75 * s),
+            target=(width_m / 2, depth_m / 2, 0.0),
+            **kwargs,
+        )
+
     def camera_matrix(self) -> np.ndarray:
         """The 3 x 3 intrinsic matrix (principal point at the image centre)."""
         return np.array(

@@ -60,6 +60,18 @@ class LaserParams:
     dropout: float = 0.01
     robot_height: float = 0.2
 
+    @classmethod
+    def for_site(cls, rows: int, cols: int, cell_size: float, **kwargs) -> LaserParams:
+        """The default laser for a ``rows`` x ``cols`` site.
+
+        The mount is over the centre, as high as the site is wide; at least 15 beams and 4
+        scans per cell (the defaults are this for the 16 x 16 default site).
+        """
+        w, d = cols * cell_size, rows * cell_size
+        kwargs.setdefault("beams", max(241, 15 * cols + 1))
+        kwargs.setdefault("sweep_scans", max(64, 4 * rows))
+        return cls(mount=(w / 2, d / 2, max(w, d)), **kwargs)
+
     @property
     def angle_increment(self) -> float:
         """Angle between neighbouring beams, radians."""

@@ -16,14 +16,15 @@ The localizer and the mapper turn these back into ``/robot_k/pose`` and
 ``/worksite/height_map`` (``ant-trial --perception full``). All noise comes from one
 generator seeded by ``seed``.
 
-Parameters: ``robots`` (4), ``seed`` (0), ``truth_prefix`` (``/truth``), ``cell_size``
-(0.25 m; ``/worksite/map_info`` overrides it), ``height_unit`` unused by the sensors
-(heights arrive in metres), camera ``width`` (1280), ``height`` (720), ``light`` (0.25),
-``noise`` (3.0), ``glare`` (1.5), ``dropout`` (0.0), ``occlude`` (e.g. ``"0:front,2:rear"``),
-``k1`` (-0.08), laser ``range_noise`` (0.008 m), ``laser_dropout`` (0.01),
-``sweep_scans`` (64), ``scan_period`` (0.01 s), and ``reliable`` (false: sensor-data QoS;
-true: reliable with ``queue`` depth, which the lockstep trial uses so that no scan of a
-sweep is lost), ``queue`` (200).
+Parameters: ``robots`` (4), ``seed`` (0), ``truth_prefix`` (``/truth``); the site's
+``rows`` (16), ``cols`` (16) and ``cell_size`` (0.25 m): camera and laser are placed over
+its centre (:meth:`CameraParams.for_site`, :meth:`LaserParams.for_site`); camera
+``width`` (1280), ``height`` (720), ``light`` (0.25), ``noise`` (3.0), ``glare`` (1.5),
+``dropout`` (0.0), ``occlude`` (e.g. ``"0:front,2:rear"``), ``k1`` (-0.08); laser
+``range_noise`` (0.008 m), ``laser_dropout`` (0.01), ``sweep_scans`` (64),
+``scan_period`` (0.01 s); ``reliable`` (false: sensor-data QoS; true: reliable with
+``queue`` depth, which the lockstep trial uses so that no scan of a sweep is lost),
+``queue`` (200).
 """
 
 from __future__ import annotations
@@ -34,7 +35,6 @@ import sys
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PoseWithCovarianceStamped
-from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image, JointState, LaserScan
@@ -78,7 +78,11 @@ class SensorsNode(Node):
         self.rng = np.random.default_rng(int(p("seed", 0).value))
         prefix = str(p("truth_prefix", "/truth").value).rstrip("/")
         self.cell_size = float(p("cell_size", 0.25).value)
-        self.camera_params = CameraParams(
+        self.rows = int(p("rows", 16).value)
+        self.cols = int(p("cols", 16).value)
+        self.camera_params = CameraParams.for_site(
+            self.cols * self.cell_size,
+            self.rows * self.cell_size,
             width=int(p("width", 1280).value),
             height=int(p("height", 720).value),
             light=float(p("light", 0.25).value),
@@ -88,7 +92,10 @@ class SensorsNode(Node):
             k1=float(p("k1", -0.08).value),
         )
         self.hidden = parse_occlude(str(p("occlude", "").value))
-        self.laser_params = LaserParams(
+        self.laser_params = LaserParams.for_site(
+            self.rows,
+            self.cols,
+            self.cell_size,
             range_noise=float(p("range_noise", 0.008).value),
             dropout=float(p("laser_dropout", 0.01).value),
             sweep_scans=int(p("sweep_scans", 64).value),
@@ -121,12 +128,6 @@ class SensorsNode(Node):
                 10,
             )
         self.create_subscription(Image, f"{prefix}/worksite/height_map", self.on_heights, LATCHED)
-        self.create_subscription(MapMetaData, "/worksite/map_info", self.on_info, LATCHED)
-
-    def on_info(self, msg: MapMetaData) -> None:
-        """Cell size of the worksite."""
-        if msg.resolution > 0 and self.camera is None:
-            self.cell_size = float(msg.resolution)
 
     def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
         """A robot's true pose."""
@@ -159,6 +160,13 @@ class SensorsNode(Node):
     def render(self, stamp: TimeMsg, heights: np.ndarray) -> None:
         """Publish one camera frame and one laser sweep of this instant."""
         rows, cols = heights.shape
+        if (rows, cols) != (self.rows, self.cols):
+            self.get_logger().error(
+                f"truth height map is {rows} x {cols} cells, the sensors are set up for "
+                f"{self.rows} x {self.cols} (parameters rows, cols): frame skipped",
+                throttle_duration_sec=5.0,
+            )
+            return
         if self.camera is None:
             self.camera = OverheadCamera(
                 self.camera_params, default_beacons(), rows, cols, self.cell_size
