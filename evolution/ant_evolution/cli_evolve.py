@@ -6,6 +6,7 @@ Examples::
     ant-evolve --config runs/r1/config.yaml --out runs/r1 --resume
     ant-evolve --out runs/mix --robots-mix 1,4 --workers 2
     ant-evolve --out runs/n --evolve-robots --ray-address local
+    ant-evolve --out runs/check --evaluator ros --population 10 --scenarios 4 --workers 2
 
 Command-line values override the config file; the resolved configuration is written to
 ``OUT/config.yaml``. Exit codes: 0 done, 2 bad configuration or checkpoint, 130 interrupted
@@ -24,6 +25,7 @@ from tqdm import tqdm
 
 from ant_evolution.errors import CheckpointError, ConfigError
 from ant_evolution.evolve import EvolveConfig, load_config, run_evolution
+from ant_evolution.ros_evaluator import TrialError
 from blueprint_server.errors import BlueprintError
 from excavation_sim.world import PlacementError
 
@@ -66,6 +68,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-coarse-coding", action="store_true", help="ANT without coarse coding")
     p.add_argument("--workers", type=int, default=None, help="local processes (default: cores)")
     p.add_argument("--ray-address", metavar="ADDR", help="Ray cluster ('local' starts one)")
+    p.add_argument(
+        "--evaluator",
+        choices=("batched", "ros"),
+        default="batched",
+        help="batched world model (default), or trials through the ROS topics (--workers "
+        "at once, each in its own ROS domain)",
+    )
+    p.add_argument(
+        "--trial-command",
+        metavar="TEMPLATE",
+        help="with --evaluator ros: the trial command, with {genome} {robots} {steps} {seed} "
+        "{scenario} {blueprint} {domain}; prints JSON with 'fitness' (default: ant-trial)",
+    )
+    p.add_argument(
+        "--domain-base",
+        type=int,
+        default=100,
+        help="with --evaluator ros: trials use ROS domains from this one on (default 100)",
+    )
     p.add_argument("--seed", type=int, help="run seed (default 0)")
     p.add_argument("--checkpoint-every", type=int, help="generations between checkpoints")
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.json")
@@ -137,8 +158,11 @@ def main(argv: list[str] | None = None) -> int:
             ray_address=args.ray_address,
             resume=args.resume,
             progress=progress,
+            evaluator=args.evaluator,
+            trial_command=args.trial_command,
+            domain_base=args.domain_base,
         )
-    except (ConfigError, CheckpointError, BlueprintError, PlacementError) as exc:
+    except (ConfigError, CheckpointError, BlueprintError, PlacementError, TrialError) as exc:
         bar.close()
         print(f"ant-evolve: error: {exc}", file=sys.stderr)
         return 2

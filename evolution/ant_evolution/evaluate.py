@@ -180,6 +180,8 @@ class ScenarioSet:
         rng: ``uint64 [S]`` random-turn generator states.
         params: Packed world parameters.
         steps: Timesteps per scenario.
+        seed: The seed the scenarios were drawn from (scenario i: ``scenario_start(..., seed, i)``).
+        robot_counts: The robot counts scenarios alternate between.
     """
 
     heights: np.ndarray
@@ -190,6 +192,8 @@ class ScenarioSet:
     rng: np.ndarray
     params: np.ndarray
     steps: int
+    seed: int = 0
+    robot_counts: tuple[int, ...] = ()
 
     @classmethod
     def create(
@@ -233,6 +237,8 @@ class ScenarioSet:
             rng=rng_states,
             params=params.as_array(),
             steps=steps,
+            seed=seed,
+            robot_counts=tuple(counts),
         )
 
     @property

@@ -375,6 +375,9 @@ def run_evolution(
     resume: bool = False,
     progress: Callable[[dict], None] | None = None,
     stop_after: int | None = None,
+    evaluator: str = "batched",
+    trial_command: str | None = None,
+    domain_base: int = 100,
 ) -> RunState:
     """Run (or resume) an evolution, writing outputs into ``out``.
 
@@ -387,6 +390,11 @@ def run_evolution(
         progress: Called with each generation's history row.
         stop_after: Stop after this many generations in this call (tests use it to
             simulate an interruption); the checkpoint is written at the stop.
+        evaluator: ``"batched"`` (the compiled world model; ``workers`` / ``ray_address``)
+            or ``"ros"`` (trials through the topics, ``workers`` at once:
+            :mod:`ant_evolution.ros_evaluator`).
+        trial_command: ``"ros"``: the trial command template (default: ``ant-trial``).
+        domain_base: ``"ros"``: trials use ROS domains ``domain_base`` onwards.
 
     Raises:
         CheckpointError: ``resume`` without a usable checkpoint, or a fresh run into a
@@ -413,7 +421,15 @@ def run_evolution(
         f"P={config.population}, S={config.scenarios}, T={config.steps}"
     )
     done_here = 0
-    with Evaluator(workers, ray_address) as evaluator:
+    if evaluator == "ros":
+        from ant_evolution.ros_evaluator import DEFAULT_TRIAL, RosEvaluator
+
+        scorer = RosEvaluator(workers, domain_base, trial_command or DEFAULT_TRIAL)
+    elif evaluator == "batched":
+        scorer = Evaluator(workers, ray_address)
+    else:
+        raise ConfigError("<arguments>", "evaluator", evaluator, "must be 'batched' or 'ros'")
+    with scorer as evaluator:
         while state.generation < config.generations:
             t0 = time.perf_counter()
             g = state.generation
