@@ -95,6 +95,8 @@ def plot_fitness(data: TrialData, report: Report) -> None:
     why = _needs(data, HEIGHTS) or (
         _needs(data, ZONES, GOAL) if not data.topics.get(FITNESS) else None
     )
+    if not why and not data.heights:
+        why = "no usable /worksite/height_map message"
     if why:
         report.skipped["fitness"] = why
         return

@@ -476,12 +476,15 @@ def _scan_mcap(mcap: Path) -> tuple[dict[str, TopicInfo], list[tuple[str, int, b
                     topics[ch.topic].count += 1
                 elif isinstance(record, Footer):
                     complete = True
-        except (McapError, EOFError, struct.error, ValueError, OSError) as exc:
-            problem = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
-    if not complete:
+        except (struct.error, EOFError):
+            problem = "the file is cut short"
+        except (McapError, ValueError, OSError) as exc:
+            problem = f"{type(exc).__name__}: {exc}"
+    if problem or not complete:
         last = f"; last message at {messages[-1][1] / 1e9:.3f} s" if messages else ""
+        where = "ends without its MCAP footer" if not complete else "ends inside its footer"
         problem = (
-            f"{mcap.name} ends without its MCAP footer ({problem or 'file cut short'}): "
+            f"{mcap.name} {where} ({problem or 'the file is cut short'}): "
             f"read {len(messages)} messages from its complete chunks{last}"
         )
     messages.sort(key=lambda m: m[1])

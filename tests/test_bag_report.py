@@ -1,0 +1,200 @@
+"""ant-bag report on the sample trial bag, and partial reports from bad bags."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ant_controller.controller import Controller
+from blueprint_server.blueprint import default_blueprint
+from excavation_sim.bag.cli import main as ant_bag
+from excavation_sim.bag.report import make_report
+from excavation_sim.bag.storage import BagWriter, open_bag
+from excavation_sim.bag.trial_data import read_trial
+from excavation_sim.detectors import count, random_turn_direction
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE = ROOT / "bags" / "sample"
+# how bags/sample was made (docs/bags.md): ant-trial --genome genomes/best.json --robots 4
+# --blueprint default:1 --steps 100 --seed 0 --record bags/sample
+GENOME, ROBOTS, STEPS, SEED, DEPTH = ROOT / "genomes" / "best.json", 4, 100, 0, 1
+
+
+def offline_trial():
+    """The sample's trial offline: sensor vectors, masks and random-turn directions."""
+    from ant_evolution.evaluate import ScenarioSet
+    from excavation_sim.world import HEADING
+
+    ctl = Controller.from_file(GENOME)
+    batch = ScenarioSet.create(default_blueprint(DEPTH), ROBOTS, 1, STEPS, SEED)
+    world = batch.world(0)
+    sensors, masks, turns = [], [], []
+    for t in range(STEPS + 1):  # the controllers also answer the final state
+        s = world.sense()
+        m = np.array([ctl.decide(s[k]) for k in range(ROBOTS)], dtype=np.int64)
+        sensors.append(s)
+        masks.append(m)
+        if t < STEPS:
+            before = world.robots[:, HEADING].copy()
+            world.step(m)
+            turns.append(random_turn_direction(before, world.robots[:, HEADING], m))
+        else:
+            turns.append(np.zeros(ROBOTS, dtype=np.int8))
+    return world, np.array(sensors), np.array(masks), np.array(turns)
+
+
+@pytest.fixture(scope="module")
+def sample_report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    assert ant_bag(["report", str(SAMPLE), "--out", str(out), "--gif-stride", "10"]) == 0
+    return out
+
+
+def test_sample_report_has_every_section(sample_report):
+    for name in (
+        "fitness.png",
+        "snapshots.png",
+        "trial.gif",
+        "detectors.png",
+        "field_metrics.png",
+        "summary.md",
+        "report.json",
+    ):
+        assert (sample_report / name).stat().st_size > 500, name
+    from PIL import Image
+
+    with Image.open(sample_report / "trial.gif") as gif:
+        assert gif.n_frames == 11  # 101 frames, every 10th
+    data = json.loads((sample_report / "report.json").read_text())
+    assert data["skipped"] == {} and data["warnings"] == []
+    assert data["robots"] == ROBOTS and data["frames"] == STEPS + 1
+    summary = (sample_report / "summary.md").read_text()
+    assert "Table 3 detectors" in summary and "Field metrics" in summary
+
+
+def test_sample_report_numbers_equal_the_offline_trial(sample_report):
+    data = json.loads((sample_report / "report.json").read_text())
+    world, sensors, masks, turns = offline_trial()
+    assert data["fitness"]["recomputed_final"] == pytest.approx(world.fitness(), abs=1e-12)
+    assert data["fitness"]["final"] == pytest.approx(world.fitness(), abs=1e-6)  # Float32
+    expected = count(sensors, masks, turns)
+    assert data["detectors"]["counts"] == {k: int(v) for k, v in expected.items()}
+    assert data["detectors"]["decisions"] == (STEPS + 1) * ROBOTS
+    assert sum(expected.values()) > 0
+    fm = data["field_metrics"]
+    assert fm["dig_cells"] == int((default_blueprint(DEPTH).zones == 1).sum())
+    assert math.isclose(fm["towards_goal"] + fm["above_goal"] + fm["below_goal"], 1.0)
+
+
+def test_rebuilt_sensor_vectors_give_the_recorded_behaviours():
+    """What the report feeds the detectors is what the controllers saw."""
+    data = read_trial(open_bag(SAMPLE))
+    frames, sensors, behaviours, _ = data.decision_arrays()
+    assert len(sensors) == (STEPS + 1) * ROBOTS
+    ctl = Controller.from_file(GENOME)
+    assert [ctl.decide(s) for s in sensors] == behaviours.tolist()
+    _, offline_sensors, offline_masks, _ = offline_trial()
+    robots = np.array([d.robot for d in data.decisions])
+    for k in range(ROBOTS):
+        assert np.array_equal(sensors[robots == k], offline_sensors[:, k])
+        assert np.array_equal(behaviours[robots == k], offline_masks[:, k])
+
+
+def copy_bag(dst, drop=(), retype=None, custom=None, foreign=False):
+    """A filtered copy of the sample (optionally with a topic's type replaced)."""
+    src = open_bag(SAMPLE)
+    retype = retype or {}
+    if foreign:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        from rosbags.typesys import Stores, get_typestore
+
+        store = get_typestore(Stores.ROS2_JAZZY)
+        with Writer(dst, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+            conns = {
+                t.name: w.add_connection(
+                    t.name, t.msgtype, typestore=store, offered_qos_profiles=t.qos
+                )
+                for t in src.topics.values()
+            }
+            for topic, ts, raw in src.messages():
+                w.write(conns[topic], ts, raw)
+        return dst
+    with BagWriter(dst, custom) as w:
+        for t in src.topics.values():
+            if t.name not in drop:
+                w.add_topic(t.name, retype.get(t.name, t.msgtype), t.qos)
+        for topic, ts, raw in src.messages():
+            if topic in w.topics:
+                w.write(topic, ts, raw if topic not in retype else b"\x00\x01\x00\x00\x00")
+    return dst
+
+
+def report_of(bag_dir, out):
+    report = make_report(open_bag(bag_dir), out, gif=False)
+    assert (out / "summary.md").exists() and (out / "report.json").exists()
+    return report, (out / "summary.md").read_text()
+
+
+def test_missing_height_map_gives_a_partial_report(tmp_path):
+    report, summary = report_of(
+        copy_bag(tmp_path / "b", drop=("/worksite/height_map",)), tmp_path / "r"
+    )
+    for section in ("fitness", "snapshots", "field metrics"):
+        assert "no /worksite/height_map" in report.skipped[section]
+    assert "detectors" in report.skipped
+    assert "## Skipped" in summary and "no /worksite/height_map" in summary
+
+
+def test_missing_blueprint_keeps_the_fitness_plot(tmp_path):
+    report, summary = report_of(
+        copy_bag(tmp_path / "b", drop=("/blueprint/zones",)), tmp_path / "r"
+    )
+    assert "fitness.png" in report.files
+    assert "no /blueprint/zones" in report.skipped["snapshots"]
+    assert "inputs" in report.skipped["detectors"]
+    assert report.numbers["fitness"]["recomputed_final"] is None
+
+
+def test_wrong_type_for_a_needed_topic(tmp_path):
+    bag = copy_bag(tmp_path / "b", retype={"/worksite/height_map": "std_msgs/msg/String"})
+    report, summary = report_of(bag, tmp_path / "r")
+    assert any(
+        "/worksite/height_map: type = 'std_msgs/msg/String'" in w and "expected" in w
+        for w in report.warnings
+    )
+    assert "snapshots" in report.skipped
+
+
+def test_unknown_producer_still_gets_a_full_report(tmp_path):
+    report, summary = report_of(copy_bag(tmp_path / "b", foreign=True), tmp_path / "r")
+    assert any("not recorded by ant-bag" in w for w in report.warnings)
+    assert set(report.skipped) == {"animation"}  # only the GIF, which was not asked for
+    assert "unknown" in summary  # producer unknown
+
+
+def test_truncated_bag_gets_a_report_of_what_is_left(tmp_path):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    data = (SAMPLE / "sample.mcap").read_bytes()
+    (bad / "bad.mcap").write_bytes(data[: len(data) // 2])
+    report, summary = report_of(bad, tmp_path / "r")
+    assert "truncated bag" in summary
+    assert 0 < report.numbers["fitness"]["frames"] < STEPS + 1
+    assert "detectors.png" in report.files
+
+
+def test_bag_with_an_unknown_type_topic(tmp_path):
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    path = tmp_path / "odd"
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        conn = w.add_connection("/odd", "my_pkg/msg/Odd", msgdef="", rihs01="RIHS01_x")
+        w.write(conn, 1, b"\x00\x01\x00\x00")
+    bag = open_bag(path)
+    assert any("unknown type 'my_pkg/msg/Odd'" in w for w in bag.warnings)
+    report, summary = report_of(path, tmp_path / "r")
+    assert "no /worksite/height_map" in report.skipped["snapshots"]
