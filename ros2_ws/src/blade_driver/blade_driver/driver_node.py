@@ -92,6 +92,15 @@ class BladeDriverNode(Node):
         self.backend_name = str(p("backend", "sim").value)
         self.joints = [str(j) for j in p("joints", [JOINT]).value]
         rate = float(p("rate", 20.0).value)
+        calibration = ServoCalibration(
+            float(p("servo_zero_deg", 90.0).value),
+            float(p("servo_deg_per_m", 600.0).value),
+            float(p("servo_min_deg", 0.0).value),
+            float(p("servo_max_deg", 180.0).value),
+        )
+        port = str(p("port", "/dev/ttyUSB0").value)
+        baudrate = int(p("baudrate", 115200).value)
+        serial_timeout = float(p("serial_timeout", 0.1).value)
         period = float(p("diagnostics_period", 1.0).value)
         self.core = BladeDriverCore(self.params)
         self.errors: dict[str, str] = {}
@@ -114,20 +123,9 @@ class BladeDriverNode(Node):
         elif self.backend_name == "serial":
             from blade_driver.serial_backend import SerialBackend
 
-            calibration = ServoCalibration(
-                float(p("servo_zero_deg", 90.0).value),
-                float(p("servo_deg_per_m", 600.0).value),
-                float(p("servo_min_deg", 0.0).value),
-                float(p("servo_max_deg", 180.0).value),
-            )
-            self.port = str(p("port", "/dev/ttyUSB0").value)
+            self.port = port
             try:
-                self.board = SerialBackend(
-                    self.port,
-                    int(p("baudrate", 115200).value),
-                    float(p("serial_timeout", 0.1).value),
-                    calibration,
-                )
+                self.board = SerialBackend(port, baudrate, serial_timeout, calibration)
             except BoardError as exc:
                 self.errors["board"] = str(exc)
                 self.get_logger().error(str(exc))
