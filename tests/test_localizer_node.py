@@ -1,0 +1,148 @@
+"""The localizer node: poses from frames; bad frames and configurations are reported."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Image
+
+from excavation_sim.camera import CameraParams, OverheadCamera, RobotView, default_beacons
+from overhead_localizer.images import frame_to_message
+from overhead_localizer.localizer_node import LocalizerNode
+
+VIEWS = [RobotView(1.0, 1.0, 0.0), RobotView(3.0, 3.0, np.pi / 2)]
+
+
+@pytest.fixture(scope="module")
+def frame():
+    camera = OverheadCamera(CameraParams(), default_beacons(), 16, 16, 0.25, seed=0)
+    return camera.render(VIEWS, np.zeros((16, 16)), np.random.default_rng(0))[0]
+
+
+class Probe:
+    """Publishes frames, collects poses and the latest diagnostics of each status."""
+
+    def __init__(self, ros, robots=2):
+        from rclpy.node import Node
+
+        self.node = ros.add(Node("probe", context=ros.context))
+        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self.pub = self.node.create_publisher(Image, "/overhead/image_raw", qos)
+        self.poses = {k: [] for k in range(robots)}
+        for k in range(robots):
+            self.node.create_subscription(
+                PoseWithCovarianceStamped,
+                f"/robot_{k}/pose",
+                lambda m, k=k: self.poses[k].append(m),
+                10,
+            )
+        self.status: dict[str, DiagnosticStatus] = {}
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
+        self.ros = ros
+
+    def on_diag(self, msg):
+        for s in msg.status:
+            self.status[s.name] = s
+
+    def send(self, image_msg, sec):
+        image_msg.header.stamp = Time(sec=sec)
+        self.ros.spin_until(lambda: self.pub.get_subscription_count() > 0, 5.0)
+        self.pub.publish(image_msg)
+
+
+def localizer(ros, **params):
+    overrides = [
+        Parameter("robots", value=2),
+        Parameter("reliable", value=True),
+        Parameter("use_height_map", value=False),
+        Parameter("diagnostics_period", value=0.1),
+    ] + [Parameter(k, value=v) for k, v in params.items()]
+    return ros.add(LocalizerNode(context=ros.context, parameter_overrides=overrides))
+
+
+def test_good_frame_gives_poses_with_covariance(ros, frame):
+    localizer(ros)
+    probe = Probe(ros)
+    probe.send(frame_to_message(frame, Image()), 7)
+    assert ros.spin_until(lambda: all(probe.poses.values()))
+    for k, view in enumerate(VIEWS):
+        pose = probe.poses[k][0]
+        assert pose.header.stamp.sec == 7 and pose.header.frame_id == "map"
+        assert abs(pose.pose.pose.position.x - view.x) < 0.04
+        assert abs(pose.pose.pose.position.y - view.y) < 0.04
+        cov = np.array(pose.pose.covariance).reshape(6, 6)
+        assert 0 < cov[0, 0] < 0.01 and 0 < cov[5, 5] < 0.05 and cov[2, 2] == 1e6
+    assert ros.spin_until(lambda: "localizer: robot_1" in probe.status)
+    assert probe.status["localizer: robot_1"].level == DiagnosticStatus.OK
+
+
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        ("size", "height x width x channels = (480, 640, 3)"),
+        ("encoding", "encoding = 'rgb8': expected bgr8"),
+        ("data", "data = "),
+    ],
+)
+def test_bad_frames_are_reported_and_give_no_pose(ros, frame, bad, match):
+    node = localizer(ros)
+    probe = Probe(ros)
+    if bad == "size":
+        msg = frame_to_message(np.zeros((480, 640, 3), dtype=np.uint8), Image())
+    else:
+        msg = frame_to_message(frame, Image())
+        if bad == "encoding":
+            msg.encoding = "rgb8"
+        else:
+            msg.data = bytes(msg.data)[:-5]
+    probe.send(msg, 3)
+
+    def reported():
+        s = probe.status.get("localizer: camera")
+        return s is not None and s.level == DiagnosticStatus.ERROR and match in s.message
+
+    assert ros.spin_until(reported)
+    assert not any(probe.poses.values())
+    probe.send(frame_to_message(frame, Image()), 4)  # still running
+    assert ros.spin_until(lambda: all(probe.poses.values()))
+    assert node.image_error is None
+
+
+def test_missing_calibration_keeps_running_and_publishes_nothing(ros, frame, tmp_path):
+    localizer(ros, calibration=str(tmp_path / "nowhere.yaml"))
+    probe = Probe(ros)
+    probe.send(frame_to_message(frame, Image()), 1)
+
+    def reported():
+        s = probe.status.get("localizer: camera")
+        return s is not None and s.level == DiagnosticStatus.ERROR and "does not exist" in s.message
+
+    assert ros.spin_until(reported)
+    ros.spin_until(lambda: False, 0.5)
+    assert not any(probe.poses.values())
+
+
+def test_two_robots_with_the_same_colours(ros, frame, tmp_path):
+    table = tmp_path / "beacons.yaml"
+    table.write_text(
+        "colours: {red: [0, 0, 255], green: [0, 255, 0], blue: [255, 40, 0],"
+        " yellow: [0, 230, 255]}\n"
+        "robots:\n  - {front: red, rear: green}\n  - {front: red, rear: green}\n"
+    )
+    localizer(ros, beacons=str(table))
+    probe = Probe(ros)
+    probe.send(frame_to_message(frame, Image()), 2)
+
+    def reported():
+        s = probe.status.get("localizer: robot_1")
+        return s is not None and s.level == DiagnosticStatus.ERROR
+
+    assert ros.spin_until(reported)
+    assert "shares LED colours" in probe.status["localizer: robot_0"].message
+    ros.spin_until(lambda: False, 0.3)
+    assert not any(probe.poses.values())
