@@ -90,6 +90,7 @@ def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
             Parameter("sweep_scans", value=sensors.laser_params.sweep_scans),
             Parameter("prior_height", value=0.0),
             Parameter("publish_map_info", value=False),
+            Parameter("pose_wait", value=2.0),
             Parameter("reliable", value=True),
         ],
     )
