@@ -101,6 +101,7 @@ def cmd_play(args: argparse.Namespace) -> int:
         Parameter("rate", value=float(args.rate)),
         Parameter("loop", value=bool(args.loop)),
         Parameter("lockstep", value=bool(args.lockstep)),
+        Parameter("delay", value=float(args.delay)),
     ]
     if args.topics:
         overrides.append(Parameter("topics", value=list(args.topics)))
@@ -186,6 +187,7 @@ def parser() -> argparse.ArgumentParser:
     pl.add_argument("--rate", type=float, default=1.0)
     pl.add_argument("--topics", nargs="+", metavar="TOPIC")
     pl.add_argument("--loop", action="store_true")
+    pl.add_argument("--delay", type=float, default=0.5, metavar="S", help="wait before playing")
     pl.add_argument("--lockstep", action="store_true", help="tick by tick, waiting for replies")
     pl.add_argument("--wait-for", nargs="+", metavar="TOPIC")
     pl.add_argument("--domain", type=int, default=None)

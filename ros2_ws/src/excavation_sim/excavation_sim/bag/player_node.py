@@ -23,7 +23,8 @@ Two ways to pace the replay:
 Parameters: ``bag`` (directory), ``topics`` (names or globs; default all), ``rate`` (1.0),
 ``loop`` (false), ``lockstep`` (false), ``wait_for`` (topics), ``lockstep_timeout`` (5.0 s),
 ``startup_period`` (1.0 s: in lockstep mode, time given to the subscribers after every
-``wait_for`` topic has a publisher).
+``wait_for`` topic has a publisher), ``delay`` (0.5 s: with recorded timing, time given to
+subscribers to connect before the first message).
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ class PlayerNode(Node):
         wait_for = [t for t in p("wait_for", [""]).value if t]
         self.lockstep_timeout = float(p("lockstep_timeout", 5.0).value)
         self.startup_period = float(p("startup_period", 1.0).value)
+        self.delay = float(p("delay", 0.5).value)
         self.bag = bag if bag is not None else open_bag(path)
         if not self.rate > 0:
             raise BagError(self.bag.path, "rate", self.rate, "must be > 0")
@@ -137,6 +139,7 @@ class PlayerNode(Node):
         self.waiting_since: float | None = None
         self.index = 0
         self.started: float | None = None
+        self.created: float | None = None
         self.create_timer(0.001, self.step)
 
     def _publish(self, topic: str, raw: bytes) -> None:
@@ -156,6 +159,10 @@ class PlayerNode(Node):
 
     def _step_timed(self) -> None:
         now = time.monotonic()
+        if self.created is None:
+            self.created = now
+        if now - self.created < self.delay:
+            return
         if self.started is None:
             self.started = now
         if not self.messages:

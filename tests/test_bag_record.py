@@ -1,0 +1,122 @@
+"""Recording: ant-trial --record, and a recorder killed (SIGKILL) or stopped (SIGINT) mid-run."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from conftest import next_domain
+from ruamel.yaml import YAML
+
+from excavation_sim.bag.storage import PRODUCER, latched, open_bag, recover_bag
+from excavation_sim.trial import run_trial
+
+
+def test_trial_records_every_tick(tmp_path):
+    steps, robots = 12, 2
+    bag_dir = tmp_path / "trial"
+    result = run_trial(
+        "hand-coded",
+        robots,
+        steps,
+        1,
+        "default:1",
+        domain=next_domain(),
+        command_timeout=30.0,
+        record=str(bag_dir),
+    )
+    bag = open_bag(bag_dir)
+    assert bag.truncated is None and bag.warnings == []
+    assert bag.producer == PRODUCER and bag.custom_data["height_unit"] == "0.05"
+    counts = {t.name: t.count for t in bag.topics.values()}
+    for topic in ["/clock", "/worksite/height_map", "/worksite/fitness"] + [
+        f"/robot_{k}/{kind}" for k in range(robots) for kind in ("pose", "behaviour", "stuck")
+    ]:
+        assert counts[topic] == steps + 1, topic
+    for topic in ("/blueprint/goal", "/blueprint/zones", "/worksite/map_info"):
+        assert counts[topic] == 1 and latched(bag.topics[topic].qos), topic
+    assert latched(bag.topics["/worksite/height_map"].qos)
+    assert not latched(bag.topics["/robot_0/pose"].qos)
+    fitness = [bag.decode(t, raw).data for t, _, raw in bag.messages(["/worksite/fitness"])]
+    assert fitness[-1] == pytest.approx(result.fitness, abs=1e-6)
+    for k in range(robots):
+        topic = f"/robot_{k}/behaviour"
+        recorded = [bag.decode(topic, raw).data for _, _, raw in bag.messages([topic])]
+        assert recorded[:steps] == [tick[k] for tick in result.commands]
+
+
+def _recorder(out, domain, *extra):
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
+    cmd = [sys.executable, "-m", "excavation_sim.bag.cli", "record", "--out", str(out)]
+    return subprocess.Popen(
+        [*cmd, "--topics", "/count", "/latched", *extra],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+    )
+
+
+def _metadata_count(bag_dir) -> int:
+    try:
+        info = YAML(typ="safe").load((bag_dir / "metadata.yaml").read_text())
+        return int(info["rosbag2_bagfile_information"]["message_count"])
+    except (OSError, TypeError, KeyError):
+        return 0
+
+
+@pytest.mark.parametrize("stop", ["SIGKILL", "SIGINT"])
+def test_recorder_stopped_mid_recording(ros, tmp_path, stop):
+    from rosbags.rosbag2 import Reader
+    from std_msgs.msg import UInt16
+
+    from ant_controller.ros import LATCHED
+
+    node = ros.add(__import__("rclpy").create_node("counter", context=ros.context))
+    pub = node.create_publisher(UInt16, "/count", 100)
+    node.create_publisher(UInt16, "/latched", LATCHED).publish(UInt16(data=7))
+    sent = []
+    node.create_timer(0.005, lambda: (pub.publish(UInt16(data=len(sent))), sent.append(0)))
+    bag_dir = tmp_path / "rec"
+    proc = _recorder(bag_dir, ros.domain, "--flush-period", "0.2")
+    try:
+        assert ros.spin_until(lambda: _metadata_count(bag_dir) >= 60, timeout=60.0)
+        flushed = _metadata_count(bag_dir)  # metadata is rewritten after each chunk is synced
+        proc.send_signal(getattr(signal, stop))
+        assert proc.wait(timeout=20) == (-signal.SIGKILL if stop == "SIGKILL" else 0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    bag = open_bag(bag_dir)
+    counts = [int(bag.decode(t, raw).data) for t, _, raw in bag.messages(["/count"])]
+    latched_msgs = [bag.decode(t, raw).data for t, _, raw in bag.messages(["/latched"])]
+    assert latched_msgs == [7]
+    assert len(counts) + 1 >= flushed  # everything flushed before the stop reads back
+    assert counts == list(range(counts[0], counts[0] + len(counts)))  # no gap, in order
+    if stop == "SIGINT":
+        assert bag.truncated is None  # a clean stop finishes the file
+        complete = bag_dir
+    else:
+        assert bag.truncated is not None and "footer" in bag.truncated
+        complete = tmp_path / "recovered"
+        recover_bag(bag_dir, complete)
+    with Reader(complete) as reader:
+        assert reader.message_count == len(counts) + 1
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    (mcap_file,) = complete.glob("*.mcap")
+    with open(mcap_file, "rb") as f:
+        got = [
+            m.data
+            for _, ch, _, m in make_reader(
+                f, decoder_factories=[DecoderFactory()]
+            ).iter_decoded_messages()
+            if ch.topic == "/count"
+        ]
+    assert got == counts
+    time.sleep(0)  # keep the node alive until here
