@@ -50,6 +50,7 @@ demo: setup
 
 bench: setup
 	$(BIN)/ant-bench --write docs/benchmarks.md
+	$(BIN)/ant-perception-bench --write docs/benchmarks.md --doc docs/perception.md
 
 clean:
 	rm -rf $(VENV) ros2_ws/build ros2_ws/install ros2_ws/log $(DEMO_OUT)

@@ -13,7 +13,9 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {
     "ant_controller": ["genome_info", "controller"],
     "blueprint_server": ["blueprint_info", "server"],
-    "excavation_sim": ["sim", "trial", "ant-trial", "bag", "ant-bag"],
+    "excavation_sim": ["sim", "trial", "ant-trial", "bag", "ant-bag", "sensors"],
+    "overhead_localizer": ["localizer", "calibrate"],
+    "terrain_mapper": ["mapper", "field_metrics", "field-metrics"],
     "blade_driver": ["driver", "fake_board"],
 }
 
