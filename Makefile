@@ -43,10 +43,11 @@ demo: setup
 	rm -rf $(DEMO_OUT)/evolve
 	$(BIN)/ant-evolve --out $(DEMO_OUT)/evolve --population 40 --generations 25 --scenarios 20 --seed 0
 	$(BIN)/ant-eval --genome genomes/best.json --robots 4 --depth 1 --scenarios 100 --seed 0 --snapshots $(DEMO_OUT)/evolved
-	$(BIN)/ant-eval --genome genomes/best.json --robots 4 --depth 1 --scenarios 1 --seed 0
-	ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST $(BIN)/ant-trial --genome genomes/best.json --robots 4 --blueprint default:1 --steps 300 --seed 0
 	@echo "Terrain snapshots: $(DEMO_OUT)/hand_coded/strip.png $(DEMO_OUT)/evolved/strip.png"
 	@echo "Short evolution: $(DEMO_OUT)/evolve/fitness.png, $(DEMO_OUT)/evolve/best.json"
+	$(BIN)/ant-eval --genome genomes/best.json --robots 4 --depth 1 --scenarios 1 --seed 0 --json > $(DEMO_OUT)/offline.json
+	ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST $(BIN)/ant-trial --genome genomes/best.json --robots 4 --blueprint default:1 --steps 300 --seed 0 --json > $(DEMO_OUT)/trial.json
+	@$(BIN)/python -c 'import json, sys; a = json.load(open(sys.argv[1]))["mean"]; b = json.load(open(sys.argv[2]))["fitness"]; v = "identical" if a == b else "DIFFERENT"; print(f"shipped genome, 4 robots, scenario 0, 300 ticks: ant-eval (offline) {a:.6f} | ant-trial (ROS nodes, blade drivers) {b:.6f} | {v}")' $(DEMO_OUT)/offline.json $(DEMO_OUT)/trial.json
 
 bench: setup
 	$(BIN)/ant-bench --write docs/benchmarks.md
