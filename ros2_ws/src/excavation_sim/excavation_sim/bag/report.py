@@ -263,6 +263,10 @@ def _save(fig, report: Report, name: str) -> None:
     report.files.append(name)
 
 
+def _num(v) -> str:
+    return "n/a" if v is None else f"{v:.4f}"
+
+
 def _pct(v) -> str:
     return "n/a" if v is None else f"{100 * v:.1f} %"
 
@@ -282,8 +286,8 @@ def summary_markdown(bag: Bag, data: TrialData, report: Report) -> str:
     fit = report.numbers.get("fitness")
     if fit:
         lines.append(
-            f"- fitness: {fit['first']} at the start, **{fit['final']}** at the end "
-            f"(recomputed from the last height map: {fit['recomputed_final']})"
+            f"- fitness: {_num(fit['first'])} at the start, **{_num(fit['final'])}** at the "
+            f"end (recomputed from the last height map: {_num(fit['recomputed_final'])})"
         )
     det = report.numbers.get("detectors")
     if det:
@@ -292,8 +296,8 @@ def summary_markdown(bag: Bag, data: TrialData, report: Report) -> str:
         lines += [
             "",
             f"{det['decisions']} decisions with known inputs "
-            f"({det['decisions_without_inputs']} without); a Random Turn's direction was "
-            f"known for {det['random_turn_direction_known']} of them.",
+            f"({det['decisions_without_inputs']} without); {det['random_turn_direction_known']} "
+            "Random Turns whose direction the next pose shows (Correct dump needs it).",
         ]
     fm = report.numbers.get("field_metrics")
     if fm:
