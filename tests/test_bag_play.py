@@ -142,3 +142,33 @@ def test_cli_play_errors(tmp_path, capsys):
     small_bag(tmp_path / "b")
     assert ant_bag(["play", str(tmp_path / "b"), "--topics", "/nope", "--domain", "199"]) == 2
     assert "no playable topic" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kind", ["recorder", "player"])
+def test_config_files_set_every_parameter(ros, tmp_path, kind):
+    import yaml
+
+    from excavation_sim.bag.recorder_node import RecorderNode
+
+    path = ROOT / "ros2_ws" / "src" / "excavation_sim" / "config" / f"bag_{kind}.yaml"
+    values = yaml.safe_load(path.read_text())["/**"]["ros__parameters"]
+    values["depth" if kind == "recorder" else "rate"] = 3 if kind == "recorder" else 2.5
+    if kind == "recorder":
+        values["out"] = str(tmp_path / "rec")
+    else:
+        values["bag"] = str(small_bag(tmp_path / "b").path)
+    changed = tmp_path / "params.yaml"
+    changed.write_text(yaml.safe_dump({"/**": {"ros__parameters": values}}))
+    args = ["--ros-args", "--params-file", str(changed)]
+    make = RecorderNode if kind == "recorder" else PlayerNode
+    node = make(context=ros.context, cli_args=args)
+    try:
+        declared = set(node._parameters) - {"use_sim_time", "start_type_description_service"}
+        assert declared == set(values)
+        if kind == "recorder":
+            assert node.depth == 3 and (tmp_path / "rec" / "metadata.yaml").exists()
+            node.close()
+        else:
+            assert node.rate == 2.5 and set(node.publishers_) == {"/latched", "/count"}
+    finally:
+        node.destroy_node()

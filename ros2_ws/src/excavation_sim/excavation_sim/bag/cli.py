@@ -25,8 +25,11 @@ import time
 from ant_controller.errors import FieldError
 
 
-def _spin(node_factory, domain: int | None, until) -> object:
-    """Init rclpy on ``domain``, spin the node until ``until(node)`` or shutdown."""
+def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> object:
+    """Init rclpy on ``domain``, spin the node until ``until(node)`` or shutdown.
+
+    ``ros_args`` (``--ros-args ...``, e.g. ``--params-file``) reach every node.
+    """
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     import rclpy
     from rclpy.context import Context
@@ -35,7 +38,7 @@ def _spin(node_factory, domain: int | None, until) -> object:
     context = Context()
     if domain is None:
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
-    rclpy.init(context=context, domain_id=domain)
+    rclpy.init(args=["ant-bag", *ros_args], context=context, domain_id=domain)
     executor = SingleThreadedExecutor(context=context)
     node = None
     try:
@@ -63,11 +66,11 @@ def cmd_record(args: argparse.Namespace) -> int:
 
     from excavation_sim.bag.recorder_node import RecorderNode
 
-    overrides = [
-        Parameter("out", value=args.out),
-        Parameter("flush_period", value=float(args.flush_period)),
-        Parameter("height_unit", value=float(args.height_unit)),
-    ]
+    overrides = [Parameter("out", value=args.out)]
+    if args.flush_period is not None:
+        overrides.append(Parameter("flush_period", value=float(args.flush_period)))
+    if args.height_unit is not None:
+        overrides.append(Parameter("height_unit", value=float(args.height_unit)))
     if args.topics:
         overrides.append(Parameter("topics", value=list(args.topics)))
     started = time.monotonic()
@@ -77,7 +80,10 @@ def cmd_record(args: argparse.Namespace) -> int:
 
     print(f"ant-bag: recording into {args.out} (Ctrl-C stops)", file=sys.stderr, flush=True)
     node = _spin(
-        lambda ctx: RecorderNode(context=ctx, parameter_overrides=overrides), args.domain, until
+        lambda ctx: RecorderNode(context=ctx, parameter_overrides=overrides),
+        args.domain,
+        until,
+        args.ros_args,
     )
     if node is not None:
         counts = node.recorded
@@ -97,12 +103,13 @@ def cmd_play(args: argparse.Namespace) -> int:
     bag = open_bag(args.bag)
     for w in bag.warnings:
         print(f"ant-bag: warning: {w}", file=sys.stderr)
-    overrides = [
-        Parameter("rate", value=float(args.rate)),
-        Parameter("loop", value=bool(args.loop)),
-        Parameter("lockstep", value=bool(args.lockstep)),
-        Parameter("delay", value=float(args.delay)),
-    ]
+    overrides = [Parameter("bag", value=str(args.bag))]
+    for name, value in (("rate", args.rate), ("delay", args.delay)):
+        if value is not None:
+            overrides.append(Parameter(name, value=float(value)))
+    for name, flag in (("loop", args.loop), ("lockstep", args.lockstep)):
+        if flag:
+            overrides.append(Parameter(name, value=True))
     if args.topics:
         overrides.append(Parameter("topics", value=list(args.topics)))
     if args.wait_for:
@@ -111,6 +118,7 @@ def cmd_play(args: argparse.Namespace) -> int:
         lambda ctx: PlayerNode(bag, context=ctx, parameter_overrides=overrides),
         args.domain,
         lambda n: n.finished,
+        args.ros_args,
     )
     if node is not None:
         print(f"ant-bag: published {node.published} messages from {args.bag}")
@@ -177,17 +185,17 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, metavar="DIR")
     r.add_argument("--topics", nargs="+", metavar="TOPIC", help="names or globs (default: suite)")
     r.add_argument("--duration", type=float, default=None, metavar="S")
-    r.add_argument("--flush-period", type=float, default=0.5, metavar="S")
-    r.add_argument("--height-unit", type=float, default=0.05, metavar="M")
+    r.add_argument("--flush-period", type=float, default=None, metavar="S", help="default 0.5")
+    r.add_argument("--height-unit", type=float, default=None, metavar="M", help="default 0.05")
     r.add_argument("--domain", type=int, default=None)
     r.set_defaults(run=cmd_record)
 
     pl = sub.add_parser("play", help="republish a bag")
     pl.add_argument("bag", metavar="DIR")
-    pl.add_argument("--rate", type=float, default=1.0)
+    pl.add_argument("--rate", type=float, default=None, help="default 1.0")
     pl.add_argument("--topics", nargs="+", metavar="TOPIC")
     pl.add_argument("--loop", action="store_true")
-    pl.add_argument("--delay", type=float, default=0.5, metavar="S", help="wait before playing")
+    pl.add_argument("--delay", type=float, default=None, metavar="S", help="default 0.5")
     pl.add_argument("--lockstep", action="store_true", help="tick by tick, waiting for replies")
     pl.add_argument("--wait-for", nargs="+", metavar="TOPIC")
     pl.add_argument("--domain", type=int, default=None)
@@ -218,6 +226,7 @@ def main(argv: list[str] | None = None) -> int:
 
     argv = sys.argv[1:] if argv is None else argv
     args = parser().parse_args(remove_ros_args(["ant-bag", *argv])[1:])
+    args.ros_args = argv[argv.index("--ros-args") :] if "--ros-args" in argv else []
     try:
         return args.run(args)
     except (FieldError, ValueError, OSError) as exc:
