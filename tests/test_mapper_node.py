@@ -113,3 +113,17 @@ def test_malformed_scan_and_mount_are_reported(ros):
     assert ros.spin_until(rig.reported(DiagnosticStatus.ERROR, "has no 'laser_tilt' joint"))
     ros.spin_until(lambda: False, 0.3)
     assert not rig.maps and rig.mapper.core.scans == 0
+
+
+def test_a_lost_scan_does_not_shift_later_sweeps(ros):
+    rig = Rig(ros)
+    laser = OverheadLaser(LASER, 0.25)
+    scans = laser.sweep(np.zeros((16, 16)), np.random.default_rng(0))
+    for i, (_, tilt, ranges) in enumerate(scans):
+        if i != 5:  # scan 5 of the first sweep is lost
+            rig.send(200 + i, ranges, tilt)
+    for i, (_, tilt, ranges) in enumerate(scans):
+        rig.send(300 + i, ranges, tilt)
+    assert ros.spin_until(lambda: len(rig.maps) == 2)
+    assert [m.header.stamp.sec for m in rig.maps] == [200, 300]
+    assert rig.mapper.short_sweeps == 1

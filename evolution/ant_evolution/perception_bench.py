@@ -242,6 +242,83 @@ def replace_section(path: Path, section: str) -> None:
     path.write_text(text)
 
 
+def figures(out: Path, seed: int = 0) -> dict:
+    """Pictures for docs/perception.md, written to ``out``.
+
+    * ``overhead_frame.png``: a synthetic frame of the shipped genome's episode at tick 150
+      with the localizer's poses drawn on it (circle: centre, line: heading);
+    * ``before.npy``, ``after.npy``: the mapper's maps (one sweep each) before and after
+      300 ticks of the shipped genome (4 robots, default blueprint, depth 1; cells under a
+      robot during a survey are unknown), and
+      ``field_metrics.png``, the ``field-metrics`` heat map of their difference.
+
+    Returns:
+        The field metrics of that run (as a dict).
+    """
+    import cv2
+
+    from terrain_mapper.field_metrics import draw_difference
+    from terrain_mapper.metrics import field_metrics
+
+    out.mkdir(parents=True, exist_ok=True)
+    bp = default_blueprint(1)
+    rows, cols = bp.shape
+    cell, unit = bp.cell_size, bp.height_unit
+    ctl = Controller.from_file(Path(__file__).resolve().parents[2] / "genomes" / "best.json")
+    world = World.scenario(bp.zones, bp.goal, 4, seed)
+    rng = np.random.default_rng(seed)
+    lp = LaserParams.for_site(rows, cols, cell)
+    scanner = OverheadLaser(lp, cell)
+    mp = MapperParams(
+        rows=rows,
+        cols=cols,
+        cell_size=cell,
+        mount_x=lp.mount[0],
+        mount_y=lp.mount[1],
+        mount_z=lp.mount[2],
+    )
+
+    def survey() -> np.ndarray:
+        heights = world.heights * unit
+        anchors = world.robots[:, [ROW, COL]]
+        views = robot_views(world.robots, world.heights, cell, unit)
+        mapper = TerrainMapper(mp)
+        for pan, tilt, ranges in scanner.sweep(
+            surface_with_robots(heights, anchors, lp.robot_height), rng
+        ):
+            mapper.add_scan(
+                ranges, lp.angle_min, lp.angle_increment, lp.range_min, lp.range_max, pan, tilt
+            )
+        mapper.finish_sweep([(v.x, v.y, v.yaw) for v in views])
+        return mapper.height_map().astype(np.float64)
+
+    before = survey()
+    advance(world, ctl, 150)
+    params = CameraParams.for_site(cols * cell, rows * cell)
+    camera = OverheadCamera(params, default_beacons(), rows, cols, cell, seed)
+    model = calibrate(*calibration_marks(camera, rng), (params.width, params.height))
+    views = robot_views(world.robots, world.heights, cell, unit)
+    image, _ = camera.render(views, world.heights * unit, rng)
+    estimates = Localizer(model, default_beacons(), 4).update(image, world.heights * unit, cell)
+    shown = image.copy()
+    for k, est in enumerate(estimates):
+        if not est.reportable:
+            continue
+        tip = (est.x + 0.3 * math.cos(est.yaw), est.y + 0.3 * math.sin(est.yaw), 0.15)
+        (cu, cv), (tu, tv) = camera.project(np.array([(est.x, est.y, 0.15), tip]))
+        cv2.circle(shown, (round(cu), round(cv)), 24, (255, 255, 255), 2, cv2.LINE_AA)
+        cv2.line(shown, (round(cu), round(cv)), (round(tu), round(tv)), (255, 255, 255), 2)
+        cv2.putText(shown, f"robot {k}", (round(cu) + 28, round(cv)), 0, 0.7, (255, 255, 255), 2)
+    cv2.imwrite(str(out / "overhead_frame.png"), shown)
+    advance(world, ctl, 150)
+    after = survey()
+    np.save(out / "before.npy", before)
+    np.save(out / "after.npy", after)
+    metrics = field_metrics(before, after, bp.zones, bp.goal * unit, unit / 4)
+    draw_difference(before, after, bp.zones, metrics, str(out / "field_metrics.png"), unit)
+    return metrics.as_dict()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ant-perception-bench``."""
     p = argparse.ArgumentParser(prog="ant-perception-bench", description=__doc__.split("\n\n")[0])
@@ -251,7 +328,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--write", metavar="MD", help="put the section into this file")
     p.add_argument("--doc", metavar="MD", help="and into this one")
+    p.add_argument("--figures", metavar="DIR", help="also draw the pictures of the docs here")
     args = p.parse_args(argv)
+    if args.figures:
+        print(f"field metrics of the shipped genome's run: {figures(Path(args.figures))}")
     loc = localizer_accuracy(args.episodes, args.ticks, seed=args.seed, progress=True)
     mapper = mapper_accuracy(args.episodes, args.ticks, args.every, seed=args.seed, progress=True)
     section = report(loc, mapper)

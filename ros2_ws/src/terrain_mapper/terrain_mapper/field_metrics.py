@@ -57,43 +57,45 @@ def draw_difference(
     zones: np.ndarray,
     metrics: FieldMetrics,
     path: str,
-    unit: str = "m",
+    height_unit: float = 1.0,
 ) -> None:
-    """Heat map of ``after - before`` (north up) with the dig and dump zones outlined."""
+    """Heat map of ``after - before`` in soil units (north up), dig and dump zones outlined.
+
+    The colour range is symmetric and covers 95% of the changes (at least one unit), so a
+    few tall mounds do not wash out the pit; larger values take the end colours.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    diff = difference(before, after)
+    diff = difference(before, after) / height_unit
     rows, cols = diff.shape
-    span = float(np.nanmax(np.abs(diff))) if np.isfinite(diff).any() else 1.0
+    finite = np.abs(diff[np.isfinite(diff)])
+    span = max(float(np.percentile(finite, 95)) if finite.size else 1.0, 1.0)
     fig, ax = plt.subplots(figsize=(6, 5.2), dpi=100)
     im = ax.imshow(
-        diff,
-        origin="lower",
-        cmap="RdBu",
-        vmin=-span or -1,
-        vmax=span or 1,
-        extent=(0, cols, 0, rows),
+        diff, origin="lower", cmap="RdBu", vmin=-span, vmax=span, extent=(0, cols, 0, rows)
     )
-    for code, colour in ((DIG, "black"), (DUMP, "green")):
+    for code, colour, style in ((DUMP, "green", "solid"), (DIG, "black", "dashed")):
         ax.contour(
             (zones == code).astype(float),
             levels=[0.5],
             colors=colour,
-            linewidths=1.5,
+            linewidths=2,
+            linestyles=style,
             extent=(0, cols, 0, rows),
             origin="lower",
         )
-    fig.colorbar(im, ax=ax, label=f"after - before ({unit}); red = dug, blue = raised")
+    label = "after - before (soil units): red dug, blue raised"
+    fig.colorbar(im, ax=ax, extend="both", label=label)
     ax.set_xlabel("column (east)")
     ax.set_ylabel("row (north)")
     ax.set_title(
         f"towards goal {metrics.towards_goal:.0%}, above {metrics.above_goal:.0%}, "
-        f"indeterminate {metrics.indeterminate:.0%}\n"
+        f"below {metrics.below_goal:.0%}, indeterminate {metrics.indeterminate:.0%}\n"
         f"deposited soil in dump zones {metrics.dump_share:.0%} "
-        "(black: dig area, green: dump zones)",
+        "(dashed: dig area; green: dump zones)",
         fontsize=9,
     )
     fig.tight_layout()
@@ -145,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(format_table(m))
     if args.png:
-        draw_difference(before, after, bp.zones, m, args.png)
+        draw_difference(before, after, bp.zones, m, args.png, bp.height_unit)
         if not args.json:
             print(f"difference heat map: {args.png}")
     return 0

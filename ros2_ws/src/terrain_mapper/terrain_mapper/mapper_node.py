@@ -8,7 +8,9 @@ sweep (:class:`terrain_mapper.mapper.TerrainMapper`) and publishes ``/worksite/h
 (sensor_msgs/Image 32FC1, one pixel per cell, metres, NaN unknown, latched QoS) stamped
 with the sweep's first scan, and, with ``publish_map_info``, ``/worksite/map_info``.
 
-A sweep is fused once every robot's pose is at least as new as the sweep's first scan (so
+A scan that turns the tilt back against the sweep's direction ends a sweep early (one of
+its scans was lost), so the count never drifts out of step. A sweep is fused once every
+robot's pose is at least as new as the sweep's first scan (so
 the masks are where the robots were), or ``pose_wait`` seconds after its last scan with the
 poses it has. A scan with no valid return, a malformed scan or mount state, or a sweep that
 measured no cell is reported on ``/diagnostics`` (``mapper``, WARN or ERROR) and publishes
@@ -92,6 +94,9 @@ class MapperNode(Node):
         self.mounts: dict[tuple[int, int], tuple[float, float]] = {}
         self.poses: dict[int, tuple[tuple[int, int], tuple[float, float, float]]] = {}
         self.in_sweep = 0
+        self.last_tilt: float | None = None
+        self.sweep_direction = 0.0
+        self.short_sweeps = 0
         self.sweep_stamp = None
         self.pending = None  # (first stamp, wall time of the last scan)
         self.problems: dict[str, tuple[int, str]] = {}
@@ -182,6 +187,22 @@ class MapperNode(Node):
         except MapperError as exc:
             self.problem("scan", DiagnosticStatus.ERROR, str(exc))
             return
+        step = tilt - self.last_tilt if self.last_tilt is not None else 0.0
+        if self.in_sweep >= 2 and step * self.sweep_direction < 0:
+            # the tilt turned back: a new sweep began before this one had all its scans
+            # (one was lost); close the short sweep so the count is in step again
+            self.problem(
+                "sweep_size",
+                DiagnosticStatus.WARN,
+                f"a sweep ended after {self.in_sweep} of {self.sweep_scans} scans",
+            )
+            self.short_sweeps += 1
+            self.in_sweep = 0
+            self.pending = (self.sweep_stamp, time.monotonic())
+            self.fuse()
+        if self.in_sweep == 1:
+            self.sweep_direction = 1.0 if step >= 0 else -1.0
+        self.last_tilt = tilt
         if self.in_sweep == 0:
             self.sweep_stamp = msg.header.stamp
         valid = self.core.add_scan(
@@ -203,6 +224,7 @@ class MapperNode(Node):
             self.problems.pop("scan", None)
         self.in_sweep += 1
         if self.in_sweep >= self.sweep_scans:
+            self.problems.pop("sweep_size", None)
             self.in_sweep = 0
             self.pending = (self.sweep_stamp, time.monotonic())
             self.check_pending()
@@ -256,7 +278,7 @@ class MapperNode(Node):
             status.values = [
                 KeyValue(key=name, value=str(getattr(s, name)))
                 for name in ("points", "invalid", "masked", "measured")
-            ]
+            ] + [KeyValue(key="short_sweeps", value=str(self.short_sweeps))]
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
         self.diag_pub.publish(msg)
