@@ -132,6 +132,13 @@ def test_loop_and_topic_selection(ros, tmp_path):
         PlayerNode(
             bag, context=ros.context, parameter_overrides=[Parameter("topics", value=["/nope"])]
         )
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    with Writer(tmp_path / "odd", version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        conn = w.add_connection("/odd", "my_pkg/msg/Odd", msgdef="", rihs01="RIHS01_x")
+        w.write(conn, 1, b"\x00\x01\x00\x00")
+    with pytest.raises(MissingTopicError, match="not playing /odd: unknown type my_pkg/msg/Odd"):
+        PlayerNode(open_bag(tmp_path / "odd"), context=ros.context)
     with pytest.raises(MissingTopicError, match="/clock"):
         PlayerNode(
             bag, context=ros.context, parameter_overrides=[Parameter("lockstep", value=True)]

@@ -98,8 +98,12 @@ class PlayerNode(Node):
                 continue
             self.publishers_[name] = self.create_publisher(cls, name, playback_qos(info))
         if not self.publishers_:
+            skipped = [w for w in self.warnings if w.startswith("not playing")]
             raise MissingTopicError(
-                self.bag.path, "topics", patterns or "all", "no playable topic in the bag"
+                self.bag.path,
+                "topics",
+                patterns or "all",
+                "no playable topic in the bag" + (f" ({'; '.join(skipped)})" if skipped else ""),
             )
         for w in self.warnings:
             self.get_logger().warning(w)
