@@ -189,3 +189,14 @@ def test_shipped_calibration_fits_the_default_camera(camera):
     shipped = load_model(CONFIG_DIR / "camera_sim.yaml")
     pts = np.array([[1.0, 1.0, 0.15], [3.0, 3.5, 0.15]])
     assert np.allclose(shipped.project(pts), camera.project(pts), atol=1.5)
+
+
+def test_config_file_states_the_defaults():
+    import yaml
+
+    from overhead_localizer.localize import LocalizerParams
+
+    shipped = yaml.safe_load((CONFIG_DIR / "localizer.yaml").read_text())
+    params = shipped["localizer"]["ros__parameters"]
+    for name, value in LocalizerParams().__dict__.items():
+        assert params[name] == value, name

@@ -122,3 +122,16 @@ def test_tilted_mount_elsewhere_is_followed():
     known = np.isfinite(est)
     assert known.mean() > 0.8
     assert np.abs(est[known] - heights[known]).max() < 1e-3
+
+
+def test_config_file_states_the_defaults():
+    import yaml
+
+    from terrain_mapper.mapper import MapperParams
+
+    path = "ros2_ws/src/terrain_mapper/config/mapper.yaml"
+    shipped = yaml.safe_load(open(path))["mapper"]["ros__parameters"]
+    for name, value in MapperParams().__dict__.items():
+        assert shipped[name] == value or (math.isnan(value) and math.isnan(shipped[name])), name
+    assert shipped["mount_z"] == LaserParams().mount[2]
+    assert shipped["sweep_scans"] == LaserParams().sweep_scans

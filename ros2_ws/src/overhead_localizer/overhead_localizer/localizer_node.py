@@ -9,8 +9,8 @@ one status per robot (OK seen, WARN coasting / lost / ambiguous, ERROR when two 
 share LED colours) and one for the camera (ERROR on a missing calibration or a frame of the
 wrong encoding or size). Bad input never stops the node and never produces a pose.
 
-Parameters: ``calibration`` (YAML written by ``calibrate``; default the simulator's camera,
-``config/camera_sim.yaml``), ``beacons`` (LED table; default ``config/beacons.yaml``),
+Parameters: ``calibration`` (YAML written by ``calibrate``; empty: the simulator's camera,
+``config/camera_sim.yaml``), ``beacons`` (LED table; empty: ``config/beacons.yaml``),
 ``robots`` (4), ``use_height_map`` (true), ``reliable`` (false: sensor-data QoS for the
 image; true: reliable, depth 10), ``diagnostics_period`` (1.0 s), and every field of
 :class:`overhead_localizer.localize.LocalizerParams` (defaults in ``config/localizer.yaml``).
@@ -74,8 +74,8 @@ class LocalizerNode(Node):
         p = self.declare_parameter
         self.n = int(p("robots", 4).value)
         self.use_height_map = bool(p("use_height_map", True).value)
-        calibration = str(p("calibration", str(CONFIG_DIR / "camera_sim.yaml")).value)
-        beacons_file = str(p("beacons", str(CONFIG_DIR / "beacons.yaml")).value)
+        calibration = str(p("calibration", "").value) or str(CONFIG_DIR / "camera_sim.yaml")
+        beacons_file = str(p("beacons", "").value) or str(CONFIG_DIR / "beacons.yaml")
         values = {}
         for f in fields(LocalizerParams):
             default = getattr(LocalizerParams(), f.name)
