@@ -21,7 +21,8 @@ Two ways to pace the replay:
   (``tests/test_bag_play.py``).
 
 Parameters: ``bag`` (directory), ``topics`` (names or globs; default all), ``rate`` (1.0),
-``loop`` (false), ``lockstep`` (false), ``wait_for`` (topics), ``lockstep_timeout`` (5.0 s),
+``loop`` (false), ``lockstep`` (false), ``wait_for`` (topics), ``lockstep_timeout`` (10.0 s;
+a reply lost and re-sent by the middleware can take a few seconds),
 ``startup_period`` (1.0 s: in lockstep mode, time given to the subscribers after every
 ``wait_for`` topic has a publisher), ``delay`` (0.5 s: with recorded timing, time given to
 subscribers to connect before the first message).
@@ -81,7 +82,7 @@ class PlayerNode(Node):
         self.loop = bool(p("loop", False).value)
         self.lockstep = bool(p("lockstep", False).value)
         wait_for = [t for t in p("wait_for", [""]).value if t]
-        self.lockstep_timeout = float(p("lockstep_timeout", 5.0).value)
+        self.lockstep_timeout = float(p("lockstep_timeout", 10.0).value)
         self.startup_period = float(p("startup_period", 1.0).value)
         self.delay = float(p("delay", 0.5).value)
         self.bag = bag if bag is not None else open_bag(path)
@@ -126,6 +127,11 @@ class PlayerNode(Node):
             self.wait_for = wait_for or [
                 t for t in self.bag.topics if t.endswith("/behaviour") and t not in self.publishers_
             ]
+            if not self.wait_for:
+                self.get_logger().warning(
+                    "lockstep: no reply topic to wait for (every */behaviour topic is played or "
+                    "none is in the bag); ticks go out back to back"
+                )
             for topic in self.wait_for:
                 info = self.bag.topics.get(topic)
                 cls = message_class(info.msgtype) if info else None
@@ -202,6 +208,10 @@ class PlayerNode(Node):
         now = time.monotonic()
         if self.ready_since is None:
             if not self._subscribers_ready():
+                self.get_logger().info(
+                    f"waiting for publishers on {self.wait_for} and for subscribers to connect",
+                    throttle_duration_sec=5.0,
+                )
                 return
             self.ready_since = now
         if now - self.ready_since < self.startup_period:

@@ -174,12 +174,23 @@ def write_gif(data: TrialData, report: Report, stride: int | None = None, fps: f
     stride = stride or max(1, math.ceil(n / 120))
     images = []
     fig, ax = plt.subplots(figsize=(3.6, 3.6), dpi=80)
+    # The zone outlines are the same in every frame: draw them once (with no robot) and keep
+    # those lines; each frame then draws heights and robots over an outline-free zone map.
+    no_robots = np.zeros((0, data.poses[0].shape[1]), dtype=np.int64)
+    draw_world(ax, _display_heights(data, 0), data.zones, no_robots)
+    outlines = set(ax.lines)
+    no_zones = np.zeros_like(data.zones)
     for i in tqdm(range(0, n, stride), desc="gif frames", unit="frame", leave=False):
-        ax.clear()
+        for artist in [*ax.images, *ax.patches, *ax.texts, *ax.artists]:
+            artist.remove()
+        for artist in [a for a in ax.lines if a not in outlines]:
+            artist.remove()
+        for artist in [c for c in ax.get_children() if type(c).__name__ == "Annotation"]:
+            artist.remove()
         robots, active = _robots_for(data, i)
         fit = data.fitness[i]
         title = f"frame {i}" + (f"  fitness {fit:.3f}" if math.isfinite(fit) else "")
-        draw_world(ax, _display_heights(data, i), data.zones, robots, active, title)
+        draw_world(ax, _display_heights(data, i), no_zones, robots, active, title)
         fig.canvas.draw()
         rgba = np.asarray(fig.canvas.buffer_rgba())
         images.append(Image.fromarray(rgba[..., :3].copy()).quantize(colors=64))
