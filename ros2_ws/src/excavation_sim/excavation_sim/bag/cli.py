@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import time
 
@@ -39,6 +40,11 @@ def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> objec
     if domain is None:
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
     rclpy.init(args=["ant-bag", *ros_args], context=context, domain_id=domain)
+
+    def stop(_signum, _frame):
+        raise KeyboardInterrupt  # SIGTERM ends like Ctrl-C: the bag is finished
+
+    signal.signal(signal.SIGTERM, stop)
     executor = SingleThreadedExecutor(context=context)
     node = None
     try:

@@ -479,7 +479,7 @@ def _scan_mcap(mcap: Path) -> tuple[dict[str, TopicInfo], list[tuple[str, int, b
         except (struct.error, EOFError):
             problem = "the file is cut short"
         except (McapError, ValueError, OSError) as exc:
-            problem = f"{type(exc).__name__}: {exc}"
+            problem = f"{type(exc).__name__}: {exc}" if str(exc) else "the file is cut short"
     if problem or not complete:
         last = f"; last message at {messages[-1][1] / 1e9:.3f} s" if messages else ""
         where = "ends without its MCAP footer" if not complete else "ends inside its footer"
