@@ -81,7 +81,10 @@ def test_recorder_stopped_mid_recording(ros, tmp_path, stop):
     sent = []
     node.create_timer(0.005, lambda: (pub.publish(UInt16(data=len(sent))), sent.append(0)))
     bag_dir = tmp_path / "rec"
-    proc = _recorder(bag_dir, ros.domain, "--flush-period", "0.2")
+    # a deep queue: a recorder slowed down by a loaded machine must not drop messages here
+    proc = _recorder(
+        bag_dir, ros.domain, "--flush-period", "0.2", "--ros-args", "-p", "depth:=2000"
+    )
     try:
         assert ros.spin_until(lambda: _metadata_count(bag_dir) >= 60, timeout=60.0)
         flushed = _metadata_count(bag_dir)  # metadata is rewritten after each chunk is synced
