@@ -1,0 +1,84 @@
+"""``ant-experiment``: run one experiment of the paper's section 5 (see docs/experiments.md).
+
+Example::
+
+    ant-experiment training --scale medium --workers 2 --out runs/exp
+    ant-experiment compare --scale medium --workers 2 --out runs/exp   # reuses training's runs
+
+Every experiment is resumable: run the same command again after an interruption.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from ant_evolution.errors import CheckpointError
+from ant_evolution.experiments.core import SCALES, Context, scale_dict
+
+
+def _experiments() -> dict:
+    from ant_evolution.experiments.suite import EXPERIMENTS
+
+    out = dict(EXPERIMENTS)
+    try:
+        from ant_evolution.experiments.behaviours import behaviours
+    except ImportError:  # the Table 3 detectors are not installed
+        return out
+    out["behaviours"] = behaviours
+    return out
+
+
+NAMES = (
+    "training",
+    "compare",
+    "coarse-coding",
+    "scaleup",
+    "antagonism",
+    "depth",
+    "area",
+    "evolve-robots",
+    "behaviours",
+)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``ant-experiment``."""
+    p = argparse.ArgumentParser(prog="ant-experiment", description=__doc__.split("\n\n")[0])
+    p.add_argument("name", choices=NAMES)
+    p.add_argument("--scale", choices=sorted(SCALES), default="medium")
+    p.add_argument("--runs", type=int, default=None, help="repetitions per setting")
+    p.add_argument("--workers", type=int, default=1, help="local worker processes")
+    p.add_argument("--ray-address", default=None, help="Ray address ('local' for a local Ray)")
+    p.add_argument("--genome", type=Path, default=None,
+                   help="4-robot ANT genome for antagonism/depth/area/behaviours")  # fmt: skip
+    p.add_argument("--out", type=Path, required=True)
+    args = p.parse_args(argv)
+    scale = SCALES[args.scale]
+    runs = args.runs if args.runs is not None else scale.runs
+    if runs < 1:
+        p.error(f"--runs must be at least 1, got {runs}")
+    if args.genome is not None and not args.genome.is_file():
+        p.error(f"--genome {args.genome}: no such file")
+    experiments = _experiments()
+    if args.name not in experiments:
+        print(f"ant-experiment: error: {args.name} needs excavation_sim.detectors", file=sys.stderr)
+        return 2
+    ctx = Context(args.out, scale, runs, args.workers, args.ray_address, args.genome)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (ctx.dir(args.name) / "scale.json").write_text(
+        json.dumps({**scale_dict(scale), "runs": runs}, indent=1)
+    )
+    try:
+        experiments[args.name](ctx)
+    except (CheckpointError, FileNotFoundError, ValueError) as exc:
+        print(f"ant-experiment: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"ant-experiment: wrote {ctx.dir(args.name)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,358 @@
+"""Shared machinery of the section-5 experiments: scales, training runs, scoring, plots.
+
+A *training run* is one evolution (ANT, ANT without coarse coding, fixed network or NEAT)
+with one robot setting and one seed, in ``OUT/runs/<scale>/<method>-<setting>-r<k>/``.
+Runs are resumed from their checkpoints and shared between experiments that pass the same
+``--out`` (``compare`` reuses the 4-robot ANT runs of ``training``). Run k of every method
+uses seed ``1000 + k``, so the methods see the same scenarios generation by generation.
+Evaluations of evolved controllers use seeds from 10,000 on, which training never used.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from ant_controller.controller import Controller
+from ant_controller.genome_io import load_genome
+from ant_evolution.baselines.network import NetworkProgram, score_program
+from ant_evolution.baselines.runs import load_program, run_fixed, run_neat
+from ant_evolution.evaluate import ScenarioSet
+from ant_evolution.evolve import EvolveConfig, run_evolution
+from blueprint_server.blueprint import Blueprint, pit_blueprint
+
+METHODS = ("ant", "ant-nocc", "fixed", "neat")
+METHOD_LABELS = {
+    "ant": "ANT",
+    "ant-nocc": "ANT without coarse coding",
+    "fixed": "fixed network",
+    "neat": "NEAT",
+    "hand-coded": "hand-coded",
+}
+EVAL_SEED = 10_000
+
+
+@dataclass(frozen=True)
+class Scale:
+    """How big an experiment is.
+
+    Attributes:
+        name: ``quick``, ``medium`` or ``paper``.
+        population: P of every training run.
+        generations: Generations of every training run.
+        scenarios: Scenarios per generation (split over goal depths 1-3).
+        steps: Timesteps per training scenario.
+        runs: Repetitions per setting (``--runs`` overrides).
+        train_robots: Robot counts trained for (the paper: 1 to 5).
+        eval_robots: Robot counts evolved controllers are applied to (paper: 1 to 10).
+        eval_scenarios: Scenarios per evaluated setting.
+        long_steps: Timesteps of the ``depth`` and ``area`` experiments (paper: 10,000).
+        areas: Square pit sizes of ``antagonism`` (paper: 6, 8, 10).
+        area_sizes: Square pit sizes of ``area``.
+        depths: Goal depths (training mixes them; ``depth`` sweeps them).
+        robots_range: Bounds of the N gene in ``evolve-robots``.
+        checkpoint_every: Generations between checkpoints.
+    """
+
+    name: str
+    population: int
+    generations: int
+    scenarios: int
+    steps: int
+    runs: int
+    train_robots: tuple[int, ...]
+    eval_robots: tuple[int, ...]
+    eval_scenarios: int
+    long_steps: int
+    areas: tuple[int, ...]
+    area_sizes: tuple[int, ...]
+    depths: tuple[int, ...] = (1, 2, 3)
+    robots_range: tuple[int, int] = (1, 8)
+    checkpoint_every: int = 10
+
+
+SCALES = {
+    "quick": Scale(
+        "quick", 8, 3, 3, 40, 2, (1, 2), (1, 2, 3), 3, 60, (6, 8), (6, 8), (1, 2), (1, 3), 2
+    ),
+    "medium": Scale(
+        "medium",
+        40,
+        150,
+        12,
+        300,
+        3,
+        (1, 2, 3, 4, 5),
+        tuple(range(1, 11)),
+        30,
+        3000,
+        (6, 8, 10),
+        (4, 6, 8, 10, 12),
+        (1, 2, 3),
+        (1, 8),
+        10,
+    ),  # fmt: skip
+    "paper": Scale(
+        "paper",
+        100,
+        5000,
+        100,
+        300,
+        30,
+        (1, 2, 3, 4, 5),
+        tuple(range(1, 11)),
+        100,
+        10000,
+        (6, 8, 10),
+        (4, 6, 8, 10, 12),
+        (1, 2, 3),
+        (1, 8),
+        25,
+    ),  # fmt: skip
+}
+
+
+@dataclass(frozen=True)
+class Context:
+    """Where and how an experiment runs.
+
+    Attributes:
+        out: Root output directory (shared training runs live in ``out/runs``).
+        scale: The scale.
+        runs: Repetitions per setting.
+        workers: Local worker processes per evaluation.
+        ray_address: Ray address or ``None``.
+        genome: The 4-robot ANT controller of ``antagonism``, ``depth``, ``area`` and
+            ``behaviours`` (``None``: the best 4-robot genome of this scale's training).
+    """
+
+    out: Path
+    scale: Scale
+    runs: int
+    workers: int = 1
+    ray_address: str | None = None
+    genome: Path | None = None
+
+    def dir(self, name: str) -> Path:
+        """Output directory of experiment ``name``."""
+        d = self.out / name
+        d.mkdir(parents=True, exist_ok=True)
+        return d
+
+
+def setting_label(robots: int | tuple[int, ...] | str) -> str:
+    """Directory-safe name of a robot setting: ``n4``, ``mix1+4`` or ``evoN``."""
+    if robots == "evolve":
+        return "evoN"
+    if isinstance(robots, tuple):
+        return "mix" + "+".join(str(n) for n in robots)
+    return f"n{robots}"
+
+
+def train_config(ctx: Context, method: str, robots, run: int) -> EvolveConfig:
+    """The :class:`EvolveConfig` of one training run."""
+    s = ctx.scale
+    kw: dict = {
+        "population": s.population,
+        "generations": s.generations,
+        "scenarios": s.scenarios,
+        "steps": s.steps,
+        "depths": s.depths,
+        "seed": 1000 + run,
+        "checkpoint_every": s.checkpoint_every,
+        "coarse_coding": method != "ant-nocc",
+    }
+    if robots == "evolve":
+        kw.update(evolve_robots=True, robots_range=s.robots_range)
+    elif isinstance(robots, tuple):
+        kw.update(robots=robots[0], robots_mix=robots)
+    else:
+        kw["robots"] = int(robots)
+    return EvolveConfig(**kw)
+
+
+def run_dir(ctx: Context, method: str, robots, run: int) -> Path:
+    """Directory of one training run."""
+    return ctx.out / "runs" / ctx.scale.name / f"{method}-{setting_label(robots)}-r{run}"
+
+
+def _finished(d: Path) -> bool:
+    hist = d / "history.csv"
+    return hist.exists() and _history_length(hist) > 0 and (d / "best.json").exists()
+
+
+def _history_length(path: Path) -> int:
+    with open(path, newline="") as f:
+        return sum(1 for _ in csv.DictReader(f))
+
+
+def train(ctx: Context, method: str, robots, run: int, bar: tqdm | None = None) -> list[dict]:
+    """Run (or resume, or just read) one training run; returns its history rows."""
+    config = train_config(ctx, method, robots, run)
+    d = run_dir(ctx, method, robots, run)
+    hist = d / "history.csv"
+    if hist.exists() and _history_length(hist) >= config.generations:
+        return read_history(hist)
+    resume = (d / "checkpoint.json").exists() or (d / "neat-checkpoint.gz").exists()
+
+    def progress(row: dict) -> None:
+        if bar is not None:
+            bar.set_postfix(run=d.name, gen=row["generation"], best=f"{row['best']:.3f}")
+
+    kw = {
+        "workers": ctx.workers,
+        "ray_address": ctx.ray_address,
+        "resume": resume,
+        "progress": progress,
+    }
+    if method in ("ant", "ant-nocc"):
+        run_evolution(config, d, **kw)
+    elif method == "fixed":
+        run_fixed(config, d, **kw)
+    elif method == "neat":
+        run_neat(config, d, **kw)
+    else:
+        raise ValueError(f"unknown method {method!r} (known: {', '.join(METHODS)})")
+    return read_history(hist)
+
+
+def train_all(ctx: Context, jobs: Sequence[tuple[str, object]], desc: str) -> dict:
+    """Every run of every ``(method, robots)`` job: ``{(method, robots): [history, ...]}``."""
+    todo = [(m, r, k) for m, r in jobs for k in range(ctx.runs)]
+    out: dict = {}
+    with tqdm(todo, desc=desc, unit="run") as bar:
+        for m, r, k in bar:
+            out.setdefault((m, r), []).append(train(ctx, m, r, k, bar))
+    return out
+
+
+def read_history(path: Path) -> list[dict]:
+    """Rows of a ``history.csv`` with numbers parsed."""
+    rows = []
+    with open(path, newline="") as f:
+        for r in csv.DictReader(f):
+            row = dict(r)
+            for k in ("generation", "evaluations", "neurons_best"):
+                row[k] = int(float(row[k]))
+            for k in ("best", "mean", "std", "best_ever", "neurons_mean", "seconds"):
+                row[k] = float(row[k])
+            rows.append(row)
+    return rows
+
+
+# --- evolved controllers -------------------------------------------------------------------
+
+
+def best_of_runs(ctx: Context, method: str, robots) -> tuple[Path, float]:
+    """The fittest run's ``best.json`` of a setting (by its recorded training fitness)."""
+    best: tuple[Path, float] | None = None
+    for k in range(ctx.runs):
+        path = run_dir(ctx, method, robots, k) / "best.json"
+        if not path.exists():
+            continue
+        fit = float(json.loads(path.read_text())["metadata"]["fitness"])
+        if best is None or fit > best[1]:
+            best = (path, fit)
+    if best is None:
+        raise FileNotFoundError(
+            f"no finished {method} run for {setting_label(robots)} in {ctx.out}"
+        )
+    return best
+
+
+def load_controller(path: Path) -> Controller | NetworkProgram:
+    """An ANT genome file as a :class:`Controller`, a network-program file as a program."""
+    data = json.loads(Path(path).read_text())
+    if data.get("format") == "network-program/1":
+        return load_program(path)
+    return Controller.from_genome(load_genome(path), name=str(path))
+
+
+def four_robot_genome(ctx: Context) -> Path:
+    """The 4-robot ANT controller: ``--genome``, else this scale's best 4-robot training run.
+
+    (At the quick scale, which trains 1 and 2 robots, the 2-robot run stands in.)
+    """
+    if ctx.genome is not None:
+        return ctx.genome
+    n = 4 if 4 in ctx.scale.train_robots else ctx.scale.train_robots[-1]
+    return best_of_runs(ctx, "ant", n)[0]
+
+
+def score(controller, blueprint: Blueprint, robots: int, scenarios: int, steps: int, seed: int):
+    """Final fitness of a controller (ANT, hand-coded or network program) per scenario."""
+    batch = ScenarioSet.create(blueprint, robots, scenarios, steps, seed)
+    if isinstance(controller, NetworkProgram):
+        return score_program(controller, batch)
+    return batch.score(controller)
+
+
+def score_depths(controller, ctx: Context, robots: int, steps: int | None = None, size: int = 8):
+    """Fitness over ``eval_scenarios`` scenarios split over the goal depths, as in training."""
+    s = ctx.scale
+    steps = steps or s.steps
+    n = len(s.depths)
+    scores = []
+    for i, d in enumerate(s.depths):
+        k = s.eval_scenarios // n + (i < s.eval_scenarios % n)
+        if k:
+            bp = site(size, d)
+            scores.append(score(controller, bp, robots, k, steps, EVAL_SEED + 97 * i + robots))
+    return np.concatenate(scores)
+
+
+def site(pit: int, depth: int) -> Blueprint:
+    """A square pit of ``pit`` cells (dump band 2) centred on a grid of at least 16 x 16."""
+    grid = max(16, pit + 8)
+    return pit_blueprint((grid, grid), (pit, pit), depth, 2, name=f"{pit}x{pit} depth {depth}")
+
+
+# --- outputs ------------------------------------------------------------------------------
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    """Rows to CSV (columns from the first row)."""
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+
+
+def pyplot():
+    """Matplotlib's pyplot on the Agg backend."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def scale_note(ctx: Context) -> str:
+    """One line naming the scale an experiment ran at."""
+    s = ctx.scale
+    return (
+        f"Scale `{s.name}`: {ctx.runs} runs per setting, P = {s.population}, "
+        f"{s.generations} generations, {s.scenarios} scenarios of {s.steps} steps per "
+        f"generation (goal depths {', '.join(map(str, s.depths))}); evaluations on "
+        f"{s.eval_scenarios} unseen scenarios per setting."
+    )
+
+
+def write_section(ctx: Context, name: str, text: str) -> Path:
+    """Write ``section.md`` of experiment ``name``."""
+    path = ctx.dir(name) / "section.md"
+    path.write_text(text.rstrip() + "\n", encoding="utf-8")
+    return path
+
+
+def scale_dict(scale: Scale) -> dict:
+    """The scale as a mapping (for ``scale.json`` beside the results)."""
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(scale).items()}

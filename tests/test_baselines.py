@@ -1,0 +1,191 @@
+"""Baselines: network programs (fixed network, NEAT) against plain-Python references."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ant_controller.layout import N_BEHAVIOURS, SENSOR_SCALE, SENSOR_STATES
+from ant_evolution.baselines.fixed import (
+    FixedTopology,
+    compile_fixed,
+    crossover,
+    mutate,
+    random_network,
+)
+from ant_evolution.baselines.network import (
+    ProgramEvaluator,
+    decide_program_reference,
+    program_decide,
+    score_program,
+)
+from ant_evolution.baselines.runs import (
+    load_program,
+    program_from_dict,
+    program_to_dict,
+    run_fixed,
+    run_neat,
+)
+from ant_evolution.evaluate import ScenarioSet
+from ant_evolution.evolve import EvolveConfig
+from ant_evolution.ga import GAParams
+from blueprint_server.blueprint import default_blueprint
+
+
+def _random_codes(rng: np.random.Generator, n: int) -> np.ndarray:
+    return np.stack([rng.integers(0, SENSOR_STATES) for _ in range(n)]).astype(np.int64)
+
+
+def _fixed_program(seed: int):
+    rng = np.random.default_rng(seed)
+    top = FixedTopology.random(rng)
+    return top, compile_fixed(top, random_network(rng, top))
+
+
+def _neat_programs(tmp_path, count: int):
+    import neat
+
+    from ant_evolution.baselines.neat_baseline import compile_neat, neat_config
+
+    cfg = neat_config(tmp_path / "neat.ini", count, hidden=30)
+    pop = neat.Population(cfg, seed=7)
+    genomes = list(pop.population.values())[:count]
+    # mutate a few times so that topologies differ from the initial full layer
+    for g in genomes:
+        for _ in range(5):
+            g.mutate(cfg.genome_config)
+    return cfg, genomes, [compile_neat(g, cfg) for g in genomes]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_fixed_topology_is_within_the_papers_bounds(seed):
+    top = FixedTopology.random(np.random.default_rng(seed))
+    assert 40 <= top.n_neurons <= 120
+    assert 3 <= len(top.layers) + 1 <= 4  # sensor layer + hidden + output layers
+    assert top.layers[-1] == N_BEHAVIOURS
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_fixed_network_kernel_equals_reference(seed):
+    _, prog = _fixed_program(seed)
+    codes = _random_codes(np.random.default_rng(100 + seed), 300)
+    states = set()
+    for c in codes:
+        ref, values = decide_program_reference(prog, c)
+        assert program_decide(c, prog.arrays()) == ref
+        states.add(tuple(values))
+    assert len(states) > 1  # the comparison is not between constant networks
+
+
+def test_fixed_network_reference_is_the_layered_ant_neuron():
+    """The reference forward pass recomputed layer by layer with numpy, by hand."""
+    rng = np.random.default_rng(3)
+    top = FixedTopology((20, 9))
+    net = random_network(rng, top)
+    prog = compile_fixed(top, net)
+    from ant_evolution.baselines.network import _psi
+
+    for c in _random_codes(rng, 50):
+        s = c * SENSOR_SCALE
+        w0 = 0
+        n0 = 0
+        for size in top.layers:
+            fan = s.size
+            w = net.weights[w0 : w0 + fan * size].reshape(size, fan)
+            den = s.sum()
+            sig = (w @ s) / den if den else np.zeros(size)
+            s = np.array(
+                [
+                    _psi(int(net.func[n0 + j]), *net.theta[n0 + j], float(sig[j]))
+                    for j in range(size)
+                ],
+                dtype=float,
+            )
+            w0 += fan * size
+            n0 += size
+        mask = sum(1 << q for q in range(N_BEHAVIOURS) if s[q] >= 0.5)
+        assert decide_program_reference(prog, c)[0] == mask
+
+
+def test_neat_compiled_equals_neat_python_and_reference(tmp_path):
+    import neat
+
+    cfg, genomes, programs = _neat_programs(tmp_path, 6)
+    codes = _random_codes(np.random.default_rng(5), 100)
+    for g, prog in zip(genomes, programs, strict=True):
+        net = neat.nn.FeedForwardNetwork.create(g, cfg)
+        for c in codes:
+            outs = net.activate([float(c[i]) * float(SENSOR_SCALE[i]) for i in range(len(c))])
+            mask = sum(1 << q for q, o in enumerate(outs) if o >= 0.5)
+            ref, values = decide_program_reference(prog, c)
+            assert ref == mask == program_decide(c, prog.arrays())
+            for q, o in enumerate(prog.out_node):
+                if o >= 0:
+                    assert values[o] == pytest.approx(outs[q], abs=1e-12)
+
+
+def test_batched_kernel_equals_stepping_with_the_reference():
+    """The second kernel path: whole episodes agree with Python decisions step by step."""
+    _, prog = _fixed_program(11)
+    batch = ScenarioSet.create(default_blueprint(1), 3, 3, 60, seed=2)
+    scores = score_program(prog, batch)
+    for i in range(batch.size):
+        w = batch.world(i)
+        for _ in range(batch.steps):
+            codes = w.sense()
+            w.step([decide_program_reference(prog, codes[k])[0] if w.active[k] else 0
+                    for k in range(w.n_robots)])  # fmt: skip
+        assert w.fitness() == scores[i]
+
+
+def test_program_evaluator_is_the_same_for_any_worker_count(tmp_path):
+    progs = [_fixed_program(s)[1] for s in range(3)] + _neat_programs(tmp_path, 2)[2]
+    sets = [ScenarioSet.create(default_blueprint(d), 2, 2, 40, seed=d) for d in (1, 2)]
+    with ProgramEvaluator(1) as one, ProgramEvaluator(2) as two:
+        a = one.evaluate(progs, sets)
+        b = two.evaluate(progs, sets)
+    assert np.array_equal(a, b)
+
+
+def test_ga_operators_keep_shapes_and_are_seeded():
+    top = FixedTopology((30, 10))
+    rng = np.random.default_rng(0)
+    a, b = random_network(rng, top), random_network(rng, top)
+    params = GAParams(mutation_prob=0.5)
+    c1, c2 = crossover(np.random.default_rng(1), a, b, top)
+    d1, _ = crossover(np.random.default_rng(1), a, b, top)
+    assert np.array_equal(c1.weights, d1.weights)
+    assert c1.weights.shape == a.weights.shape and c2.theta.shape == b.theta.shape
+    m = mutate(np.random.default_rng(2), a, params)
+    assert not np.array_equal(m.weights, a.weights)
+    assert set(np.unique(m.func)) <= {0, 1, 2, 3}
+
+
+def test_program_file_round_trip_and_errors(tmp_path):
+    _, prog = _fixed_program(1)
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps(program_to_dict(prog, {"fitness": 0.5})))
+    back = load_program(path)
+    assert all(np.array_equal(x, y) for x, y in zip(prog.arrays(), back.arrays(), strict=True))
+    bad = program_to_dict(prog)
+    del bad["edge_w"]
+    with pytest.raises(ValueError, match="edge_w: missing"):
+        program_from_dict(bad, "bad.json")
+    bad = program_to_dict(prog)
+    bad["edge_src"][0] = 10_000
+    with pytest.raises(ValueError, match="bad.json: .*node 0 reads a node that comes later"):
+        program_from_dict(bad, "bad.json")
+
+
+@pytest.mark.parametrize("runner", [run_fixed, run_neat], ids=["fixed", "neat"])
+def test_baseline_runs_resume_exactly(tmp_path, runner):
+    cfg = EvolveConfig(population=10, generations=4, scenarios=2, steps=30, seed=3,
+                       checkpoint_every=2)  # fmt: skip
+    whole = runner(cfg, tmp_path / "a")
+    runner(cfg, tmp_path / "b", stop_after=1)
+    resumed = runner(cfg, tmp_path / "b", resume=True)
+    key = [(r["best"], r["mean"], r["evaluations"]) for r in whole]
+    assert [(r["best"], r["mean"], r["evaluations"]) for r in resumed] == key
+    assert (tmp_path / "b" / "best.json").read_text() == (tmp_path / "a" / "best.json").read_text()

@@ -1,0 +1,85 @@
+"""ant-experiment at a tiny scale: every experiment runs end to end, and resumes."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+
+import pytest
+
+from ant_evolution.evolve import run_evolution
+from ant_evolution.experiments import cli
+from ant_evolution.experiments.core import SCALES, Context, read_history, run_dir, train_config
+from ant_evolution.experiments.suite import EXPERIMENTS
+
+TINY = dataclasses.replace(
+    SCALES["quick"], population=6, generations=2, scenarios=2, steps=25, eval_scenarios=2,
+    long_steps=30, eval_robots=(1, 2), areas=(6,), area_sizes=(6,), checkpoint_every=1,
+)  # fmt: skip
+
+FILES = {
+    "training": ["training.csv", "training.png"],
+    "compare": ["compare.csv", "compare.png", "summary.json"],
+    "coarse-coding": ["coarse_coding.csv", "coarse_coding.png"],
+    "scaleup": ["scaleup.csv", "scaleup.png"],
+    "antagonism": ["antagonism.csv", "antagonism.png"],
+    "depth": ["depth.csv", "depth.png"],
+    "area": ["area.csv", "area.png"],
+    "evolve-robots": ["evolve_robots.csv", "evolve_robots.png"],
+}
+
+
+@pytest.fixture(scope="module")
+def done(tmp_path_factory):
+    """All experiments at the tiny scale, one shared output directory, one run each."""
+    out = tmp_path_factory.mktemp("exp")
+    ctx = Context(out, TINY, runs=1)
+    # interrupt one shared run after its first generation: the experiment must resume it
+    cfg = train_config(ctx, "ant", 2, 0)
+    run_evolution(cfg, run_dir(ctx, "ant", 2, 0), workers=1, stop_after=1)
+    for name in FILES:
+        EXPERIMENTS[name](ctx)
+    return ctx
+
+
+@pytest.mark.parametrize("name", list(FILES))
+def test_experiment_writes_csv_figures_and_section(done, name):
+    d = done.out / name
+    for f in FILES[name]:
+        assert (d / f).stat().st_size > 0, f
+    section = (d / "section.md").read_text()
+    assert section.startswith("### ") and "figures/" in section
+    csv_name = next(f for f in FILES[name] if f.endswith(".csv"))
+    with open(d / csv_name, newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert rows
+    for r in rows:
+        for k in ("mean", "best", "mean_max_fitness", "max_fitness_mean"):
+            if k in r:
+                assert 0.0 <= float(r[k]) <= 1.0
+
+
+def test_interrupted_run_was_resumed_to_the_same_result(done, tmp_path):
+    resumed = read_history(run_dir(done, "ant", 2, 0) / "history.csv")
+    fresh_ctx = Context(tmp_path, TINY, runs=1)
+    cfg = train_config(fresh_ctx, "ant", 2, 0)
+    run_evolution(cfg, tmp_path / "fresh", workers=1)
+    fresh = read_history(tmp_path / "fresh" / "history.csv")
+    assert len(resumed) == TINY.generations
+    assert [(r["best"], r["mean"]) for r in resumed] == [(r["best"], r["mean"]) for r in fresh]
+
+
+def test_rerun_reuses_finished_runs(done):
+    """A second call trains nothing: the histories (wall times included) stay as they were."""
+    path = run_dir(done, "fixed", 2, 0) / "history.csv"
+    before = path.read_text()
+    EXPERIMENTS["compare"](done)
+    assert path.read_text() == before
+
+
+def test_cli_rejects_bad_arguments(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["nonsense", "--out", str(tmp_path)])
+    with pytest.raises(SystemExit):
+        cli.main(["depth", "--genome", str(tmp_path / "missing.json"), "--out", str(tmp_path)])
+    assert "missing.json: no such file" in capsys.readouterr().err
