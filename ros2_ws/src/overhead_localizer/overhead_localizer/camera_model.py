@@ -16,6 +16,7 @@ and :func:`save_model` / :func:`load_model` write and read the YAML the localize
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import cv2
@@ -50,12 +51,12 @@ class CameraModel:
     tvec: np.ndarray
     rms_px: float = 0.0
 
-    @property
+    @cached_property
     def rotation(self) -> np.ndarray:
         """Rotation matrix ``map`` -> camera."""
         return cv2.Rodrigues(np.asarray(self.rvec, dtype=np.float64))[0]
 
-    @property
+    @cached_property
     def centre(self) -> np.ndarray:
         """Camera centre in ``map``, metres."""
         return -self.rotation.T @ np.asarray(self.tvec, dtype=np.float64)

@@ -3,7 +3,8 @@
 The pipeline of one frame (:meth:`Localizer.update`):
 
 1. **Detect**: HSV conversion, one threshold (bright *and* saturated: LEDs in a dark
-   dome; glare is bright but nearly white), connected components, and per blob an
+   dome; glare is bright but nearly white), connected components (first on every second
+   pixel, then at full resolution around each hit), and per blob an
    intensity-weighted sub-pixel centroid, its spread and its mean hue, which names its
    colour in the beacon table (:class:`Blob`).
 2. **Locate**: each blob's pixel ray meets the plane of the LEDs (``beacons.height`` above
@@ -195,13 +196,39 @@ class Localizer:
         self.hues = np.array([hues[name] for name in self.names])
         self.duplicated = {k for group in beacons.duplicates(n_robots) for k in group}
         self.tracks: dict[int, _Track] = {}
+        self.stride = 2
 
     # --- 1. detect --------------------------------------------------------------------------
 
     def detect(self, image: np.ndarray) -> list[Blob]:
-        """Beacon blobs in a BGR frame (see the module docstring, step 1)."""
+        """Beacon blobs in a BGR frame (see the module docstring, step 1).
+
+        Coarse to fine: the threshold and connected components run first on every
+        ``stride``-th pixel (an LED's blob is wider than that), then at full resolution only
+        in a window around each coarse hit.
+        """
         p = self.params
-        hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
+        lo, hi = (0, p.min_saturation, p.min_value), (180, 255, 255)
+        step = self.stride
+        height, width = image.shape[:2]
+        coarse = cv2.resize(image, (width // step, height // step), interpolation=cv2.INTER_NEAREST)
+        mask = cv2.inRange(cv2.cvtColor(coarse, cv2.COLOR_BGR2HSV), lo, hi)
+        mask = cv2.dilate(mask, np.ones((3, 3), np.uint8))
+        count, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        blobs = []
+        for i in range(1, count):
+            x, y, w, h, _ = (int(v) for v in stats[i])
+            if w * h * step * step > 16 * p.max_area:
+                continue  # far larger than any LED: glare
+            x0, y0 = max(x * step - step, 0), max(y * step - step, 0)
+            x1, y1 = min((x + w) * step + step, width), min((y + h) * step + step, height)
+            blobs += self._blobs(image[y0:y1, x0:x1], x0, y0)
+        return blobs
+
+    def _blobs(self, window: np.ndarray, x0: int, y0: int) -> list[Blob]:
+        """Full-resolution blobs of one window whose top-left pixel is ``(x0, y0)``."""
+        p = self.params
+        hsv = cv2.cvtColor(window, cv2.COLOR_BGR2HSV)
         mask = cv2.inRange(hsv, (0, p.min_saturation, p.min_value), (180, 255, 255))
         count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         blobs = []
@@ -224,7 +251,7 @@ class Localizer:
             diff = np.abs((self.hues - hue + 90) % 180 - 90)
             colour = int(np.argmin(diff)) if diff.min() <= p.hue_tolerance else -1
             variance = max(spread / area, p.min_pixel_variance)
-            blobs.append(Blob(u + 0.0, v + 0.0, colour, variance, area))
+            blobs.append(Blob(u + x0, v + y0, colour, variance, area))
         return blobs
 
     # --- 2. locate --------------------------------------------------------------------------
