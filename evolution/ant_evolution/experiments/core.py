@@ -85,10 +85,10 @@ SCALES = {
     "medium": Scale(
         "medium",
         40,
-        150,
+        100,
         12,
         300,
-        3,
+        2,
         (1, 2, 3, 4, 5),
         tuple(range(1, 11)),
         30,

@@ -1,0 +1,283 @@
+"""The ``behaviours`` experiment: Table 3 detectors over a training run, and neuronal activity.
+
+Two parts (paper, section 5.1 "Evolution of Behaviors through Task Decomposition" and 5.2
+"Neuronal Analysis"):
+
+1. **Detectors over training.** The 4-robot ANT training run ``ant-n4-r0`` of the scale is
+   replayed generation by generation (the run is deterministic, so the replay *is* that
+   run: every generation's best fitness is checked against its ``history.csv`` when it
+   exists). Every ``trace_every`` generations the generation's best genome runs on
+   ``trace_scenarios`` scenarios, step by step, and each robot-step is classified by the
+   Table 3 detectors of :mod:`excavation_sim.detectors`. The replay checkpoints with
+   :func:`ant_evolution.evolve.save_checkpoint`, so it resumes.
+2. **Neuronal activity.** The 4-robot controller (``--genome`` or the best of the run) runs
+   one 4-robot scenario; for robot 0 we record, per timestep, every living decision
+   neuron's state, how many motor neurons coarse coding selects, and the detectors. The
+   table gives, for each decision neuron and detector, the firing rate of the neuron at
+   timesteps where the detector holds against where it does not.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+from tqdm import tqdm
+
+from ant_controller.controller import Controller
+from ant_controller.genome import Genome
+from ant_controller.genome_io import load_genome
+from ant_controller.layout import N_SENSORS, SENSOR_SCALE
+from ant_controller.tissue import CompiledTissue, activation
+from ant_evolution.backends import Evaluator
+from ant_evolution.evaluate import ScenarioSet
+from ant_evolution.evolve import (
+    RunState,
+    blueprints_of,
+    initial_population,
+    load_checkpoint,
+    save_checkpoint,
+    scenario_sets,
+)
+from ant_evolution.experiments.core import (
+    EVAL_SEED,
+    Context,
+    pyplot,
+    read_history,
+    run_dir,
+    site,
+    train_config,
+    write_csv,
+    write_section,
+)
+from ant_evolution.ga import next_generation
+from excavation_sim.detectors import DETECTOR_TITLES, DETECTORS, detect, random_turn_direction
+from excavation_sim.world import HEADING
+
+TRACE_POINTS = 20
+"""Generations traced per run (evenly spaced, first and last included)."""
+
+
+def trace(controller: Controller, batch: ScenarioSet, neurons: bool = False) -> dict:
+    """Run every scenario of ``batch`` step by step; detector hits and (optionally) neurons.
+
+    Returns:
+        ``{"hits": {name: int}, "robot_steps": int}``, plus for ``neurons=True`` the
+        per-step arrays of robot 0 of scenario 0: ``decision`` ``[T, D]`` states,
+        ``selected`` ``[T]`` motor neurons selected, ``detected`` ``{name: bool [T]}``.
+    """
+    hits = dict.fromkeys(DETECTORS, 0)
+    steps = 0
+    record: dict = {"decision": [], "selected": [], "sensors": [], "masks": [], "turns": []}
+    for i in range(batch.size):
+        w = batch.world(i)
+        for _ in range(batch.steps):
+            codes = w.sense()
+            masks = np.array(
+                [controller.decide(codes[k]) if w.active[k] else 0 for k in range(w.n_robots)],
+                dtype=np.int64,
+            )
+            before = w.robots[:, HEADING].copy()
+            w.step(masks)
+            turns = random_turn_direction(before, w.robots[:, HEADING], masks)
+            act = w.active
+            found = detect(codes[act], masks[act], turns[act])
+            for name in DETECTORS:
+                hits[name] += int(found[name].sum())
+            steps += int(act.sum())
+            if neurons and i == 0:
+                dec, sel = neuron_states(controller.tissue, codes[0])
+                record["decision"].append(dec)
+                record["selected"].append(sel)
+                record["sensors"].append(codes[0])
+                record["masks"].append(masks[0])
+                record["turns"].append(turns[0])
+    out: dict = {"hits": hits, "robot_steps": steps}
+    if neurons:
+        det = detect(
+            np.array(record["sensors"]), np.array(record["masks"]), np.array(record["turns"])
+        )
+        out.update(
+            decision=np.array(record["decision"]).reshape(len(record["selected"]), -1),
+            selected=np.array(record["selected"]),
+            detected=det,
+        )
+    return out
+
+
+def neuron_states(tissue: CompiledTissue, codes: np.ndarray) -> tuple[np.ndarray, int]:
+    """Decision neuron states and the number of motor neurons coarse coding selects.
+
+    The same rules as :func:`ant_controller.tissue.decide` (steps 1-3 of its docstring).
+    """
+    x = codes * SENSOR_SCALE[:N_SENSORS]
+    sx = float(x.sum())
+    d = tissue.n_decision
+    states = np.zeros(d, dtype=np.int64)
+    conc = np.zeros(tissue.n_motor)
+    for i in range(d):
+        sigma = float(tissue.dn_sensor_w[i] @ x) / sx if sx != 0.0 else 0.0
+        states[i] = activation(tissue.dn_func[i], *tissue.dn_theta[i], sigma)
+        if states[i]:
+            conc[tissue.dn_member[i]] += tissue.dn_conc[i]
+    if not tissue.coarse_coding:
+        return states, tissue.n_motor
+    peak = conc.max(initial=0.0)
+    return states, int(np.count_nonzero(conc == peak)) if peak > 0 else 0
+
+
+def _replay(ctx: Context, out) -> list[dict]:
+    """Replay the 4-robot training run, tracing detectors; resumable."""
+    robots = 4 if 4 in ctx.scale.train_robots else ctx.scale.train_robots[-1]
+    config = train_config(ctx, "ant", robots, 0)
+    hist_path = run_dir(ctx, "ant", robots, 0) / "history.csv"
+    history = read_history(hist_path) if hist_path.exists() else []
+    every = max(1, config.generations // (TRACE_POINTS - 1))
+    traced = {g for g in range(0, config.generations, every)} | {config.generations - 1}
+    n_trace = max(1, min(ctx.scale.eval_scenarios, 10))
+    rows_path = out / "rows.json"
+    ckpt_dir = out / "replay"
+    ckpt_dir.mkdir(exist_ok=True)
+    if (ckpt_dir / "checkpoint.json").exists() and rows_path.exists():
+        state = load_checkpoint(ckpt_dir, config)
+        rows = json.loads(rows_path.read_text())
+        rng = np.random.Generator(np.random.PCG64())
+        rng.bit_generator.state = state.rng_state
+    else:
+        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([config.seed, 0xA17])))
+        state = RunState(0, initial_population(config, rng), {}, [], None, -1.0, 0)
+        rows = []
+    blueprints = blueprints_of(config)
+    bp = site(8, 1)
+    with (
+        Evaluator(ctx.workers, ctx.ray_address) as ev,
+        tqdm(
+            total=config.generations, initial=state.generation, desc="behaviours", unit="gen"
+        ) as bar,
+    ):
+        while state.generation < config.generations:
+            g = state.generation
+            fit = ev.evaluate(state.population, scenario_sets(config, g, blueprints))
+            i = int(np.argmax(fit))
+            if g < len(history) and history[g]["best"] != float(fit[i]):
+                raise RuntimeError(f"replay of {hist_path} differs at generation {g}")
+            if g in traced:
+                batch = ScenarioSet.create(bp, robots, n_trace, config.steps, EVAL_SEED + 7)
+                res = trace(Controller.from_genome(state.population[i]), batch)
+                rows.append({"generation": g, "best": float(fit[i]),
+                             "robot_steps": res["robot_steps"], **res["hits"]})  # fmt: skip
+            state.population = next_generation(rng, state.population, fit, config.ga)
+            state.generation = g + 1
+            state.rng_state = rng.bit_generator.state
+            bar.update()
+            if g in traced or state.generation == config.generations:
+                save_checkpoint(ckpt_dir, config, state)
+                rows_path.write_text(json.dumps(rows))
+    return rows
+
+
+def behaviours(ctx: Context) -> None:
+    """Detector counts over a training run, and the neuronal activity of a 4-robot tissue."""
+    out = ctx.dir("behaviours")
+    rows = _replay(ctx, out)
+    write_csv(out / "behaviours.csv", rows)
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 3, figsize=(11, 6), dpi=100, sharex=True)
+    gens = [r["generation"] for r in rows]
+    axes[0, 0].plot(gens, [r["best"] for r in rows], marker="o", ms=3)
+    axes[0, 0].set(title="best fitness", ylim=(0, 1))
+    for ax, name in zip(axes.flat[1:], DETECTORS, strict=True):
+        ax.plot(gens, [r[name] / max(1, r["robot_steps"]) for r in rows], marker="o", ms=3)
+        ax.set(title=DETECTOR_TITLES[name] + " (per robot-step)")
+    for ax in axes.flat:
+        ax.grid(alpha=0.3)
+    for ax in axes[1]:
+        ax.set_xlabel("generation")
+    fig.suptitle("Table 3 detectors for the best genome of each generation", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(out / "behaviours.png")
+    plt.close(fig)
+
+    robots = 4 if 4 in ctx.scale.train_robots else ctx.scale.train_robots[-1]
+    genome_path = ctx.genome or run_dir(ctx, "ant", robots, 0) / "best.json"
+    genome: Genome = load_genome(genome_path)
+    ctl = Controller.from_genome(genome)
+    batch = ScenarioSet.create(site(8, 1), 4, 1, 250, EVAL_SEED + 11)
+    res = trace(ctl, batch, neurons=True)
+    dec, det = res["decision"], res["detected"]
+    lines = []
+    corr_rows = []
+    for d in range(dec.shape[1]):
+        cells = []
+        for name in DETECTORS:
+            on = det[name]
+            rate_on = float(dec[on, d].mean()) if on.any() else float("nan")
+            rate_off = float(dec[~on, d].mean()) if (~on).any() else float("nan")
+            corr_rows.append(
+                {
+                    "decision_neuron": d,
+                    "gene": ctl.tissue.decision_genes[d],
+                    "detector": name,
+                    "events": int(on.sum()),
+                    "rate_when_detected": rate_on,
+                    "rate_otherwise": rate_off,
+                }
+            )
+            cells.append(f"{rate_on:.2f} / {rate_off:.2f}" if on.any() else "-")
+        lines.append(f"| {d} (gene {ctl.tissue.decision_genes[d]}) | " + " | ".join(cells) + " |")
+    if corr_rows:
+        write_csv(out / "neurons.csv", corr_rows)
+    t = np.arange(dec.shape[0])
+    fig, (a1, a2, a3) = plt.subplots(
+        3, 1, figsize=(10, 2 + 0.3 * (dec.shape[1] + len(DETECTORS))), dpi=100, sharex=True,
+        gridspec_kw={"height_ratios": [max(1, dec.shape[1]), 1, len(DETECTORS)]},
+    )  # fmt: skip
+    if dec.shape[1]:
+        a1.imshow(dec.T, aspect="auto", interpolation="nearest", cmap="Greys")
+    a1.set(ylabel="decision\nneuron", title=f"robot 0, one 4-robot scenario: {genome_path}")
+    a2.plot(t, res["selected"], drawstyle="steps-mid")
+    a2.set(ylabel="motor\nselected")
+    a3.imshow(
+        np.array([det[n] for n in DETECTORS], dtype=float), aspect="auto",
+        interpolation="nearest", cmap="Blues",
+    )  # fmt: skip
+    a3.set_yticks(range(len(DETECTORS)), [DETECTOR_TITLES[n] for n in DETECTORS], fontsize=7)
+    a3.set_xlabel("timestep")
+    fig.tight_layout()
+    fig.savefig(out / "neurons.png")
+    plt.close(fig)
+    counts = ", ".join(f"{DETECTOR_TITLES[n]} {int(det[n].sum())}" for n in DETECTORS)
+    first, last = rows[0], rows[-1]
+    table = "\n".join(
+        f"| {DETECTOR_TITLES[n]} | {first[n] / max(1, first['robot_steps']):.3f} | "
+        f"{last[n] / max(1, last['robot_steps']):.3f} |"
+        for n in DETECTORS
+    )
+    write_section(
+        ctx,
+        "behaviours",
+        f"""### Behaviours during training and in the tissue
+
+Detectors of Table 3 for the best genome of {len(rows)} generations of the {robots}-robot run
+`{run_dir(ctx, "ant", robots, 0).name}` (replayed exactly), each on 8 x 8, depth 1 scenarios;
+hits per robot-step at the first and the last traced generation
+({first["generation"]}: fitness {first["best"]:.3f}; {last["generation"]}: {last["best"]:.3f}):
+
+| detector | first | last |
+|---|---:|---:|
+{table}
+
+![behaviours](figures/behaviours/behaviours.png)
+
+Neuronal activity of `{genome_path}` ({ctl.tissue.n_decision} living decision neurons,
+{ctl.tissue.n_motor} living motor neurons), robot 0 of one 4-robot scenario, 250 steps.
+Detector events of that robot: {counts}. Firing rate of each decision neuron when a
+detector holds / when it does not:
+
+| decision neuron | {" | ".join(DETECTOR_TITLES[n] for n in DETECTORS)} |
+|---|{"---:|" * len(DETECTORS)}
+{chr(10).join(lines)}
+
+![neurons](figures/behaviours/neurons.png)
+""",
+    )
