@@ -22,13 +22,13 @@ subscription with ``raw=True`` receives and what ``Publisher.publish(bytes)`` se
 from __future__ import annotations
 
 import fnmatch
-import io
 import os
 import struct
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import yaml
 from rosbags.interfaces import (
     Qos,
     QosDurability,
@@ -40,8 +40,6 @@ from rosbags.interfaces import (
 from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
 from rosbags.rosbag2.metadata import dump_qos_v9, parse_qos
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-from ruamel.yaml import YAML
-from ruamel.yaml.error import YAMLError
 
 from ant_controller.files import write_text_atomic
 from excavation_sim.bag.errors import (
@@ -147,12 +145,6 @@ class _Topic:
     digest: str
     connection: object
     count: int = 0
-
-
-def _yaml() -> YAML:
-    yaml = YAML(typ="safe")
-    yaml.default_flow_style = False
-    return yaml
 
 
 class BagWriter:
@@ -288,9 +280,8 @@ class BagWriter:
 
     def write_metadata(self) -> None:
         """Write ``metadata.yaml`` atomically (readers see the old or the new one)."""
-        stream = io.StringIO()
-        _yaml().dump(self.metadata(), stream)
-        write_text_atomic(self.path / "metadata.yaml", stream.getvalue())
+        text = yaml.safe_dump(self.metadata(), default_flow_style=False, sort_keys=False)
+        write_text_atomic(self.path / "metadata.yaml", text)
 
 
 # --- reading ----------------------------------------------------------------------------------
@@ -336,7 +327,7 @@ class Bag:
     ros_distro: str | None
     truncated: str | None = None
     warnings: list[str] = field(default_factory=list)
-    _scanned: list[tuple[str, int, bytes]] | None = None
+    _scanned: list[tuple[str, int, bytes]] | None = field(default=None, repr=False)
 
     @property
     def producer(self) -> str | None:
@@ -418,12 +409,12 @@ def _read_metadata(path: Path) -> dict | None:
     if not meta.is_file():
         return None
     try:
-        data = _yaml().load(meta.read_text(encoding="utf-8"))
+        data = yaml.safe_load(meta.read_text(encoding="utf-8"))
         info = data["rosbag2_bagfile_information"]
         if not isinstance(info, dict):
             raise TypeError("not a mapping")
         return info
-    except (YAMLError, KeyError, TypeError, OSError, UnicodeDecodeError) as exc:
+    except (yaml.YAMLError, KeyError, TypeError, OSError, UnicodeDecodeError) as exc:
         raise BagFormatError(
             meta, "rosbag2_bagfile_information", None, f"unreadable metadata: {exc}"
         ) from None
