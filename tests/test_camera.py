@@ -91,3 +91,12 @@ def test_too_many_robots_for_the_table(camera):
     views = [RobotView(1.0, 1.0, 0.0)] * 11
     with pytest.raises(ValueError, match="robots"):
         camera.render(views, np.zeros((16, 16)), np.random.default_rng(0))
+
+
+def test_occlusion_parameter():
+    from excavation_sim.sensors_node import parse_occlude
+
+    assert parse_occlude("0:front, 2:rear") == {(0, "front"), (2, "rear")}
+    assert parse_occlude("") == frozenset()
+    with pytest.raises(ValueError, match="'2:top' is not K:front or K:rear"):
+        parse_occlude("2:top")

@@ -91,7 +91,11 @@ class SensorsNode(Node):
             dropout=float(p("dropout", 0.0).value),
             k1=float(p("k1", -0.08).value),
         )
-        self.hidden = parse_occlude(str(p("occlude", "").value))
+        try:
+            self.hidden = parse_occlude(str(p("occlude", "").value))
+        except ValueError as exc:
+            self.get_logger().error(f"{exc}: no LED is occluded")
+            self.hidden = frozenset()
         self.laser_params = LaserParams.for_site(
             self.rows,
             self.cols,
