@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import platform
 import re
 import sys
@@ -319,6 +320,15 @@ def figures(out: Path, seed: int = 0) -> dict:
     return metrics.as_dict()
 
 
+def one_core() -> None:
+    """Run on one CPU (affinity where the OS allows it) with OpenCV single-threaded."""
+    import cv2
+
+    cv2.setNumThreads(1)
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ant-perception-bench``."""
     p = argparse.ArgumentParser(prog="ant-perception-bench", description=__doc__.split("\n\n")[0])
@@ -330,6 +340,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--doc", metavar="MD", help="and into this one")
     p.add_argument("--figures", metavar="DIR", help="also draw the pictures of the docs here")
     args = p.parse_args(argv)
+    one_core()
     if args.figures:
         print(f"field metrics of the shipped genome's run: {figures(Path(args.figures))}")
     loc = localizer_accuracy(args.episodes, args.ticks, seed=args.seed, progress=True)
