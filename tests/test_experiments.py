@@ -9,6 +9,7 @@ import pytest
 
 from ant_evolution.evolve import run_evolution
 from ant_evolution.experiments import cli
+from ant_evolution.experiments.behaviours import behaviours
 from ant_evolution.experiments.core import SCALES, Context, read_history, run_dir, train_config
 from ant_evolution.experiments.suite import EXPERIMENTS
 
@@ -26,6 +27,7 @@ FILES = {
     "depth": ["depth.csv", "depth.png"],
     "area": ["area.csv", "area.png"],
     "evolve-robots": ["evolve_robots.csv", "evolve_robots.png"],
+    "behaviours": ["behaviours.csv", "behaviours.png", "neurons.png"],
 }
 
 
@@ -38,7 +40,8 @@ def done(tmp_path_factory):
     cfg = train_config(ctx, "ant", 2, 0)
     run_evolution(cfg, run_dir(ctx, "ant", 2, 0), workers=1, stop_after=1)
     for name in FILES:
-        EXPERIMENTS[name](ctx)
+        run = behaviours if name == "behaviours" else EXPERIMENTS[name]
+        run(ctx)
     return ctx
 
 
@@ -75,6 +78,16 @@ def test_rerun_reuses_finished_runs(done):
     before = path.read_text()
     EXPERIMENTS["compare"](done)
     assert path.read_text() == before
+
+
+def test_behaviours_replay_matches_the_training_run(done):
+    """The replay checks every generation's best against history.csv; its rows agree too."""
+    with open(done.out / "behaviours" / "behaviours.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    hist = read_history(run_dir(done, "ant", 2, 0) / "history.csv")
+    for r in rows:
+        assert float(r["best"]) == hist[int(r["generation"])]["best"]
+        assert int(r["robot_steps"]) > 0
 
 
 def test_cli_rejects_bad_arguments(tmp_path, capsys):
