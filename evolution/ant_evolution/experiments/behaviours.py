@@ -19,6 +19,7 @@ Two parts (paper, section 5.1 "Evolution of Behaviors through Task Decomposition
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -36,6 +37,7 @@ from ant_evolution.evolve import (
     blueprints_of,
     initial_population,
     load_checkpoint,
+    load_config,
     save_checkpoint,
     scenario_sets,
 )
@@ -126,11 +128,18 @@ def neuron_states(tissue: CompiledTissue, codes: np.ndarray) -> tuple[np.ndarray
     return states, int(np.count_nonzero(conc == peak)) if peak > 0 else 0
 
 
-def _replay(ctx: Context, out) -> list[dict]:
+def _replay(ctx: Context, out) -> tuple[list[dict], object]:
     """Replay the 4-robot training run, tracing detectors; resumable."""
     robots = 4 if 4 in ctx.scale.train_robots else ctx.scale.train_robots[-1]
-    config = train_config(ctx, "ant", robots, 0)
-    hist_path = run_dir(ctx, "ant", robots, 0) / "history.csv"
+    if ctx.replay is not None:
+        config = load_config(ctx.replay / "config.yaml")
+        robots = config.robots
+        hist_path = ctx.replay / "history.csv"
+    else:
+        config = train_config(ctx, "ant", robots, 0)
+        hist_path = run_dir(ctx, "ant", robots, 0) / "history.csv"
+    if ctx.generations is not None:
+        config = dataclasses.replace(config, generations=min(config.generations, ctx.generations))
     history = read_history(hist_path) if hist_path.exists() else []
     every = max(1, config.generations // (TRACE_POINTS - 1))
     traced = {g for g in range(0, config.generations, every)} | {config.generations - 1}
@@ -173,13 +182,13 @@ def _replay(ctx: Context, out) -> list[dict]:
             if g in traced or state.generation == config.generations:
                 save_checkpoint(ckpt_dir, config, state)
                 rows_path.write_text(json.dumps(rows))
-    return rows
+    return rows, hist_path.parent
 
 
 def behaviours(ctx: Context) -> None:
     """Detector counts over a training run, and the neuronal activity of a 4-robot tissue."""
     out = ctx.dir("behaviours")
-    rows = _replay(ctx, out)
+    rows, replayed = _replay(ctx, out)
     write_csv(out / "behaviours.csv", rows)
     plt = pyplot()
     fig, axes = plt.subplots(2, 3, figsize=(11, 6), dpi=100, sharex=True)
@@ -258,8 +267,8 @@ def behaviours(ctx: Context) -> None:
         "behaviours",
         f"""### Behaviours during training and in the tissue
 
-Detectors of Table 3 for the best genome of {len(rows)} generations of the {robots}-robot run
-`{run_dir(ctx, "ant", robots, 0).name}` (replayed exactly), each on 8 x 8, depth 1 scenarios;
+Detectors of Table 3 for the best genome of {len(rows)} generations of the run
+`{replayed}` (replayed exactly), each on 8 x 8, depth 1 scenarios;
 hits per robot-step at the first and the last traced generation
 ({first["generation"]}: fitness {first["best"]:.3f}; {last["generation"]}: {last["best"]:.3f}):
 

@@ -15,7 +15,7 @@ import json
 import sys
 from pathlib import Path
 
-from ant_evolution.errors import CheckpointError
+from ant_evolution.errors import CheckpointError, ConfigError
 from ant_evolution.experiments.core import SCALES, Context, scale_dict
 
 
@@ -54,6 +54,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--ray-address", default=None, help="Ray address ('local' for a local Ray)")
     p.add_argument("--genome", type=Path, default=None,
                    help="4-robot ANT genome for antagonism/depth/area/behaviours")  # fmt: skip
+    p.add_argument(
+        "--replay",
+        type=Path,
+        default=None,
+        help="behaviours: ANT run directory to replay (default: the scale's r0)",
+    )
+    p.add_argument(
+        "--generations",
+        type=int,
+        default=None,
+        help="behaviours: replay only this many generations",
+    )
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
     scale = SCALES[args.scale]
@@ -66,14 +78,25 @@ def main(argv: list[str] | None = None) -> int:
     if args.name not in experiments:
         print(f"ant-experiment: error: {args.name} needs excavation_sim.detectors", file=sys.stderr)
         return 2
-    ctx = Context(args.out, scale, runs, args.workers, args.ray_address, args.genome)
+    if args.replay is not None and not (args.replay / "config.yaml").is_file():
+        p.error(f"--replay {args.replay}: no config.yaml there")
+    ctx = Context(
+        args.out,
+        scale,
+        runs,
+        args.workers,
+        args.ray_address,
+        args.genome,
+        args.replay,
+        args.generations,
+    )
     args.out.mkdir(parents=True, exist_ok=True)
     (ctx.dir(args.name) / "scale.json").write_text(
         json.dumps({**scale_dict(scale), "runs": runs}, indent=1)
     )
     try:
         experiments[args.name](ctx)
-    except (CheckpointError, FileNotFoundError, ValueError) as exc:
+    except (CheckpointError, ConfigError, FileNotFoundError, ValueError) as exc:
         print(f"ant-experiment: error: {exc}", file=sys.stderr)
         return 2
     print(f"ant-experiment: wrote {ctx.dir(args.name)}")

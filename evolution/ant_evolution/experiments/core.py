@@ -131,6 +131,9 @@ class Context:
         ray_address: Ray address or ``None``.
         genome: The 4-robot ANT controller of ``antagonism``, ``depth``, ``area`` and
             ``behaviours`` (``None``: the best 4-robot genome of this scale's training).
+        replay: ``behaviours``: the ANT run directory to replay (``None``: this scale's
+            4-robot run r0).
+        generations: ``behaviours``: replay only this many generations.
     """
 
     out: Path
@@ -139,6 +142,8 @@ class Context:
     workers: int = 1
     ray_address: str | None = None
     genome: Path | None = None
+    replay: Path | None = None
+    generations: int | None = None
 
     def dir(self, name: str) -> Path:
         """Output directory of experiment ``name``."""
