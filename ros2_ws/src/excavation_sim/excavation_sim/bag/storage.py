@@ -37,7 +37,7 @@ from rosbags.interfaces import (
     QosReliability,
     QosTime,
 )
-from rosbags.rosbag2 import Reader, ReaderError, StoragePlugin, Writer, WriterError
+from rosbags.rosbag2 import ReaderError, StoragePlugin, Writer, WriterError
 from rosbags.rosbag2.metadata import dump_qos_v9, parse_qos
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -81,6 +81,7 @@ SUITE_TOPICS: tuple[str, ...] = (
 """The node suite's topics (DESIGN.md, docs/interfaces.md); ``*`` matches a robot index."""
 
 _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+_MAGIC = b"\x89MCAP0\r\n"
 _INFINITE_NS = 2**63 - 1
 
 
@@ -347,13 +348,18 @@ class Bag:
                 if item[0] in wanted:
                     yield item
             return
+        from mcap.exceptions import McapError
+        from mcap.reader import make_reader
+
         try:
-            with Reader(self.path) as reader:
-                conns = [c for c in reader.connections if c.topic in wanted]
-                for conn, timestamp, raw in reader.messages(connections=conns):
-                    yield conn.topic, timestamp, bytes(raw)
-        except ReaderError as exc:
-            raise BagFormatError(self.mcap, "messages", None, str(exc)) from None
+            with self.mcap.open("rb") as f:
+                reader = make_reader(f)
+                for _, channel, message in reader.iter_messages(
+                    topics=sorted(wanted), log_time_order=True
+                ):
+                    yield channel.topic, message.log_time, bytes(message.data)
+        except (McapError, struct.error, EOFError, OSError, ValueError) as exc:
+            raise BagFormatError(self.mcap, "messages", None, f"unreadable: {exc}") from None
 
     def decode(self, topic: str, raw: bytes):
         """Deserialise a message of ``topic`` (rosbags message object, same fields as rclpy).
@@ -420,6 +426,58 @@ def _read_metadata(path: Path) -> dict | None:
         ) from None
 
 
+def _qos_list(value) -> list[Qos]:
+    """QoS profiles from metadata.yaml's list or an MCAP channel's YAML string ([] if bad)."""
+    try:
+        items = yaml.safe_load(value) if isinstance(value, str) else value
+        return parse_qos(items) if isinstance(items, list) else []
+    except (yaml.YAMLError, ReaderError, KeyError, TypeError, ValueError, AttributeError):
+        return []
+
+
+def _read_indexed(mcap: Path, meta: dict | None) -> dict[str, TopicInfo] | None:
+    """Topics of a complete MCAP file from its summary, or None when it has none."""
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    try:
+        with mcap.open("rb") as f:
+            f.seek(-8, os.SEEK_END)
+            if f.read(8) != _MAGIC:
+                return None
+            f.seek(0)
+            summary = make_reader(f).get_summary()
+    except (McapError, struct.error, EOFError, OSError, ValueError):
+        return None
+    if summary is None or summary.statistics is None:
+        return None
+    meta_qos = {}
+    for entry in (meta or {}).get("topics_with_message_count") or []:
+        try:
+            tm = entry["topic_metadata"]
+            meta_qos[tm["name"]] = tm.get("offered_qos_profiles")
+        except (KeyError, TypeError):
+            continue
+    counts = summary.statistics.channel_message_counts
+    topics: dict[str, TopicInfo] = {}
+    for channel in summary.channels.values():
+        schema = summary.schemas.get(channel.schema_id)
+        info = topics.setdefault(
+            channel.topic,
+            TopicInfo(
+                channel.topic,
+                schema.name if schema else "",
+                0,
+                _qos_list(
+                    meta_qos.get(channel.topic) or channel.metadata.get("offered_qos_profiles", "")
+                ),
+                schema.data.decode("utf-8", "replace") if schema else "",
+            ),
+        )
+        info.count += counts.get(channel.id, 0)
+    return topics
+
+
 def _scan_mcap(mcap: Path) -> tuple[dict[str, TopicInfo], list[tuple[str, int, bytes]], str | None]:
     """Read an MCAP file record by record, as far as it is complete.
 
@@ -443,12 +501,7 @@ def _scan_mcap(mcap: Path) -> tuple[dict[str, TopicInfo], list[tuple[str, int, b
                 elif isinstance(record, Channel):
                     channels[record.id] = record
                     schema = schemas.get(record.schema_id)
-                    qos = []
-                    raw_qos = record.metadata.get("offered_qos_profiles", "")
-                    try:
-                        qos = parse_qos(raw_qos) if raw_qos else []
-                    except (ReaderError, KeyError, TypeError):
-                        qos = []
+                    qos = _qos_list(record.metadata.get("offered_qos_profiles", ""))
                     topics.setdefault(
                         record.topic,
                         TopicInfo(
@@ -485,9 +538,10 @@ def _scan_mcap(mcap: Path) -> tuple[dict[str, TopicInfo], list[tuple[str, int, b
 def open_bag(path: str | Path) -> Bag:
     """Open a bag directory (or an MCAP file) for reading.
 
-    A complete bag is read through the ``rosbags`` reader. A bag whose MCAP file lacks its
-    footer (a recorder that crashed) or whose ``metadata.yaml`` is missing is read record
-    by record instead; :attr:`Bag.truncated` and :attr:`Bag.warnings` say so.
+    A complete MCAP file is read through its summary and index (the ``mcap`` library); the
+    QoS profiles come from ``metadata.yaml`` (or from the MCAP channels when it is
+    missing). A file that lacks its summary or footer (a recorder that crashed) is read
+    record by record instead; :attr:`Bag.truncated` and :attr:`Bag.warnings` say so.
 
     Raises:
         BagNotFoundError: No bag there.
@@ -499,7 +553,7 @@ def open_bag(path: str | Path) -> Bag:
     meta = _read_metadata(bag_dir) if p.is_dir() else None
     with mcap.open("rb") as f:
         head = f.read(8)
-    if head != b"\x89MCAP0\r\n":
+    if head != _MAGIC:
         raise BagFormatError(mcap, "magic", head[:8], "not an MCAP file")
     custom = dict((meta or {}).get("custom_data") or {})
     distro = (meta or {}).get("ros_distro")
@@ -511,21 +565,10 @@ def open_bag(path: str | Path) -> Bag:
             f"{bag_dir / 'metadata.yaml'}: version = {meta.get('version')!r}: "
             "written for version 9; reading anyway"
         )
-    try:
-        if meta is None or not p.is_dir():
-            raise ReaderError("read without metadata")
-        with Reader(p) as reader:
-            topics = {}
-            for c in reader.connections:
-                topics[c.topic] = TopicInfo(
-                    c.topic,
-                    c.msgtype,
-                    c.msgcount,
-                    list(getattr(c.ext, "offered_qos_profiles", [])),
-                    c.msgdef.data if c.msgdef else "",
-                )
+    topics = _read_indexed(mcap, meta)
+    if topics is not None:
         bag = Bag(bag_dir, mcap, topics, custom, distro)
-    except ReaderError:
+    else:
         topics, scanned, problem = _scan_mcap(mcap)
         bag = Bag(bag_dir, mcap, topics, custom, distro, problem, _scanned=scanned)
         if problem:
