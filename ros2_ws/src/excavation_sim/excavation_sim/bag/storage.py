@@ -4,8 +4,9 @@ A bag is a directory holding ``metadata.yaml`` (rosbag2 format version 9, the wa
 Jazzy writes it) and one MCAP file with profile ``ros2``: message definitions as
 ``ros2msg`` schemas, CDR payloads, and each topic's offered QoS profiles in the channel
 metadata and in ``metadata.yaml``, so a player can offer latched topics (transient local)
-again. ``ros2 bag info`` / ``ros2 bag play`` on a full ROS install, the ``rosbags`` reader
-and the ``mcap`` library read these bags.
+again. The layout is the one ``ros2 bag info`` / ``ros2 bag play`` of a full ROS 2 install
+expect (not tried here: this environment has no ``ros2 bag``); the ``rosbags`` reader and
+the ``mcap`` library read these bags (tested).
 
 Crash safety: :class:`BagWriter` writes ``metadata.yaml`` as soon as the bag opens and again
 at every :meth:`BagWriter.flush`, which also closes the MCAP chunk in progress and syncs the
