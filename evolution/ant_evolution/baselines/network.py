@@ -25,6 +25,7 @@ Python forward pass the tests hold the kernel to.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from multiprocessing import get_context
@@ -237,8 +238,9 @@ def program_fitness(program: NetworkProgram, sets: list[ScenarioSet]) -> float:
     return float(np.concatenate([score_program(program, s) for s in sets]).mean())
 
 
-def _fitness_chunk(payload: tuple[list[NetworkProgram], list[ScenarioSet]]) -> list[float]:
-    programs, sets = payload
+def _fitness_chunk(payload: tuple) -> list[float]:
+    items, sets, compile_fn = payload
+    programs = items if compile_fn is None else [compile_fn(x) for x in items]
     return [program_fitness(p, sets) for p in programs]
 
 
@@ -272,16 +274,26 @@ class ProgramEvaluator:
         elif self.workers > 1:
             self._pool = ProcessPoolExecutor(self.workers, mp_context=get_context("spawn"))
 
-    def evaluate(self, programs: list[NetworkProgram], sets: list[ScenarioSet]) -> np.ndarray:
-        """Fitness of every program (same order)."""
+    def evaluate(
+        self, items: list, sets: list[ScenarioSet], compile_fn: Callable | None = None
+    ) -> np.ndarray:
+        """Fitness of every program (same order).
+
+        Args:
+            items: Network programs, or anything ``compile_fn`` turns into one.
+            sets: The scenario sets.
+            compile_fn: Picklable function run in the workers on every item (NEAT genomes
+                compile there, in parallel, instead of in this process).
+        """
         if self._ray is None and self._pool is None:
-            return np.array(_fitness_chunk((programs, sets)))
-        chunks = _chunks(list(programs), self.workers)
+            return np.array(_fitness_chunk((items, sets, compile_fn)))
+        chunks = _chunks(list(items), self.workers)
         if self._ray is not None:
             ref = self._ray.put(sets)
-            results = self._ray.get([self._remote.remote((c, ref)) for c in chunks])
+            results = self._ray.get([self._remote.remote((c, ref, compile_fn)) for c in chunks])
         else:
-            results = list(self._pool.map(_fitness_chunk, [(c, sets) for c in chunks]))
+            payloads = [(c, sets, compile_fn) for c in chunks]
+            results = list(self._pool.map(_fitness_chunk, payloads))
         return np.array([f for chunk in results for f in chunk])
 
     def close(self) -> None:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import io
 import json
 import os
@@ -259,8 +260,11 @@ def run_neat(
             nonlocal evaluations, best_fit
             t0 = time.perf_counter()
             g = pop.generation
-            programs = [compile_neat(genome, neat_cfg) for _, genome in genomes]
-            fit = evaluator.evaluate(programs, scenario_sets(config, g, blueprints))
+            fit = evaluator.evaluate(
+                [genome for _, genome in genomes],
+                scenario_sets(config, g, blueprints),
+                functools.partial(compile_neat, config=neat_cfg),
+            )
             for (_, genome), f in zip(genomes, fit, strict=True):
                 genome.fitness = float(f)
             evaluations += len(genomes) * config.scenarios
@@ -268,8 +272,9 @@ def run_neat(
             if fit[i] > best_fit:
                 best_fit = float(fit[i])
                 meta = {"kind": "neat", "fitness": best_fit, "generation": g, "seed": config.seed}
-                write_text_atomic(out / "best.json", json.dumps(program_to_dict(programs[i], meta)))
-            neurons = [p.n_nodes for p in programs]
+                best = compile_neat(genomes[i][1], neat_cfg)
+                write_text_atomic(out / "best.json", json.dumps(program_to_dict(best, meta)))
+            neurons = [len(genome.nodes) for _, genome in genomes]
             history.append(_row(g, evaluations, fit, best_fit, neurons, t0))
 
         while pop.generation < config.generations:
