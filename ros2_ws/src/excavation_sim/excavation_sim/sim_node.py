@@ -123,6 +123,7 @@ class SimNode(Node):
         self.ready_since = None
 
         self.pose_pubs, self.joint_pubs, self.stuck_pubs, self.imu_pubs = [], [], [], []
+        self.inputs = []  # command subscriptions: behaviour (and blade set-point) per robot
         for k in range(self.n):
             ns = f"/robot_{k}"
             self.pose_pubs.append(
@@ -133,16 +134,20 @@ class SimNode(Node):
             blade_topic = "blade/servo_state" if self.blade_driver else "blade/joint_states"
             self.joint_pubs.append(self.create_publisher(JointState, f"{ns}/{blade_topic}", 10))
             if self.blade_driver:
-                self.create_subscription(
-                    JointState,
-                    f"{ns}/blade/servo_command",
-                    lambda m, k=k: self.on_servo_command(k, m),
-                    10,
+                self.inputs.append(
+                    self.create_subscription(
+                        JointState,
+                        f"{ns}/blade/servo_command",
+                        lambda m, k=k: self.on_servo_command(k, m),
+                        10,
+                    )
                 )
             self.stuck_pubs.append(self.create_publisher(Bool, f"{ns}/stuck", 10))
             self.imu_pubs.append(self.create_publisher(Imu, f"{ns}/imu", 10))
-            self.create_subscription(
-                UInt16, f"{ns}/behaviour", lambda m, k=k: self.on_command(k, m), 10
+            self.inputs.append(
+                self.create_subscription(
+                    UInt16, f"{ns}/behaviour", lambda m, k=k: self.on_command(k, m), 10
+                )
             )
         self.heights_pub = self.create_publisher(
             Image, f"{self.truth_prefix}/worksite/height_map", LATCHED
@@ -206,8 +211,20 @@ class SimNode(Node):
         return out
 
     def controllers_present(self) -> bool:
-        """Every robot's controller (and blade driver) is on the graph."""
-        return all(
+        """Every robot's controller (and blade driver) is on the graph and connected.
+
+        Besides the graph, the middleware must have matched this node's per-robot publishers
+        with their subscribers and its command subscriptions with their publishers: a message
+        sent before that is lost, and a robot would miss tick 0.
+        """
+        readers = self.n if not self.truth_prefix else 1
+        matched = all(s.get_publisher_count() > 0 for s in self.inputs) and all(
+            self.pose_pubs[k].get_subscription_count() >= readers
+            and self.stuck_pubs[k].get_subscription_count() > 0
+            and self.joint_pubs[k].get_subscription_count() > 0
+            for k in range(self.n)
+        )
+        return matched and all(
             self.count_publishers(f"/robot_{k}/behaviour") > 0
             and self.count_subscribers(f"/robot_{k}/pose") > 0
             and self.count_subscribers(f"{self.truth_prefix}/robot_{k}/pose") > 0

@@ -46,6 +46,24 @@ class TrialResult:
     commands: list[list[int]]
 
 
+@dataclass(frozen=True)
+class TrialSpec:
+    """What one trial runs (the arguments of :func:`run_trial`, resolved)."""
+
+    controller: str
+    robots: int
+    steps: int
+    seed: int
+    blueprint: str
+    scenario: int
+    domain: int
+    command_timeout: float
+    timeout: float
+    blade_driver: bool
+    record: str | None
+    perception: str
+
+
 def _controller_args(controller_spec: str) -> list[str]:
     return ["--hand-coded"] if controller_spec == "hand-coded" else ["--genome", controller_spec]
 
@@ -103,45 +121,36 @@ def run_trial(
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
     if record and processes:
         raise ValueError("record: the recorder runs in the composed mode (without processes)")
-    run = _run_processes if processes else _run_composed
-    extra = {"record": record} if record else {}
-    extra["scenario"] = scenario
     if perception not in ("truth", "full"):
         raise ValueError(f"perception = {perception!r}: expected 'truth' or 'full'")
-    if perception == "full":
-        if processes:
-            raise ValueError("perception: full runs in the composed mode (without processes)")
-        extra["perception"] = perception
-    return run(
-        ctl,
+    if perception == "full" and processes:
+        raise ValueError("perception: full runs in the composed mode (without processes)")
+    spec = TrialSpec(
         controller_spec,
         robots,
         steps,
         seed,
         blueprint,
+        scenario,
         domain,
         command_timeout,
         timeout,
         blade_driver,
-        **extra,
+        record,
+        perception,
     )
+    return _run_processes(spec) if processes else _run_composed(ctl, spec)
 
 
-def _run_composed(
-    ctl,
-    controller_spec,
-    robots,
-    steps,
-    seed,
-    blueprint,
-    domain,
-    command_timeout,
-    timeout,
-    blade_driver,
-    record=None,
-    perception="truth",
-    scenario=0,
-) -> TrialResult:
+def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
+    """All nodes on one executor in this process."""
+    controller_spec, robots, steps, seed = spec.controller, spec.robots, spec.steps, spec.seed
+    blueprint, domain, timeout, perception = (
+        spec.blueprint,
+        spec.domain,
+        spec.timeout,
+        spec.perception,
+    )
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -159,7 +168,7 @@ def _run_composed(
     recorder = None
     started = time.monotonic()
     try:
-        if record:  # first, so that it sees every topic appear
+        if spec.record:  # first, so that it sees every topic appear
             from blueprint_server.blueprint_info import resolve
             from excavation_sim.bag.recorder_node import RecorderNode
 
@@ -170,7 +179,7 @@ def _run_composed(
                 },
                 context=context,
                 parameter_overrides=[
-                    Parameter("out", value=str(record)),
+                    Parameter("out", value=str(spec.record)),
                     Parameter("height_unit", value=float(resolve(blueprint).height_unit)),
                 ],
             )
@@ -187,9 +196,9 @@ def _run_composed(
                 Parameter("robots", value=robots),
                 Parameter("steps", value=steps),
                 Parameter("seed", value=seed),
-                Parameter("scenario", value=scenario),
-                Parameter("command_timeout", value=float(command_timeout)),
-                Parameter("blade_driver", value=blade_driver),
+                Parameter("scenario", value=spec.scenario),
+                Parameter("command_timeout", value=float(spec.command_timeout)),
+                Parameter("blade_driver", value=spec.blade_driver),
             ]
             + ([Parameter("truth_prefix", value="/truth")] if perception == "full" else []),
         )
@@ -213,7 +222,7 @@ def _run_composed(
                     ],
                 )
             )
-            if blade_driver:
+            if spec.blade_driver:
                 nodes.append(BladeDriverNode(context=context, namespace=f"/robot_{k}"))
         for node in nodes:
             executor.add_node(node)
@@ -246,19 +255,16 @@ def _run_composed(
         rclpy.try_shutdown(context=context)
 
 
-def _run_processes(
-    ctl,
-    controller_spec,
-    robots,
-    steps,
-    seed,
-    blueprint,
-    domain,
-    command_timeout,
-    timeout,
-    blade_driver,
-    scenario=0,
-) -> TrialResult:
+def _run_processes(spec: TrialSpec) -> TrialResult:
+    """Every node in its own process, as separate ``ros2 run`` commands would start them."""
+    controller_spec, robots, steps, seed = spec.controller, spec.robots, spec.steps, spec.seed
+    blueprint, domain, timeout, blade_driver = (
+        spec.blueprint,
+        spec.domain,
+        spec.timeout,
+        spec.blade_driver,
+    )
+    command_timeout, scenario = spec.command_timeout, spec.scenario
     from blueprint_server.blueprint_info import resolve
 
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
