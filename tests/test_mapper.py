@@ -135,3 +135,14 @@ def test_config_file_states_the_defaults():
         assert shipped[name] == value or (math.isnan(value) and math.isnan(shipped[name])), name
     assert shipped["mount_z"] == LaserParams().mount[2]
     assert shipped["sweep_scans"] == LaserParams().sweep_scans
+
+
+def test_body_height_stands_in_for_the_cells_under_a_robot():
+    heights = np.zeros((16, 16))
+    heights[7:9, 7:9] = -2 * UNIT  # the robot drove into a pit the map saw as level
+    mapper = TerrainMapper(MapperParams(prior_height=0.0, robot_height=0.2))
+    sweep_into(mapper, heights, [(7, 7)])
+    assert mapper.height_map()[7:9, 7:9] == pytest.approx(-2 * UNIT, abs=0.25 * UNIT)
+    blind = TerrainMapper(MapperParams(prior_height=0.0))
+    sweep_into(blind, heights, [(7, 7)])
+    assert np.all(blind.height_map()[7:9, 7:9] == 0.0)

@@ -95,6 +95,7 @@ def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
             Parameter("mount_z", value=float(sensors.laser_params.mount[2])),
             Parameter("sweep_scans", value=sensors.laser_params.sweep_scans),
             Parameter("prior_height", value=0.0),
+            Parameter("robot_height", value=float(sensors.laser_params.robot_height)),
             Parameter("publish_map_info", value=False),
             Parameter("pose_wait", value=2.0),
             Parameter("reliable", value=True),

@@ -66,7 +66,7 @@ class LocalizerParams:
     max_area: int = 500
     hue_tolerance: float = 12.0
     spacing_tolerance: float = 0.12
-    gate: float = 0.3
+    gate: float = 0.6
     max_coast: int = 3
     coast_sigma: float = 0.02
     max_sigma: float = 0.08

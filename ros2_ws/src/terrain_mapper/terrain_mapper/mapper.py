@@ -17,6 +17,10 @@ read (one value per cell, metres, NaN unknown):
    dug or dumped) takes the new value. Cells not measured in a sweep (under a robot, in a
    beam's shadow) keep their value; cells never measured hold ``prior_height`` (NaN:
    unknown; the closed-loop trial uses 0, a level site surveyed before the robots enter).
+4. **Under the robots** (optional, ``robot_height``): the laser cannot see the cells a
+   robot stands on, but it sees the robot's body; the median height of the returns on its
+   top, less ``robot_height``, is taken as the soil under it for every footprint cell that
+   disagrees with its map value by more than ``change_threshold``.
 
 Pure module (numpy), no ``rclpy``; ``mapper_node`` wraps it.
 """
@@ -49,6 +53,10 @@ class MapperParams:
         change_threshold: A new value further than this (metres) from the map replaces it.
         max_count: Most sweeps averaged into a cell.
         prior_height: Value of never-measured cells (NaN = unknown).
+        robot_height: A robot's body top above the soil it stands on (metres); when set,
+            the footprint cells that disagree with "body top - robot_height" by more than
+            ``change_threshold`` take that value (NaN: cells under robots keep the last
+            value seen).
     """
 
     rows: int = 16
@@ -63,6 +71,7 @@ class MapperParams:
     change_threshold: float = 0.02
     max_count: int = 8
     prior_height: float = math.nan
+    robot_height: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -139,11 +148,16 @@ class TerrainMapper:
         self._points, self.invalid = [], 0
         keep = np.ones(len(pts), dtype=bool)
         half = p.cell_size + p.robot_margin
+        bodies = []
         for x, y, yaw in robots:
             c, s = math.cos(yaw), math.sin(yaw)
             dx, dy = pts[:, 0] - x, pts[:, 1] - y
             along, across = np.abs(c * dx + s * dy), np.abs(-s * dx + c * dy)
-            keep &= ~((along <= half) & (across <= half))
+            on_robot = (along <= half) & (across <= half)
+            keep &= ~on_robot
+            top = (along <= 0.8 * p.cell_size) & (across <= 0.8 * p.cell_size)
+            if math.isfinite(p.robot_height) and top.sum() >= p.min_returns:
+                bodies.append((x, y, float(np.median(pts[top, 2])) - p.robot_height))
         masked = int((~keep).sum())
         u = pts[:, 0] / p.cell_size
         v = pts[:, 1] / p.cell_size
@@ -155,7 +169,20 @@ class TerrainMapper:
         idx = row[keep] * p.cols + col[keep]
         z = pts[keep, 2]
         measured = self._fuse(idx, z)
+        for x, y, ground in bodies:
+            self._under_robot(x, y, ground)
         return SweepStats(int(keep.sum()), invalid, masked, measured)
+
+    def _under_robot(self, x: float, y: float, ground: float) -> None:
+        """Footprint cells that disagree with the body's height take the body's ground."""
+        p = self.params
+        r0, c0 = round(y / p.cell_size) - 1, round(x / p.cell_size) - 1
+        for r in range(max(r0, 0), min(r0 + 2, p.rows)):
+            for c in range(max(c0, 0), min(c0 + 2, p.cols)):
+                old = self.heights[r, c]
+                if not math.isfinite(old) or abs(old - ground) > p.change_threshold:
+                    self.heights[r, c] = ground
+                    self.counts[r, c] = 1
 
     def _fuse(self, idx: np.ndarray, z: np.ndarray) -> int:
         """Median per cell of this sweep, fused into the map; returns the cells measured."""
