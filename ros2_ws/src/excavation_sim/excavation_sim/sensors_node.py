@@ -29,7 +29,6 @@ its centre (:meth:`CameraParams.for_site`, :meth:`LaserParams.for_site`); camera
 
 from __future__ import annotations
 
-import math
 import sys
 
 import numpy as np
@@ -45,7 +44,7 @@ from ant_controller.ros import LATCHED, spin_node
 from excavation_sim.camera import CameraParams, OverheadCamera, RobotView, default_beacons
 from excavation_sim.laser import LaserParams, OverheadLaser, surface_with_robots
 from overhead_localizer.images import frame_to_message
-from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT
+from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, yaw_of
 
 
 def parse_occlude(text: str) -> frozenset[tuple[int, str]]:
@@ -136,7 +135,7 @@ class SensorsNode(Node):
     def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
         """A robot's true pose."""
         q, pos = msg.pose.pose.orientation, msg.pose.pose.position
-        yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+        yaw = yaw_of(q)
         key = (msg.header.stamp.sec, msg.header.stamp.nanosec)
         self.poses[k] = (key, (pos.x, pos.y, yaw))
         self.maybe_render(msg.header.stamp)

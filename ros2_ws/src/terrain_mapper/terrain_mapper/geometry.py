@@ -35,3 +35,8 @@ def beam_directions(pan: float, tilt: float, angles: np.ndarray) -> np.ndarray:
     a = np.asarray(angles, dtype=np.float64)
     local = np.column_stack([np.cos(a), np.sin(a), np.zeros_like(a)])
     return local @ rot.T
+
+
+def yaw_of(q) -> float:
+    """Yaw (radians, about z) of a ``geometry_msgs/Quaternion``-like ``q`` (x, y, z, w)."""
+    return float(np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))

@@ -40,7 +40,7 @@ from sensor_msgs.msg import Image, JointState, LaserScan
 from ant_controller.messages import grid_to_image, map_info
 from ant_controller.ros import LATCHED, spin_node
 from terrain_mapper.errors import MapperError
-from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT
+from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, yaw_of
 from terrain_mapper.mapper import MapperParams, TerrainMapper, scan_ranges_check
 
 SCAN_TOPIC = "/worksite/scan"
@@ -156,7 +156,7 @@ class MapperNode(Node):
     def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
         """A robot's pose (for the footprint mask)."""
         q, pos = msg.pose.pose.orientation, msg.pose.pose.position
-        yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+        yaw = yaw_of(q)
         if msg.header.frame_id != "map" or not all(map(math.isfinite, (pos.x, pos.y, yaw))):
             return
         self.poses[k] = (_key(msg.header.stamp), (pos.x, pos.y, yaw))
