@@ -189,3 +189,18 @@ def test_baseline_runs_resume_exactly(tmp_path, runner):
     key = [(r["best"], r["mean"], r["evaluations"]) for r in whole]
     assert [(r["best"], r["mean"], r["evaluations"]) for r in resumed] == key
     assert (tmp_path / "b" / "best.json").read_text() == (tmp_path / "a" / "best.json").read_text()
+
+
+def test_neat_resume_keeps_the_node_indexer(tmp_path):
+    """Restored with its pickled config, new node keys never collide with existing ones."""
+    import copy
+
+    import neat
+
+    cfg = EvolveConfig(population=12, generations=3, scenarios=1, steps=10, seed=2)
+    run_neat(cfg, tmp_path, stop_after=2)
+    pop = neat.Checkpointer.restore_checkpoint(str(tmp_path / "neat-checkpoint.gz"))
+    genome_config = pop.config.genome_config
+    # lowest keys first: a restarted indexer would begin inside the next genome's keys
+    for genome in sorted(pop.population.values(), key=lambda g: max(g.nodes)):
+        copy.deepcopy(genome).mutate_add_node(genome_config)  # asserts on a used key

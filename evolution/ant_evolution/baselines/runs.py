@@ -243,7 +243,9 @@ def run_neat(
         data = json.loads(side.read_text(encoding="utf-8"))
         if data.get("run_key") != key:
             raise CheckpointError(str(side), "was written by a run with a different configuration")
-        pop = neat.Checkpointer.restore_checkpoint(str(ckpt), cfg)
+        # the pickled config carries neat-python's node indexer: a fresh config would
+        # restart it and hand out node keys that genomes already use
+        pop = neat.Checkpointer.restore_checkpoint(str(ckpt))
         if pop.generation != data["generation"]:
             raise CheckpointError(str(side), "does not match neat-checkpoint.gz")
         history, evaluations, best_fit = data["history"], data["evaluations"], data["best_fitness"]
