@@ -200,3 +200,20 @@ def test_config_file_states_the_defaults():
     params = shipped["localizer"]["ros__parameters"]
     for name, value in LocalizerParams().__dict__.items():
         assert params[name] == value, name
+
+
+def test_no_coasting_across_a_long_gap(camera, model):
+    """A robot unseen for longer than max_coast_time is lost, not reported where it was."""
+    views = [RobotView(2.0, 2.0, 0.0)]
+    rng = np.random.default_rng(0)
+    hidden = {(0, "front")}
+    fast = Localizer(model, default_beacons(), 1)
+    fast.update(camera.render(views, np.zeros((16, 16)), rng)[0], stamp=10.0)
+    image = camera.render(views, np.zeros((16, 16)), rng, hidden)[0]
+    assert fast.update(image, stamp=10.033)[0].status == COASTING  # 30 frames per second
+    slow = Localizer(model, default_beacons(), 1)
+    slow.update(camera.render(views, np.zeros((16, 16)), rng)[0], stamp=10.0)
+    (est,) = slow.update(image, stamp=11.0)  # one simulator tick later
+    assert est.status == LOST and "1.00 s" in est.detail
+    seen = slow.update(camera.render(views, np.zeros((16, 16)), rng)[0], stamp=12.0)[0]
+    assert seen.status == SEEN

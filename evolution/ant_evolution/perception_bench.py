@@ -3,7 +3,7 @@
 Two measurements, both on scenes that change as a real trial does (episodes of the
 hand-coded controller on the default blueprint, depth 3: pits deepen and berms grow):
 
-* **Localizer** (:func:`localizer_accuracy`): every tick of every episode is rendered by the
+* **Localizer** (:func:`localizer_accuracy`): every tick (1 s) of every episode is rendered by the
   synthetic overhead camera (1280 x 720, low light, noise, glare, lens distortion, robots'
   bodies off their grid pose by a few centimetres and degrees), and the localizer,
   calibrated from marked points like in the field, tracks the robots through the
@@ -96,12 +96,15 @@ def localizer_accuracy(
     errors, right, robot_frames, frames, seconds = [], 0, 0, 0, 0.0
     localizer = None
     last = -1
-    for e, world in tqdm(
-        episodes(n_episodes, ticks, robots, seed),
-        total=n_episodes * ticks,
-        desc="localizer frames",
-        disable=not progress,
+    for frame, (e, world) in enumerate(
+        tqdm(
+            episodes(n_episodes, ticks, robots, seed),
+            total=n_episodes * ticks,
+            desc="localizer frames",
+            disable=not progress,
+        )
     ):
+        tick = frame % ticks  # one frame per simulator tick, 1 s of sim time apart
         if e != last:
             localizer = Localizer(model, default_beacons(), robots)
             last = e
@@ -109,7 +112,7 @@ def localizer_accuracy(
         views = robot_views(world.robots, world.heights, cell, unit)
         image, _ = camera.render(views, heights, rng)
         started = time.perf_counter()
-        estimates = localizer.update(image, heights, cell)
+        estimates = localizer.update(image, heights, cell, stamp=float(tick))
         seconds += time.perf_counter() - started
         frames += 1
         for k, est in enumerate(estimates):

@@ -19,7 +19,8 @@ The pipeline of one frame (:meth:`Localizer.update`):
 4. **Track**: a robot seen gives its centre (the LEDs' midpoint), yaw (rear -> front) and
    a covariance from the blobs' centroid spread, the metres per pixel there, the
    calibration error and the unknown soil height; a robot not seen *coasts* on its last
-   pose for ``max_coast`` frames with a growing covariance, then is *lost*.
+   pose for ``max_coast`` frames and at most ``max_coast_time`` seconds with a growing
+   covariance, then is *lost*.
 
 Pure module (numpy, OpenCV), no ``rclpy``; the node ``localizer_node`` wraps it.
 """
@@ -53,6 +54,8 @@ class LocalizerParams:
         spacing_tolerance: Accepted deviation of the LED distance, fraction of ``spacing``.
         gate: Largest jump (metres) from a track's last pose for a pair to continue it.
         max_coast: Frames a robot keeps its last pose when its LEDs are not seen.
+        max_coast_time: ... and seconds (when frames carry stamps): a robot can move a cell
+            in about a second, so a pose older than this is not reported.
         coast_sigma: Position standard deviation (metres) added per coasted frame.
         max_sigma: A pose less certain than this (metres, position) is not reported.
         ground_sigma: Standard deviation of the soil height under an LED when no height
@@ -68,6 +71,7 @@ class LocalizerParams:
     spacing_tolerance: float = 0.12
     gate: float = 0.6
     max_coast: int = 3
+    max_coast_time: float = 0.5
     coast_sigma: float = 0.02
     max_sigma: float = 0.08
     ground_sigma: float = 0.05
@@ -125,6 +129,7 @@ class _Track:
     y: float
     yaw: float
     covariance: np.ndarray
+    stamp: float | None = None
     missed: int = 0
 
 
@@ -289,7 +294,11 @@ class Localizer:
     # --- 3. pair, 4. track ------------------------------------------------------------------
 
     def update(
-        self, image: np.ndarray, heights: np.ndarray | None = None, cell_size: float = 0.25
+        self,
+        image: np.ndarray,
+        heights: np.ndarray | None = None,
+        cell_size: float = 0.25,
+        stamp: float | None = None,
     ) -> list[RobotEstimate]:
         """Poses of robots 0 .. n - 1 in one frame (updates the tracks).
 
@@ -297,15 +306,20 @@ class Localizer:
             image: BGR frame, ``uint8 [height, width, 3]`` of the calibration's size.
             heights: Soil heights in metres per cell (NaN unknown), or ``None``.
             cell_size: Metres per cell of ``heights``.
+            stamp: The frame's time in seconds (limits coasting to ``max_coast_time``).
 
         Raises:
             ImageError: The frame's size or type does not fit the calibration.
         """
         check_image(image, self.model)
-        return self.associate(self.detect(image), heights, cell_size)
+        return self.associate(self.detect(image), heights, cell_size, stamp)
 
     def associate(
-        self, blobs: list[Blob], heights: np.ndarray | None = None, cell_size: float = 0.25
+        self,
+        blobs: list[Blob],
+        heights: np.ndarray | None = None,
+        cell_size: float = 0.25,
+        stamp: float | None = None,
     ) -> list[RobotEstimate]:
         """Locating, pairing and tracking of detected blobs (steps 2 to 4).
 
@@ -376,26 +390,26 @@ class Localizer:
                     pxy, pvar = self.locate(pair, ground + b.height, 0.2 * b.height)
                 else:
                     pxy, pvar = xy[[i, j]], var[[i, j]]
-                out.append(self._seen(k, pxy[0], pxy[1], pvar[0], pvar[1]))
+                out.append(self._seen(k, pxy[0], pxy[1], pvar[0], pvar[1], stamp))
             else:
-                out.append(self._coast(k))
+                out.append(self._coast(k, stamp))
         return out
 
-    def _seen(self, k, front, rear, var_f, var_r) -> RobotEstimate:
+    def _seen(self, k, front, rear, var_f, var_r, stamp) -> RobotEstimate:
         mid = (front + rear) / 2
         d = front - rear
         yaw = math.atan2(d[1], d[0])
         cov = np.zeros((3, 3))
         cov[0, 0] = cov[1, 1] = (var_f + var_r) / 4
         cov[2, 2] = (var_f + var_r) / float(d @ d)
-        self.tracks[k] = _Track(float(mid[0]), float(mid[1]), yaw, cov)
+        self.tracks[k] = _Track(float(mid[0]), float(mid[1]), yaw, cov, stamp)
         if math.sqrt(cov[0, 0]) > self.params.max_sigma:
             return RobotEstimate(
                 LOST, detail=f"robot {k}: position uncertainty {math.sqrt(cov[0, 0]):.3f} m"
             )
         return RobotEstimate(SEEN, float(mid[0]), float(mid[1]), yaw, cov)
 
-    def _coast(self, k) -> RobotEstimate:
+    def _coast(self, k, stamp) -> RobotEstimate:
         track = self.tracks.get(k)
         if track is None:
             return RobotEstimate(LOST, detail=f"robot {k}: LEDs not seen")
@@ -403,6 +417,12 @@ class Localizer:
         if track.missed > self.params.max_coast:
             del self.tracks[k]
             return RobotEstimate(LOST, detail=f"robot {k}: LEDs not seen for {track.missed} frames")
+        if stamp is not None and track.stamp is not None:
+            gap = stamp - track.stamp
+            if gap > self.params.max_coast_time:
+                # the robot may have moved since: its last pose is no longer its pose (the
+                # track stays, to pick the robot up again near where it was)
+                return RobotEstimate(LOST, detail=f"robot {k}: LEDs not seen for {gap:.2f} s")
         cov = track.covariance.copy()
         grow = (self.params.coast_sigma * track.missed) ** 2
         cov[0, 0] += grow

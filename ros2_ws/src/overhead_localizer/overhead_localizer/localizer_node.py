@@ -133,7 +133,8 @@ class LocalizerNode(Node):
         try:
             frame = frame_from_message(msg)
             heights = self.heights if self.cell_size is not None else None
-            self.estimates = self.localizer.update(frame, heights, self.cell_size or 0.25)
+            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            self.estimates = self.localizer.update(frame, heights, self.cell_size or 0.25, stamp)
         except FieldError as exc:
             self.image_error = str(exc)
             self.get_logger().warning(self.image_error, throttle_duration_sec=5.0)
