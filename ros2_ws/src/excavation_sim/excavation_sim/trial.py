@@ -383,7 +383,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--scenario", type=int, default=0, help="scenario index of --seed")
     p.add_argument(
-        "--command-timeout", type=float, default=2.0, help="s the simulator waits per tick"
+        "--command-timeout",
+        type=float,
+        default=None,
+        help="s the simulator waits per tick (default 2; 30 with --perception full, whose "
+        "camera and laser rendering takes a loaded machine seconds per tick)",
     )
     p.add_argument("--domain", type=int, default=None)
     p.add_argument(
@@ -416,7 +420,7 @@ def main(argv: list[str] | None = None) -> int:
             record=args.record,
             perception=args.perception,
             scenario=args.scenario,
-            command_timeout=args.command_timeout,
+            command_timeout=args.command_timeout or (30.0 if args.perception == "full" else 2.0),
         )
     except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
         print(f"ant-trial: error: {exc}", file=sys.stderr)
