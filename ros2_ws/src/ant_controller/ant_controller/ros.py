@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -38,3 +39,31 @@ def spin_node(
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def diagnostics(
+    node: Node,
+    level: bytes,
+    message: str,
+    values: dict[str, object] | None = None,
+    hardware_id: str = "",
+) -> DiagnosticArray:
+    """One ``/diagnostics`` array holding a single status named after ``node``.
+
+    Args:
+        node: The reporting node (its fully qualified name names the status).
+        level: ``DiagnosticStatus.OK``, ``WARN``, ``ERROR`` or ``STALE``.
+        message: What the node is doing, or what is wrong.
+        values: Key/value details (converted with ``str``).
+        hardware_id: The device behind the node, if any.
+    """
+    status = DiagnosticStatus(
+        level=level,
+        name=node.get_fully_qualified_name(),
+        message=message,
+        hardware_id=hardware_id,
+        values=[KeyValue(key=k, value=str(v)) for k, v in (values or {}).items()],
+    )
+    msg = DiagnosticArray(status=[status])
+    msg.header.stamp = node.get_clock().now().to_msg()
+    return msg

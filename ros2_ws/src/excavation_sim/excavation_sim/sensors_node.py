@@ -33,6 +33,7 @@ import sys
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
@@ -40,7 +41,7 @@ from sensor_msgs.msg import Image, JointState, LaserScan
 
 from ant_controller.frames import robot_anchor
 from ant_controller.messages import MessageError, image_to_grid
-from ant_controller.ros import LATCHED, spin_node
+from ant_controller.ros import LATCHED, diagnostics, spin_node
 from excavation_sim.camera import CameraParams, OverheadCamera, RobotView, default_beacons
 from excavation_sim.laser import LaserParams, OverheadLaser, surface_with_robots
 from overhead_localizer.images import frame_to_message
@@ -117,6 +118,7 @@ class SensorsNode(Node):
         self.heights: tuple[tuple[int, int], np.ndarray] | None = None
         self.last: tuple[int, int] | None = None
         self.frames = 0
+        self.problem = ""
 
         self.image_pub = self.create_publisher(Image, "/overhead/image_raw", qos)
         self.scan_pub = self.create_publisher(LaserScan, "/worksite/scan", qos)
@@ -131,6 +133,16 @@ class SensorsNode(Node):
                 10,
             )
         self.create_subscription(Image, f"{prefix}/worksite/height_map", self.on_heights, LATCHED)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(1.0, self.publish_diagnostics)
+
+    def publish_diagnostics(self) -> None:
+        """OK while frames and sweeps go out; WARN with the last skipped input."""
+        level = DiagnosticStatus.WARN if self.problem else DiagnosticStatus.OK
+        message = self.problem or (
+            f"rendered {self.frames} frames and sweeps" if self.frames else "waiting for truth"
+        )
+        self.diag_pub.publish(diagnostics(self, level, message, {"frames": self.frames}))
 
     def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
         """A robot's true pose."""
@@ -146,7 +158,9 @@ class SensorsNode(Node):
             grid = image_to_grid(msg, "32FC1", "truth height map")
         except MessageError as exc:
             self.get_logger().warning(str(exc), throttle_duration_sec=5.0)
+            self.problem = str(exc)
             return
+        self.problem = ""
         self.heights = ((msg.header.stamp.sec, msg.header.stamp.nanosec), grid)
         self.maybe_render(msg.header.stamp)
 
@@ -164,11 +178,11 @@ class SensorsNode(Node):
         """Publish one camera frame and one laser sweep of this instant."""
         rows, cols = heights.shape
         if (rows, cols) != (self.rows, self.cols):
-            self.get_logger().error(
+            self.problem = (
                 f"truth height map is {rows} x {cols} cells, the sensors are set up for "
-                f"{self.rows} x {self.cols} (parameters rows, cols): frame skipped",
-                throttle_duration_sec=5.0,
+                f"{self.rows} x {self.cols} (parameters rows, cols): frame skipped"
             )
+            self.get_logger().error(self.problem, throttle_duration_sec=5.0)
             return
         if self.camera is None:
             self.camera = OverheadCamera(

@@ -32,10 +32,12 @@ from __future__ import annotations
 
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import QosReliability
 
+from ant_controller.ros import diagnostics
 from excavation_sim.bag.errors import BagError, MissingTopicError
 from excavation_sim.bag.recorder_node import message_class
 from excavation_sim.bag.storage import Bag, TopicInfo, latched, open_bag, topic_selected
@@ -151,6 +153,18 @@ class PlayerNode(Node):
         self.started: float | None = None
         self.created: float | None = None
         self.create_timer(0.001, self.step)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(1.0, self.publish_diagnostics)
+
+    def publish_diagnostics(self) -> None:
+        """OK while playing or done; WARN naming what the bag holds that cannot be played."""
+        level = DiagnosticStatus.WARN if self.warnings else DiagnosticStatus.OK
+        state = "finished" if self.finished else "playing"
+        message = f"{state} {self.bag.path}" + (
+            f"; {'; '.join(self.warnings)}" if self.warnings else ""
+        )
+        values = {"published": self.published, "of": len(self.messages), "loops": self.loops}
+        self.diag_pub.publish(diagnostics(self, level, message, values))
 
     def _publish(self, topic: str, raw: bytes) -> None:
         pub = self.publishers_.get(topic)

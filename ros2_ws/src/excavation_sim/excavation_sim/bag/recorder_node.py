@@ -22,9 +22,11 @@ from __future__ import annotations
 
 import importlib
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from ant_controller.ros import diagnostics
 from excavation_sim.bag.errors import UnknownTypeError
 from excavation_sim.bag.storage import (
     SUITE_TOPICS,
@@ -67,6 +69,24 @@ class RecorderNode(Node):
         self.discover()
         self.create_timer(discovery_period, self.discover)
         self.create_timer(flush_period, self.flush)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(1.0, self.publish_diagnostics)
+
+    def publish_diagnostics(self) -> None:
+        """OK while recording; WARN naming the topics it cannot record."""
+        if self.writer.closed:
+            return
+        skipped = "; ".join(f"{t}: {why}" for t, why in self.skipped.items())
+        level = DiagnosticStatus.WARN if skipped else DiagnosticStatus.OK
+        message = f"recording {len(self._subs)} topics" + (
+            f"; not recorded: {skipped}" if skipped else ""
+        )
+        values = {
+            "messages": self.received,
+            "topics": len(self._subs),
+            "skipped": len(self.skipped),
+        }
+        self.diag_pub.publish(diagnostics(self, level, message, values))
 
     def discover(self) -> None:
         """Subscribe to matching topics that appeared since the last look."""

@@ -1,0 +1,79 @@
+"""Every node of the suite reports its state on /diagnostics, even with nothing to do."""
+
+from __future__ import annotations
+
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+
+def _node(kind, context, tmp_path):
+    if kind == "controller":
+        from ant_controller.controller import Controller
+        from ant_controller.controller_node import ControllerNode
+
+        return ControllerNode(Controller.hand_coded(), context=context)
+    if kind == "server":
+        from blueprint_server.server_node import BlueprintServer
+
+        return BlueprintServer(context=context)
+    if kind == "sim":
+        from excavation_sim.sim_node import SimNode
+
+        return SimNode(context=context)
+    if kind == "driver":
+        from blade_driver.driver_node import BladeDriverNode
+
+        return BladeDriverNode(context=context)
+    if kind == "sensors":
+        from excavation_sim.sensors_node import SensorsNode
+
+        return SensorsNode(context=context)
+    if kind == "localizer":
+        from overhead_localizer.localizer_node import LocalizerNode
+
+        return LocalizerNode(context=context)
+    if kind == "mapper":
+        from terrain_mapper.mapper_node import MapperNode
+
+        return MapperNode(context=context)
+    if kind == "recorder":
+        from excavation_sim.bag.recorder_node import RecorderNode
+
+        out = Parameter("out", value=str(tmp_path / "bag"))
+        return RecorderNode(context=context, parameter_overrides=[out])
+    from excavation_sim.bag.player_node import PlayerNode
+
+    bag = Parameter("bag", value="bags/sample")
+    topics = Parameter("topics", value=["/worksite/fitness"])
+    return PlayerNode(context=context, parameter_overrides=[bag, topics])
+
+
+@pytest.mark.parametrize(
+    "kind",
+    [
+        "controller",
+        "server",
+        "sim",
+        "driver",
+        "sensors",
+        "localizer",
+        "mapper",
+        "recorder",
+        "player",
+    ],
+)
+def test_node_publishes_diagnostics(ros, kind, tmp_path):
+    node = ros.add(_node(kind, ros.context, tmp_path))
+    statuses = []
+    watcher = ros.add(Node("watcher", context=ros.context))
+    watcher.create_subscription(
+        DiagnosticArray, "/diagnostics", lambda m: statuses.extend(m.status), 10
+    )
+    try:
+        assert ros.spin_until(lambda: len(statuses) > 0, timeout=10.0), f"{kind}: no diagnostics"
+        assert all(s.message for s in statuses)
+    finally:
+        if kind == "recorder":
+            node.close()
