@@ -49,6 +49,27 @@ def _chunks(items: list, n: int) -> list[list]:
     return [items[bounds[i] : bounds[i + 1]] for i in range(n)]
 
 
+def start_workers(workers: int, ray_address: str | None, task) -> tuple:
+    """Start the workers of a backend: ``(pool, ray, remote task, worker count)``.
+
+    ``ray_address``: a Ray instance (``"local"`` starts one here) with ``task`` as its remote
+    function, one worker per cluster CPU; otherwise a spawned process pool when
+    ``workers > 1``; otherwise nothing (evaluate in this process).
+    """
+    if ray_address:
+        import ray
+
+        if not ray.is_initialized():
+            if ray_address == "local":
+                ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+            else:
+                ray.init(address=ray_address, log_to_driver=False)
+        return None, ray, ray.remote(task), max(1, int(ray.cluster_resources().get("CPU", 1)))
+    if workers > 1:
+        return ProcessPoolExecutor(workers, mp_context=get_context("spawn")), None, None, workers
+    return None, None, None, workers
+
+
 class Evaluator:
     """Scores populations on fixed scenario sets with the chosen backend.
 
@@ -60,21 +81,9 @@ class Evaluator:
     def __init__(self, workers: int | None = None, ray_address: str | None = None) -> None:
         self.workers = workers if workers and workers > 0 else (os.cpu_count() or 1)
         self.ray_address = ray_address
-        self._pool: ProcessPoolExecutor | None = None
-        self._ray = None
-        if ray_address:
-            import ray
-
-            if not ray.is_initialized():
-                if ray_address == "local":
-                    ray.init(num_cpus=self.workers, include_dashboard=False, log_to_driver=False)
-                else:
-                    ray.init(address=ray_address, log_to_driver=False)
-            self._ray = ray
-            self._remote = ray.remote(_evaluate_parts)
-            self.workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
-        elif self.workers > 1:
-            self._pool = ProcessPoolExecutor(self.workers, mp_context=get_context("spawn"))
+        self._pool, self._ray, self._remote, self.workers = start_workers(
+            self.workers, ray_address, _evaluate_parts
+        )
 
     @property
     def backend(self) -> str:

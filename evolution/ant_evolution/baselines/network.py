@@ -26,16 +26,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from multiprocessing import get_context
 
 import numba as nb
 import numpy as np
 
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, SENSOR_SCALE
 from ant_controller.tissue import CACHE_BITS, activation, sensor_key
-from ant_evolution.backends import _chunks
+from ant_evolution.backends import _chunks, start_workers
 from ant_evolution.evaluate import ScenarioSet
 from excavation_sim.world import apply_all, fitness, sense_all
 
@@ -258,21 +256,9 @@ class ProgramEvaluator:
 
     def __init__(self, workers: int | None = 1, ray_address: str | None = None) -> None:
         self.workers = max(1, workers or 1)
-        self._pool: ProcessPoolExecutor | None = None
-        self._ray = None
-        if ray_address:
-            import ray
-
-            if not ray.is_initialized():
-                if ray_address == "local":
-                    ray.init(num_cpus=self.workers, include_dashboard=False, log_to_driver=False)
-                else:
-                    ray.init(address=ray_address, log_to_driver=False)
-            self._ray = ray
-            self._remote = ray.remote(_fitness_chunk)
-            self.workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
-        elif self.workers > 1:
-            self._pool = ProcessPoolExecutor(self.workers, mp_context=get_context("spawn"))
+        self._pool, self._ray, self._remote, self.workers = start_workers(
+            self.workers, ray_address, _fitness_chunk
+        )
 
     def evaluate(
         self, items: list, sets: list[ScenarioSet], compile_fn: Callable | None = None
