@@ -13,7 +13,7 @@ from std_msgs.msg import UInt16
 
 from ant_controller.controller import Controller
 from ant_controller.controller_node import ControllerNode
-from ant_controller.ros import LATCHED
+from excavation_common.ros import LATCHED
 from excavation_sim.bag.cli import main as ant_bag
 from excavation_sim.bag.errors import MissingTopicError
 from excavation_sim.bag.player_node import PlayerNode

@@ -73,7 +73,7 @@ def test_recorder_stopped_mid_recording(ros, tmp_path, stop):
     from rosbags.rosbag2 import Reader
     from std_msgs.msg import UInt16
 
-    from ant_controller.ros import LATCHED
+    from excavation_common.ros import LATCHED
 
     node = ros.add(__import__("rclpy").create_node("counter", context=ros.context))
     pub = node.create_publisher(UInt16, "/count", 100)

@@ -11,8 +11,8 @@ from rclpy.serialization import serialize_message
 from ruamel.yaml import YAML
 from std_msgs.msg import UInt16
 
-from ant_controller.messages import grid_to_image
-from ant_controller.ros import LATCHED
+from excavation_common.messages import grid_to_image
+from excavation_common.ros import LATCHED
 from excavation_sim.bag.cli import main as ant_bag
 from excavation_sim.bag.errors import BagExistsError, BagFormatError, BagNotFoundError
 from excavation_sim.bag.storage import (

@@ -12,10 +12,10 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image
 from std_srvs.srv import Trigger
 
-from ant_controller.messages import image_to_grid
-from ant_controller.ros import LATCHED
 from blueprint_server.blueprint import default_blueprint
 from blueprint_server.server_node import BlueprintServer
+from excavation_common.messages import image_to_grid
+from excavation_common.ros import LATCHED
 
 
 def listener(ros):

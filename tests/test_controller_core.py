@@ -7,8 +7,11 @@ import pytest
 
 from ant_controller.controller import Controller, ControllerCore
 from ant_controller.genome_io import load_genome
-from ant_controller.messages import (
-    BladeGeometry,
+from ant_controller.sensing import blade_volume
+from ant_evolution.evaluate import ScenarioSet
+from blueprint_server.blueprint import DIG, default_blueprint
+from excavation_common.constants import BladeGeometry
+from excavation_common.messages import (
     blade_from_joint,
     blade_joint,
     grid_to_image,
@@ -17,9 +20,6 @@ from ant_controller.messages import (
     pose_message,
     pose_to_grid,
 )
-from ant_controller.sensing import blade_volume
-from ant_evolution.evaluate import ScenarioSet
-from blueprint_server.blueprint import DIG, default_blueprint
 from excavation_sim.world import BLADE, COL, HEADING, MEMORY, ROW, STUCK
 
 CELL = 0.25

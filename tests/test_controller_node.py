@@ -13,15 +13,11 @@ from std_msgs.msg import Bool, UInt16
 from ant_controller.controller import Controller, ControllerCore
 from ant_controller.controller_node import ControllerNode, main
 from ant_controller.layout import BLADE_HOME
-from ant_controller.messages import (
-    BladeGeometry,
-    blade_joint,
-    grid_to_image,
-    pose_message,
-)
-from ant_controller.ros import LATCHED
 from blueprint_server.blueprint import default_blueprint
 from blueprint_server.server_node import BlueprintServer
+from excavation_common.constants import BladeGeometry
+from excavation_common.messages import blade_joint, grid_to_image, pose_message
+from excavation_common.ros import LATCHED
 
 POSES = [(5, 5, 0), (10, 3, 1)]  # robot 0 faces north into the pit, robot 1 east
 

@@ -6,7 +6,9 @@ import math
 
 import pytest
 
-from ant_controller.frames import (
+from ant_controller.layout import EAST, NORTH, SOUTH, WEST
+from ant_controller.sensing import FORWARD
+from excavation_common.frames import (
     cell_center,
     heading_to_yaw,
     map_to_cell,
@@ -14,8 +16,6 @@ from ant_controller.frames import (
     robot_center,
     yaw_to_heading,
 )
-from ant_controller.layout import EAST, NORTH, SOUTH, WEST
-from ant_controller.sensing import FORWARD
 
 
 def test_rows_go_north_columns_go_east():

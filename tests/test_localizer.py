@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from ant_controller.frames import yaw_to_heading
 from blueprint_server.blueprint import default_blueprint
+from excavation_common.frames import yaw_to_heading
 from excavation_sim.camera import (
     CameraParams,
     OverheadCamera,

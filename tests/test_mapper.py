@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from ant_controller.frames import robot_center
+from excavation_common.frames import robot_center
 from excavation_sim.laser import LaserParams, OverheadLaser, surface_with_robots
 from terrain_mapper.errors import MapperError
 from terrain_mapper.mapper import MapperParams, TerrainMapper, scan_ranges_check

@@ -9,8 +9,8 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, JointState, LaserScan
 
-from ant_controller.messages import image_to_grid
-from ant_controller.ros import LATCHED
+from excavation_common.messages import image_to_grid
+from excavation_common.ros import LATCHED
 from excavation_sim.laser import LaserParams, OverheadLaser
 from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT
 from terrain_mapper.mapper_node import MOUNT_TOPIC, SCAN_TOPIC, MapperNode

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from ant_controller.layout import BLADE_ABOVE, BLADE_BELOW, BLADE_HOME, BLADE_LEVEL
-from ant_controller.messages import (
-    BladeGeometry,
+from excavation_common.constants import BladeGeometry
+from excavation_common.messages import (
     MessageError,
     blade_from_joint,
     blade_joint,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ant_controller.errors import FieldError
+from excavation_common.errors import FieldError
 
 
 class ConfigError(FieldError):

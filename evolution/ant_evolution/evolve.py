@@ -31,7 +31,6 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ant_controller.files import write_text_atomic
 from ant_controller.genome import Genome, random_genome
 from ant_controller.genome_io import genome_from_dict, genome_to_dict, save_genome
 from ant_evolution.backends import Evaluator
@@ -39,6 +38,7 @@ from ant_evolution.errors import CheckpointError, ConfigError
 from ant_evolution.evaluate import DEFAULT_STEPS, ScenarioSet
 from ant_evolution.ga import GAParams, next_generation
 from blueprint_server.blueprint import Blueprint, resolve_blueprint
+from excavation_common.files import write_text_atomic
 
 CHECKPOINT_FORMAT = "ant-checkpoint/1"
 HISTORY_FIELDS = (

@@ -37,9 +37,9 @@ import numpy as np
 from tqdm import tqdm
 
 from ant_controller.controller import Controller
-from ant_controller.frames import yaw_to_heading
 from ant_evolution.evaluate import advance
 from blueprint_server.blueprint import default_blueprint
+from excavation_common.frames import yaw_to_heading
 from excavation_sim.camera import (
     CameraParams,
     OverheadCamera,

@@ -29,7 +29,6 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ant_controller.files import write_text_atomic
 from ant_evolution.baselines.fixed import (
     FixedNetwork,
     FixedTopology,
@@ -47,6 +46,7 @@ from ant_evolution.evolve import (
     plot_history,
     scenario_sets,
 )
+from excavation_common.files import write_text_atomic
 
 PROGRAM_FORMAT = "network-program/1"
 _ARRAYS = [f.name for f in dataclasses.fields(NetworkProgram)]

@@ -42,15 +42,15 @@ from std_msgs.msg import Bool, UInt16
 
 from ant_controller.controller import Controller, ControllerCore
 from ant_controller.errors import GenomeFormatError
-from ant_controller.messages import (
-    BladeGeometry,
+from excavation_common.constants import BladeGeometry
+from excavation_common.messages import (
     MessageError,
     blade_from_joint,
     heights_to_units,
     image_to_grid,
     pose_to_grid,
 )
-from ant_controller.ros import LATCHED, spin_node
+from excavation_common.ros import LATCHED, spin_node
 
 UNKNOWN = np.iinfo(np.int32).min
 

@@ -29,7 +29,6 @@ import math
 from pathlib import Path
 
 from ant_controller.errors import GenomeFormatError
-from ant_controller.files import write_text_atomic
 from ant_controller.genome import (
     KINDS,
     MAX_EXTENT,
@@ -40,6 +39,7 @@ from ant_controller.genome import (
     TissueGene,
 )
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, layout_dict
+from excavation_common.files import write_text_atomic
 
 FORMAT = "ant-genome/1"
 MAX_HALF_WIDTH = 64

@@ -18,6 +18,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from excavation_common.constants import (  # noqa: F401 (sensor codes of Table 1)
+    BLADE_ABOVE,
+    BLADE_BELOW,
+    BLADE_HOME,
+    BLADE_LEVEL,
+    EAST,
+    NORTH,
+    SOUTH,
+    WEST,
+)
+
 # --- Sensor indices in the sensor vector (Table 1 order) -------------------------------
 Z1, Z2, Z3, Z4, E1, E2, B1, L1, S1, D1, H1, R1, U1, M1 = range(14)
 N_SENSORS = 14
@@ -27,10 +38,9 @@ N_SENSORS = 14
 Z_LEVEL, Z_ABOVE, Z_BELOW, Z_DONT_CARE, Z_DUMP = 0, 1, 2, 3, 4
 # E1, E2: blade cell soil relative to the front wheel under it.
 E_ABOVE, E_BELOW, E_LEVEL = 0, 1, 2
-# B1 and the blade state of a robot.
-BLADE_BELOW, BLADE_LEVEL, BLADE_ABOVE, BLADE_HOME = 0, 1, 2, 3
-# H1 (bearing of the nearest robot, relative to the robot's own heading) and headings.
-NORTH, EAST, SOUTH, WEST = 0, 1, 2, 3
+# B1 and the blade state of a robot, and headings: excavation_common.constants (re-exported
+# here because they are also sensor codes).
+# H1 (bearing of the nearest robot, relative to the robot's own heading).
 AHEAD, RIGHT, BEHIND, LEFT = 0, 1, 2, 3
 
 # --- Behaviour bits (Table 2 order) ------------------------------------------------------

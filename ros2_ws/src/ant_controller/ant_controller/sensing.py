@@ -46,15 +46,16 @@ from ant_controller.layout import (
     Z_DUMP,
     Z_LEVEL,
 )
-
-# Zone codes of a blueprint (same values as the /blueprint/zones image).
-ZONE_DONT_CARE, ZONE_DIG, ZONE_DUMP = 0, 1, 2
+from excavation_common.constants import (  # noqa: F401 (re-exported for the kernels)
+    MAX_LOAD,
+    ZONE_DIG,
+    ZONE_DONT_CARE,
+    ZONE_DUMP,
+)
 
 # Pose columns.
 POSE_ROW, POSE_COL, POSE_HEADING = 0, 1, 2
 
-MAX_LOAD = 24
-"""Soil units a robot can push at most (paper, section 4.1); L1 rescales 0..24 to 0..4."""
 
 SENSE_RANGE = 3
 """D1 saturates at this many free cells between two footprints."""

@@ -38,8 +38,8 @@ from ant_controller.layout import (
     BLADE_LEVEL_CMD,
     MOVE_FORWARD,
 )
-from ant_controller.messages import BladeGeometry
 from blade_driver.errors import DriverConfigError
+from excavation_common.constants import BladeGeometry
 
 BLADE_NAMES = {BLADE_BELOW: "below", BLADE_LEVEL: "level", BLADE_ABOVE: "above", BLADE_HOME: "home"}
 

@@ -37,10 +37,10 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, UInt16
 
-from ant_controller.ros import spin_node
 from blade_driver.core import BLADE_NAMES, BladeDriverCore, DriverParams
 from blade_driver.errors import BoardError, DriverConfigError
 from blade_driver.protocol import ServoCalibration
+from excavation_common.ros import spin_node
 
 JOINT = "blade"
 

@@ -28,10 +28,12 @@ import numpy as np
 import yaml
 
 from blueprint_server.errors import BlueprintError
+from excavation_common.constants import ZONE_DIG as DIG  # noqa: F401 (zone codes)
+from excavation_common.constants import ZONE_DONT_CARE as DONT_CARE  # noqa: F401
+from excavation_common.constants import ZONE_DUMP as DUMP  # noqa: F401
 
 FORMAT = "ant-blueprint/1"
 
-DONT_CARE, DIG, DUMP = 0, 1, 2
 
 DEFAULT_CELL_SIZE = 0.25
 """Metres per cell when a file does not say (the dome robots are about 0.5 m long)."""
@@ -464,7 +466,23 @@ def load_blueprint(path: str | Path) -> Blueprint:
 
 
 def resolve_blueprint(spec: str | None, depth: int = 1) -> Blueprint:
-    """A blueprint from a command-line value: ``None``/``"default"`` or a file path."""
+    """The one blueprint resolver of the suite (command lines, node parameters, configs).
+
+    Args:
+        spec: ``None`` or ``"default"`` (the default pit at ``depth``), ``"default:D"``
+            (goal depth ``D``), ``"landing-pad"``, or the path of a blueprint file.
+        depth: Goal depth of a plain ``"default"``.
+
+    Raises:
+        BlueprintError: A bad depth, or a file that is missing or malformed.
+    """
     if spec is None or spec == "default":
         return default_blueprint(depth)
+    if spec == "landing-pad":
+        return landing_pad()
+    if spec.startswith("default:"):
+        text = spec.partition(":")[2]
+        if not text.isdigit() or int(text) < 1:
+            raise BlueprintError(spec, "depth", text, "must be a positive integer")
+        return default_blueprint(int(text))
     return load_blueprint(spec)

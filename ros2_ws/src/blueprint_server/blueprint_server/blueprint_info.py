@@ -14,23 +14,9 @@ from blueprint_server.blueprint import (
     DIG,
     DUMP,
     Blueprint,
-    default_blueprint,
-    landing_pad,
-    load_blueprint,
+    resolve_blueprint,
 )
 from blueprint_server.errors import BlueprintError
-
-
-def resolve(spec: str) -> Blueprint:
-    """A blueprint from ``default``, ``default:D``, ``landing-pad`` or a file path."""
-    if spec == "landing-pad":
-        return landing_pad()
-    if spec == "default" or spec.startswith("default:"):
-        depth = spec.partition(":")[2] or "1"
-        if not depth.isdigit() or int(depth) < 1:
-            raise BlueprintError(spec, "depth", depth, "must be a positive integer")
-        return default_blueprint(int(depth))
-    return load_blueprint(spec)
 
 
 def save_png(blueprint: Blueprint, path: str) -> None:
@@ -67,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rows", action="store_true", help="print the per-cell YAML form")
     args = parser.parse_args(argv)
     try:
-        bp = resolve(args.blueprint)
+        bp = resolve_blueprint(args.blueprint)
     except BlueprintError as exc:
         print(f"blueprint_info: error: {exc}", file=sys.stderr)
         return 2

@@ -29,11 +29,10 @@ from rclpy.node import Node
 from sensor_msgs.msg import Image
 from std_srvs.srv import Trigger
 
-from ant_controller.messages import grid_to_image, map_info
-from ant_controller.ros import LATCHED, spin_node
-from blueprint_server.blueprint import DIG, Blueprint
-from blueprint_server.blueprint_info import resolve
+from blueprint_server.blueprint import DIG, Blueprint, resolve_blueprint
 from blueprint_server.errors import BlueprintError
+from excavation_common.messages import grid_to_image, map_info
+from excavation_common.ros import LATCHED, spin_node
 
 
 def blueprint_messages(bp: Blueprint, stamp=None) -> tuple[Image, Image, MapMetaData]:
@@ -69,7 +68,7 @@ class BlueprintServer(Node):
         """(Re)load the blueprint parameter; publish on success, keep the old one on error."""
         spec = str(self.get_parameter("blueprint").value)
         try:
-            bp = resolve(spec)
+            bp = resolve_blueprint(spec)
         except BlueprintError as exc:
             self.error = str(exc)
             self.get_logger().error(f"blueprint not loaded: {exc}")

@@ -28,10 +28,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ant_controller.errors import FieldError
+from excavation_common.errors import FieldError
 from overhead_localizer.beacons import Beacons, load_beacons
 
-CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
+CONFIG_DIR = Path(__file__).resolve_blueprint().parents[1] / "config"
 BEACONS_FILE = CONFIG_DIR / "beacons.yaml"
 
 
@@ -326,7 +326,7 @@ def robot_views(
     robots: np.ndarray, heights_units: np.ndarray, cell_size: float, height_unit: float
 ) -> list[RobotView]:
     """Camera views of the simulator's robots (``int64 [n, ROBOT_FIELDS]``) on its terrain."""
-    from ant_controller.frames import heading_to_yaw, robot_center
+    from excavation_common.frames import heading_to_yaw, robot_center
     from excavation_sim.world import COL, HEADING, ROW
 
     out = []
@@ -377,7 +377,7 @@ def main(argv: list[str] | None = None) -> int:
     """``python -m excavation_sim.camera``: a sample frame and calibration marks."""
     import argparse
 
-    from blueprint_server.blueprint_info import resolve
+    from blueprint_server.blueprint import resolve_blueprint
     from excavation_sim.world import World
 
     parser = argparse.ArgumentParser(description="Render a synthetic overhead frame.")
@@ -387,7 +387,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--blueprint", default="default")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-    bp = resolve(args.blueprint)
+    bp = resolve_blueprint(args.blueprint)
     rows, cols = bp.shape
     cam = OverheadCamera(CameraParams(), default_beacons(), rows, cols, bp.cell_size, args.seed)
     rng = np.random.default_rng(args.seed)

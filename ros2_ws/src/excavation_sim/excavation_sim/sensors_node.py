@@ -39,9 +39,9 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image, JointState, LaserScan
 
-from ant_controller.frames import robot_anchor
-from ant_controller.messages import MessageError, image_to_grid
-from ant_controller.ros import LATCHED, diagnostics, spin_node
+from excavation_common.frames import robot_anchor
+from excavation_common.messages import MessageError, image_to_grid
+from excavation_common.ros import LATCHED, diagnostics, spin_node
 from excavation_sim.camera import CameraParams, OverheadCamera, RobotView, default_beacons
 from excavation_sim.laser import LaserParams, OverheadLaser, surface_with_robots
 from overhead_localizer.images import frame_to_message

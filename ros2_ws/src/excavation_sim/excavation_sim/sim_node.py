@@ -50,17 +50,18 @@ from sensor_msgs.msg import Image, Imu, JointState
 from std_msgs.msg import Bool, Float32, UInt16
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ant_controller.files import write_text_atomic
 from ant_controller.layout import (
     BLADE_ABOVE_CMD,
     BLADE_BELOW_CMD,
     BLADE_HOME_CMD,
     BLADE_LEVEL_CMD,
 )
-from ant_controller.messages import BladeGeometry, blade_joint, grid_to_image, pose_message
-from ant_controller.ros import LATCHED, spin_node
 from ant_controller.sensing import blade_volume, is_tilted_down
-from blueprint_server.blueprint_info import resolve
+from blueprint_server.blueprint import resolve_blueprint
+from excavation_common.constants import BladeGeometry
+from excavation_common.files import write_text_atomic
+from excavation_common.messages import blade_joint, grid_to_image, pose_message
+from excavation_common.ros import LATCHED, spin_node
 from excavation_sim.world import (
     BLADE,
     COL,
@@ -82,7 +83,7 @@ TILT_PITCH = 0.2
 
 def scenario_world(blueprint_spec: str, robots: int, seed: int, index: int = 0):
     """Scenario ``index`` of ``seed`` (index 0: the world ``ant-eval --seed`` starts from)."""
-    bp = resolve(blueprint_spec)
+    bp = resolve_blueprint(blueprint_spec)
     world = World.scenario(bp.zones, bp.goal, robots, seed, index)
     return bp, world
 

@@ -169,7 +169,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
     started = time.monotonic()
     try:
         if spec.record:  # first, so that it sees every topic appear
-            from blueprint_server.blueprint_info import resolve
+            from blueprint_server.blueprint import resolve_blueprint
             from excavation_sim.bag.recorder_node import RecorderNode
 
             recorder = RecorderNode(
@@ -180,7 +180,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
                 context=context,
                 parameter_overrides=[
                     Parameter("out", value=str(spec.record)),
-                    Parameter("height_unit", value=float(resolve(blueprint).height_unit)),
+                    Parameter("height_unit", value=float(resolve_blueprint(blueprint).height_unit)),
                 ],
             )
             nodes.append(recorder)
@@ -265,10 +265,10 @@ def _run_processes(spec: TrialSpec) -> TrialResult:
         spec.blade_driver,
     )
     command_timeout, scenario = spec.command_timeout, spec.scenario
-    from blueprint_server.blueprint_info import resolve
+    from blueprint_server.blueprint import resolve_blueprint
 
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
-    height_unit = resolve(blueprint).height_unit
+    height_unit = resolve_blueprint(blueprint).height_unit
     started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="ant-trial-") as tmp:
         result_file = Path(tmp) / "result.json"
@@ -405,7 +405,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
-    from ant_controller.errors import FieldError
+    from excavation_common.errors import FieldError
 
     try:
         result = run_trial(

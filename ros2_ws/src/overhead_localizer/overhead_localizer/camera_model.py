@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 import yaml
 
-from ant_controller.files import write_text_atomic
+from excavation_common.files import write_text_atomic
 from overhead_localizer.errors import LocalizerConfigError
 
 FORMAT = "overhead-camera/1"

@@ -30,9 +30,9 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
-from ant_controller.errors import FieldError
-from ant_controller.messages import MessageError, image_to_grid
-from ant_controller.ros import LATCHED, spin_node
+from excavation_common.errors import FieldError
+from excavation_common.messages import MessageError, image_to_grid
+from excavation_common.ros import LATCHED, spin_node
 from overhead_localizer.beacons import CONFIG_DIR, load_beacons
 from overhead_localizer.camera_model import load_model
 from overhead_localizer.images import frame_from_message

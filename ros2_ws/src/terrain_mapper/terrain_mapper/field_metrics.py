@@ -127,11 +127,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--png", help="draw the difference heat map here")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     args = parser.parse_args(argv)
-    from ant_controller.errors import FieldError
-    from blueprint_server.blueprint_info import resolve
+    from blueprint_server.blueprint import resolve_blueprint
+    from excavation_common.errors import FieldError
 
     try:
-        bp = resolve(args.blueprint)
+        bp = resolve_blueprint(args.blueprint)
         before = load_map(args.before, bp.shape)
         after = load_map(args.after, bp.shape)
     except FieldError as exc:

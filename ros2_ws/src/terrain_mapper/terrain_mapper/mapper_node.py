@@ -37,8 +37,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image, JointState, LaserScan
 
-from ant_controller.messages import grid_to_image, map_info
-from ant_controller.ros import LATCHED, spin_node
+from excavation_common.messages import grid_to_image, map_info
+from excavation_common.ros import LATCHED, spin_node
 from terrain_mapper.errors import MapperError
 from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, yaw_of
 from terrain_mapper.mapper import MapperParams, TerrainMapper, scan_ranges_check

@@ -27,7 +27,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-DONT_CARE, DIG, DUMP = 0, 1, 2
+from excavation_common.constants import ZONE_DIG as DIG  # noqa: F401 (zone codes)
+from excavation_common.constants import ZONE_DONT_CARE as DONT_CARE  # noqa: F401
+from excavation_common.constants import ZONE_DUMP as DUMP  # noqa: F401
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ import signal
 import sys
 import time
 
-from ant_controller.errors import FieldError
+from excavation_common.errors import FieldError
 
 
 def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> object:

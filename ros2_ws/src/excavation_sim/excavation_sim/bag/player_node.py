@@ -37,7 +37,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import QosReliability
 
-from ant_controller.ros import diagnostics
+from excavation_common.ros import diagnostics
 from excavation_sim.bag.errors import BagError, MissingTopicError
 from excavation_sim.bag.recorder_node import message_class
 from excavation_sim.bag.storage import Bag, TopicInfo, latched, open_bag, topic_selected

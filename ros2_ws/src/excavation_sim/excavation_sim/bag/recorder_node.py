@@ -26,7 +26,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ant_controller.ros import diagnostics
+from excavation_common.ros import diagnostics
 from excavation_sim.bag.errors import UnknownTypeError
 from excavation_sim.bag.storage import (
     SUITE_TOPICS,

@@ -347,7 +347,7 @@ def make_report(
     gif_stride: int | None = None,
 ) -> Report:
     """Write every section the bag allows into ``out``; see the module docstring."""
-    from ant_controller.files import write_text_atomic
+    from excavation_common.files import write_text_atomic
 
     report = Report(Path(out))
     report.out.mkdir(parents=True, exist_ok=True)

@@ -42,7 +42,7 @@ from rosbags.rosbag2 import ReaderError, StoragePlugin, Writer, WriterError
 from rosbags.rosbag2.metadata import dump_qos_v9, parse_qos
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from ant_controller.files import write_text_atomic
+from excavation_common.files import write_text_atomic
 from excavation_sim.bag.errors import (
     BagError,
     BagExistsError,

@@ -23,16 +23,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ant_controller.errors import FieldError
 from ant_controller.layout import BIT_CLEAR, BIT_SET, N_SENSORS
-from ant_controller.messages import (
-    BladeGeometry,
+from ant_controller.sensing import is_tilted_down, sensor_vector
+from excavation_common.constants import BladeGeometry
+from excavation_common.errors import FieldError
+from excavation_common.messages import (
     blade_from_joint,
     heights_to_units,
     image_to_grid,
     pose_to_grid,
 )
-from ant_controller.sensing import is_tilted_down, sensor_vector
 from excavation_sim.bag.storage import Bag
 
 HEIGHTS = "/worksite/height_map"

@@ -19,17 +19,15 @@ function is testable by building messages in memory. Conventions (``docs/interfa
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
 from sensor_msgs.msg import Image, JointState
 
-from ant_controller.errors import FieldError
-from ant_controller.frames import heading_to_yaw, robot_anchor, robot_center, yaw_to_heading
-from ant_controller.layout import BLADE_ABOVE, BLADE_BELOW, BLADE_HOME, BLADE_LEVEL
-from ant_controller.sensing import MAX_LOAD
+from excavation_common.constants import MAX_LOAD, BladeGeometry
+from excavation_common.errors import FieldError
+from excavation_common.frames import heading_to_yaw, robot_anchor, robot_center, yaw_to_heading
 
 _ENCODINGS = {"32FC1": (np.float32, 4), "mono8": (np.uint8, 1)}
 
@@ -143,36 +141,6 @@ def pose_to_grid(
     yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
     row, col = robot_anchor(p.x, p.y, cell_size)
     return row, col, yaw_to_heading(yaw)
-
-
-@dataclass(frozen=True)
-class BladeGeometry:
-    """Joint positions of the four blade settings and the force of a full blade.
-
-    Attributes:
-        depth: Blade edge below/above the wheels for "below"/"above", metres.
-        home: Blade edge height when retracted, metres.
-        max_force: Push force (N) that corresponds to ``MAX_LOAD`` soil units (paper: the
-            dome robots push at most 10 N).
-    """
-
-    depth: float = 0.02
-    home: float = 0.10
-    max_force: float = 10.0
-
-    def position(self, blade: int) -> float:
-        """Joint position of a blade code."""
-        return {
-            BLADE_BELOW: -self.depth,
-            BLADE_LEVEL: 0.0,
-            BLADE_ABOVE: self.depth,
-            BLADE_HOME: self.home,
-        }[blade]
-
-    def nearest(self, position: float) -> int:
-        """The blade code whose joint position is nearest to ``position``."""
-        codes = (BLADE_BELOW, BLADE_LEVEL, BLADE_ABOVE, BLADE_HOME)
-        return min(codes, key=lambda c: abs(self.position(c) - position))
 
 
 def blade_joint(blade: int, force: float, geometry: BladeGeometry, stamp=None) -> JointState:

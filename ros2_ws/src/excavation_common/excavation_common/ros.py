@@ -1,0 +1,215 @@
+"""Node-side helpers shared by the suite's nodes (this module imports rclpy; the core does not).
+
+QoS profiles, :func:`spin_node` (init, build, spin, clean shutdown; a bad parameter or
+input file at start is one line on stderr and exit code 2), :func:`declare_params` (a
+frozen parameter dataclass declared with descriptors and kept valid at runtime) and
+:func:`diagnostics` (the one ``/diagnostics`` helper every node uses).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+    SetParametersResult,
+)
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    ParameterUninitializedException,
+)
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+
+from excavation_common.errors import FieldError
+from excavation_common.params import ParameterError, specs, validate
+from excavation_common.params import replace as replace_params
+
+P = TypeVar("P")
+
+LATCHED = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
+"""QoS of latched maps (blueprint, map info, height map): reliable, transient local, depth 1."""
+
+SENSOR_DATA = qos_profile_sensor_data
+"""QoS of camera frames and laser scans: best effort, keep last 5."""
+
+LATEST_FRAME = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST
+)
+"""QoS of a subscriber that only ever wants the newest camera frame (queue depth 1)."""
+
+_PARAM_TYPES = {
+    bool: ParameterType.PARAMETER_BOOL,
+    int: ParameterType.PARAMETER_INTEGER,
+    float: ParameterType.PARAMETER_DOUBLE,
+    str: ParameterType.PARAMETER_STRING,
+}
+_ARRAY_TYPES = {
+    bool: Parameter.Type.BOOL_ARRAY,
+    int: Parameter.Type.INTEGER_ARRAY,
+    float: Parameter.Type.DOUBLE_ARRAY,
+    str: Parameter.Type.STRING_ARRAY,
+}
+
+
+def _descriptor(name: str, default: Any, spec) -> ParameterDescriptor:
+    d = ParameterDescriptor(name=name, description=spec.description, read_only=spec.read_only)
+    if isinstance(default, tuple):
+        kind = type(default[0]) if default else str
+        d.type = _ARRAY_TYPES[kind].value
+    else:
+        d.type = _PARAM_TYPES[type(default)]
+    if type(default) is int and (spec.low is not None or spec.high is not None):
+        d.integer_range = [
+            IntegerRange(
+                from_value=int(spec.low if spec.low is not None else -(2**63)),
+                to_value=int(spec.high if spec.high is not None else 2**63 - 1),
+                step=0,
+            )
+        ]
+    elif type(default) is float and (spec.low is not None or spec.high is not None):
+        d.floating_point_range = [
+            FloatingPointRange(
+                from_value=float(spec.low if spec.low is not None else -1e308),
+                to_value=float(spec.high if spec.high is not None else 1e308),
+                step=0.0,
+            )
+        ]
+    if spec.choices:
+        d.additional_constraints = "one of: " + ", ".join(map(str, spec.choices))
+    return d
+
+
+def declare_params(
+    node: Node,
+    cls: type[P],
+    on_change: Callable[[P], None] | None = None,
+    prefix: str = "",
+) -> P:
+    """Declare every field of the parameter dataclass ``cls`` on ``node``; return the values.
+
+    Each field becomes a parameter with a ``ParameterDescriptor`` (type, range, read-only,
+    description). Values from the command line or a YAML file are checked by
+    :func:`excavation_common.params.validate`. Later ``set_parameters`` calls are checked
+    the same way and either applied (``on_change`` gets the new dataclass) or rejected
+    with the reason; read-only parameters are always rejected.
+
+    Raises:
+        ParameterError: A value at start has the wrong type or is out of range.
+    """
+    values = {}
+    name_of_node = node.get_fully_qualified_name()
+    for f_name, spec in specs(cls).items():
+        default = cls.__dataclass_fields__[f_name].default
+        descriptor = _descriptor(prefix + f_name, default, spec)
+        initial: Any = default
+        if isinstance(default, tuple):
+            initial = list(default) if default else _ARRAY_TYPES[str]
+        try:
+            value = node.declare_parameter(prefix + f_name, initial, descriptor).value
+        except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
+            reason = str(exc).split(": " + prefix + f_name)[0]
+            raise ParameterError(name_of_node, prefix + f_name, "", reason) from None
+        except ParameterUninitializedException:
+            value = ()
+        values[f_name] = tuple(value) if isinstance(value, list | tuple) else value
+    current = validate(cls, values, name_of_node)
+    holder = {"params": current}
+
+    def check(parameters: list[Parameter]) -> SetParametersResult:
+        changes = {p.name[len(prefix) :]: p.value for p in parameters if p.name.startswith(prefix)}
+        changes = {k: v for k, v in changes.items() if k in values}
+        if not changes:
+            return SetParametersResult(successful=True)
+        try:
+            new = replace_params(holder["params"], changes, name_of_node)
+        except ParameterError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        if on_change is None:
+            return SetParametersResult(
+                successful=False, reason=f"{name_of_node}: parameters are read at start only"
+            )
+        holder["params"] = new
+        on_change(new)
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(check)
+    return current
+
+
+def spin_node(
+    make_node: Callable[[], Node],
+    args: list[str] | None = None,
+    until: Callable[[Node], bool] | None = None,
+) -> int:
+    """Init rclpy, build the node, spin until shutdown (or ``until(node)``), clean up.
+
+    Ctrl-C and external shutdown end it quietly; returns the exit code 0. A
+    :class:`~excavation_common.errors.FieldError` while building the node (a bad parameter,
+    an unreadable input file) is printed as one line on stderr and gives exit code 2.
+    """
+    rclpy.init(args=args)
+    try:
+        node = make_node()
+    except FieldError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        if until is None:
+            rclpy.spin(node)
+        else:
+            while rclpy.ok() and not until(node):
+                rclpy.spin_once(node, timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def diagnostics(
+    node: Node,
+    level: bytes,
+    message: str,
+    values: dict[str, object] | None = None,
+    hardware_id: str = "",
+) -> DiagnosticArray:
+    """One ``/diagnostics`` array holding a single status named after ``node``.
+
+    Args:
+        node: The reporting node (its fully qualified name names the status).
+        level: ``DiagnosticStatus.OK``, ``WARN``, ``ERROR`` or ``STALE``.
+        message: What the node is doing, or what is wrong.
+        values: Key/value details (converted with ``str``).
+        hardware_id: The device behind the node, if any.
+    """
+    status = DiagnosticStatus(
+        level=level,
+        name=node.get_fully_qualified_name(),
+        message=message,
+        hardware_id=hardware_id,
+        values=[KeyValue(key=k, value=str(v)) for k, v in (values or {}).items()],
+    )
+    msg = DiagnosticArray(status=[status])
+    msg.header.stamp = node.get_clock().now().to_msg()
+    return msg
