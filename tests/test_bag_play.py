@@ -13,11 +13,11 @@ from std_msgs.msg import UInt16
 
 from ant_controller.controller import Controller
 from ant_controller.controller_node import ControllerNode
+from excavation_bags.cli import main as ant_bag
+from excavation_bags.errors import MissingTopicError
+from excavation_bags.player_node import PlayerNode
+from excavation_bags.storage import BagWriter, open_bag, qos_from_profile
 from excavation_common.ros import LATCHED
-from excavation_sim.bag.cli import main as ant_bag
-from excavation_sim.bag.errors import MissingTopicError
-from excavation_sim.bag.player_node import PlayerNode
-from excavation_sim.bag.storage import BagWriter, open_bag, qos_from_profile
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "bags" / "sample"
@@ -156,7 +156,7 @@ def test_cli_play_errors(tmp_path, capsys):
 def test_config_files_set_every_parameter(ros, tmp_path, kind):
     import yaml
 
-    from excavation_sim.bag.recorder_node import RecorderNode
+    from excavation_bags.recorder_node import RecorderNode
 
     path = ROOT / "ros2_ws" / "src" / "excavation_sim" / "config" / f"bag_{kind}.yaml"
     values = yaml.safe_load(path.read_text())["/**"]["ros__parameters"]

@@ -12,8 +12,8 @@ import pytest
 from conftest import next_domain
 from ruamel.yaml import YAML
 
-from excavation_sim.bag.storage import PRODUCER, latched, open_bag, recover_bag
-from excavation_sim.trial import run_trial
+from excavation_bags.storage import PRODUCER, latched, open_bag, recover_bag
+from excavation_bringup.trial import run_trial
 
 
 def test_trial_records_every_tick(tmp_path):
@@ -51,7 +51,7 @@ def test_trial_records_every_tick(tmp_path):
 
 def _recorder(out, domain, *extra):
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
-    cmd = [sys.executable, "-m", "excavation_sim.bag.cli", "record", "--out", str(out)]
+    cmd = [sys.executable, "-m", "excavation_bags.cli", "record", "--out", str(out)]
     return subprocess.Popen(
         [*cmd, "--topics", "/count", "/latched", *extra],
         env=env,

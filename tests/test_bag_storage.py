@@ -11,11 +11,9 @@ from rclpy.serialization import serialize_message
 from ruamel.yaml import YAML
 from std_msgs.msg import UInt16
 
-from excavation_common.messages import grid_to_image
-from excavation_common.ros import LATCHED
-from excavation_sim.bag.cli import main as ant_bag
-from excavation_sim.bag.errors import BagExistsError, BagFormatError, BagNotFoundError
-from excavation_sim.bag.storage import (
+from excavation_bags.cli import main as ant_bag
+from excavation_bags.errors import BagExistsError, BagFormatError, BagNotFoundError
+from excavation_bags.storage import (
     PRODUCER,
     BagWriter,
     latched,
@@ -23,6 +21,8 @@ from excavation_sim.bag.storage import (
     qos_from_profile,
     recover_bag,
 )
+from excavation_common.messages import grid_to_image
+from excavation_common.ros import LATCHED
 
 SAMPLE = Path(__file__).resolve().parents[1] / "bags" / "sample"
 

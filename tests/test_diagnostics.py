@@ -39,11 +39,11 @@ def _node(kind, context, tmp_path):
 
         return MapperNode(context=context)
     if kind == "recorder":
-        from excavation_sim.bag.recorder_node import RecorderNode
+        from excavation_bags.recorder_node import RecorderNode
 
         out = Parameter("out", value=str(tmp_path / "bag"))
         return RecorderNode(context=context, parameter_overrides=[out])
-    from excavation_sim.bag.player_node import PlayerNode
+    from excavation_bags.player_node import PlayerNode
 
     bag = Parameter("bag", value="bags/sample")
     topics = Parameter("topics", value=["/worksite/fitness"])

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from conftest import next_domain
 
-import excavation_sim.perception as perception
-from excavation_sim.trial import main, run_trial
+import excavation_bringup.perception as perception
+from excavation_bringup.trial import main, run_trial
 
 
 def test_short_trial_with_full_perception_matches_truth(monkeypatch):

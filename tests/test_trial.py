@@ -9,7 +9,7 @@ from conftest import next_domain
 from ant_controller.controller import Controller
 from ant_evolution.evaluate import ScenarioSet
 from blueprint_server.blueprint import default_blueprint
-from excavation_sim.trial import run_trial
+from excavation_bringup.trial import run_trial
 
 
 def offline(spec, robots, steps, seed):

@@ -11,12 +11,15 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {
+    "excavation_common": [],
     "ant_controller": ["genome_info", "controller"],
     "blueprint_server": ["blueprint_info", "server"],
-    "excavation_sim": ["sim", "trial", "ant-trial", "bag", "ant-bag", "sensors"],
+    "excavation_sim": ["sim", "sensors"],
     "overhead_localizer": ["localizer", "calibrate"],
-    "terrain_mapper": ["mapper", "field_metrics", "field-metrics"],
+    "terrain_mapper": ["mapper", "field-metrics"],
     "blade_driver": ["driver", "fake_board"],
+    "excavation_bags": ["ant-bag"],
+    "excavation_bringup": ["ant-trial"],
 }
 
 

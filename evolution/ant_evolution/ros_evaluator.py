@@ -6,7 +6,7 @@ field system uses, so a genome can be validated or fine-tuned against any simula
 speaks those interfaces. Several trials run at once, each in a ROS domain of its own
 (``domain_base + slot``), so they cannot hear each other.
 
-A trial is a command (by default ``python -m excavation_sim.trial``, i.e. ``ant-trial``)
+A trial is a command (by default ``python -m excavation_bringup.trial``, i.e. ``ant-trial``)
 that prints one JSON object with a ``fitness`` key and exits 0. Another simulator plugs in
 through ``trial_command``, a template with the fields ``{genome}``, ``{robots}``,
 ``{steps}``, ``{seed}``, ``{scenario}``, ``{blueprint}`` (a blueprint YAML file) and
@@ -37,7 +37,7 @@ from ant_evolution.evaluate import ScenarioSet
 from blueprint_server.blueprint import Blueprint
 
 DEFAULT_TRIAL = (
-    f"{shlex.quote(sys.executable)} -m excavation_sim.trial --genome {{genome}} "
+    f"{shlex.quote(sys.executable)} -m excavation_bringup.trial --genome {{genome}} "
     "--robots {robots} --steps {steps} --seed {seed} --scenario {scenario} "
     "--blueprint {blueprint} --domain {domain} --command-timeout 60 --json"
 )

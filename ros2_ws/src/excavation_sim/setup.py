@@ -24,10 +24,6 @@ setup(
     entry_points={
         "console_scripts": [
             "sim = excavation_sim.sim_node:main",
-            "trial = excavation_sim.trial:main",
-            "ant-trial = excavation_sim.trial:main",
-            "bag = excavation_sim.bag.cli:main",
-            "ant-bag = excavation_sim.bag.cli:main",
             "sensors = excavation_sim.sensors_node:main",
         ],
     },

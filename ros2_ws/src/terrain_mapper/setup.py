@@ -24,7 +24,6 @@ setup(
     entry_points={
         "console_scripts": [
             "mapper = terrain_mapper.mapper_node:main",
-            "field_metrics = terrain_mapper.field_metrics:main",
             "field-metrics = terrain_mapper.field_metrics:main",
         ],
     },

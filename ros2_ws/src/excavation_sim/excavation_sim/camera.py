@@ -31,7 +31,7 @@ import numpy as np
 from excavation_common.errors import FieldError
 from overhead_localizer.beacons import Beacons, load_beacons
 
-CONFIG_DIR = Path(__file__).resolve_blueprint().parents[1] / "config"
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
 BEACONS_FILE = CONFIG_DIR / "beacons.yaml"
 
 

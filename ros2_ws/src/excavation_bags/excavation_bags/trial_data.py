@@ -25,6 +25,7 @@ import numpy as np
 
 from ant_controller.layout import BIT_CLEAR, BIT_SET, N_SENSORS
 from ant_controller.sensing import is_tilted_down, sensor_vector
+from excavation_bags.storage import Bag
 from excavation_common.constants import BladeGeometry
 from excavation_common.errors import FieldError
 from excavation_common.messages import (
@@ -33,7 +34,6 @@ from excavation_common.messages import (
     image_to_grid,
     pose_to_grid,
 )
-from excavation_sim.bag.storage import Bag
 
 HEIGHTS = "/worksite/height_map"
 GOAL = "/blueprint/goal"

@@ -37,10 +37,10 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import QosReliability
 
+from excavation_bags.errors import BagError, MissingTopicError
+from excavation_bags.recorder_node import message_class
+from excavation_bags.storage import Bag, TopicInfo, latched, open_bag, topic_selected
 from excavation_common.ros import diagnostics
-from excavation_sim.bag.errors import BagError, MissingTopicError
-from excavation_sim.bag.recorder_node import message_class
-from excavation_sim.bag.storage import Bag, TopicInfo, latched, open_bag, topic_selected
 
 
 def playback_qos(info: TopicInfo) -> QoSProfile:

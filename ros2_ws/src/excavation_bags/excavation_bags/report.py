@@ -1,6 +1,6 @@
 """``ant-bag report``: figures and a markdown summary of a recorded trial.
 
-From a bag (:mod:`excavation_sim.bag.trial_data` reads it) the report writes into its
+From a bag (:mod:`excavation_bags.trial_data` reads it) the report writes into its
 output directory:
 
 * ``fitness.png``: the paper's fitness per frame, as the simulator published it
@@ -31,8 +31,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from excavation_sim.bag.storage import Bag  # noqa: E402
-from excavation_sim.bag.trial_data import (  # noqa: E402
+from excavation_bags.storage import Bag  # noqa: E402
+from excavation_bags.trial_data import (  # noqa: E402
     FITNESS,
     GOAL,
     HEIGHTS,

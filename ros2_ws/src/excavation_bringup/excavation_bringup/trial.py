@@ -101,7 +101,7 @@ def run_trial(
         perception: ``"truth"``: controllers read the simulator's poses and heights;
             ``"full"``: they read the overhead localizer's and the terrain mapper's, which
             see the simulator through its synthetic camera and laser
-            (:mod:`excavation_sim.perception`; composed mode only).
+            (:mod:`excavation_bringup.perception`; composed mode only).
         scenario: Scenario index of ``seed`` (``ScenarioSet.create(..., seed)``'s i-th).
 
     Raises:
@@ -170,7 +170,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
     try:
         if spec.record:  # first, so that it sees every topic appear
             from blueprint_server.blueprint import resolve_blueprint
-            from excavation_sim.bag.recorder_node import RecorderNode
+            from excavation_bags.recorder_node import RecorderNode
 
             recorder = RecorderNode(
                 custom_data={
@@ -204,7 +204,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
         )
         nodes.append(sim)
         if perception == "full":
-            from excavation_sim.perception import perception_nodes
+            from excavation_bringup.perception import perception_nodes
 
             nodes += perception_nodes(context, robots, seed, sim.blueprint)
         height_unit = sim.blueprint.height_unit

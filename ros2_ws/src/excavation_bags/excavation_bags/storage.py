@@ -42,14 +42,14 @@ from rosbags.rosbag2 import ReaderError, StoragePlugin, Writer, WriterError
 from rosbags.rosbag2.metadata import dump_qos_v9, parse_qos
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from excavation_common.files import write_text_atomic
-from excavation_sim.bag.errors import (
+from excavation_bags.errors import (
     BagError,
     BagExistsError,
     BagFormatError,
     BagNotFoundError,
     UnknownTypeError,
 )
+from excavation_common.files import write_text_atomic
 
 PRODUCER = "ant-bag"
 """``custom_data.producer`` of bags this project records."""

@@ -9,11 +9,11 @@ the publisher sent them (the DDS source timestamp): the bag keeps the publishers
 when the recorder runs late. Each topic's offered QoS profiles go into the bag.
 
 Every ``flush_period`` seconds the writer closes its MCAP chunk and rewrites
-``metadata.yaml`` (see :mod:`excavation_sim.bag.storage`), so a crash loses at most that
+``metadata.yaml`` (see :mod:`excavation_bags.storage`), so a crash loses at most that
 much. :meth:`RecorderNode.close` finishes the bag; call it before destroying the node.
 
 Parameters: ``out`` (bag directory, required), ``topics`` (names or globs; default: every
-suite topic, :data:`~excavation_sim.bag.storage.SUITE_TOPICS`), ``flush_period`` (0.5 s),
+suite topic, :data:`~excavation_bags.storage.SUITE_TOPICS`), ``flush_period`` (0.5 s),
 ``discovery_period`` (0.1 s), ``depth`` (queue depth per subscription, 100),
 ``height_unit`` (metres per soil unit, stored in the bag for the report; 0.05).
 """
@@ -26,15 +26,15 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from excavation_common.ros import diagnostics
-from excavation_sim.bag.errors import UnknownTypeError
-from excavation_sim.bag.storage import (
+from excavation_bags.errors import UnknownTypeError
+from excavation_bags.storage import (
     SUITE_TOPICS,
     BagWriter,
     qos_from_profile,
     topic_selected,
     typestore,
 )
+from excavation_common.ros import diagnostics
 
 
 def message_class(msgtype: str):

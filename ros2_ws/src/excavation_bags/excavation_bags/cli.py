@@ -10,7 +10,7 @@ Examples::
     ant-bag report bags/sample --out report/
     ant-bag recover crashed_bag --out repaired_bag      # a bag whose recorder was killed
 
-``ros2 run excavation_sim bag ...`` is the same program. ROS traffic stays on this machine
+``ros2 run excavation_bags ant-bag ...`` is the same program. ROS traffic stays on this machine
 unless ``ROS_AUTOMATIC_DISCOVERY_RANGE`` says otherwise; ``--domain`` picks the ROS domain.
 A bad bag or argument ends with exit code 2 and a message naming the bag, field and value.
 """
@@ -70,7 +70,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     """``ant-bag record``."""
     from rclpy.parameter import Parameter
 
-    from excavation_sim.bag.recorder_node import RecorderNode
+    from excavation_bags.recorder_node import RecorderNode
 
     overrides = [Parameter("out", value=args.out)]
     if args.flush_period is not None:
@@ -103,8 +103,8 @@ def cmd_play(args: argparse.Namespace) -> int:
     """``ant-bag play``."""
     from rclpy.parameter import Parameter
 
-    from excavation_sim.bag.player_node import PlayerNode
-    from excavation_sim.bag.storage import open_bag
+    from excavation_bags.player_node import PlayerNode
+    from excavation_bags.storage import open_bag
 
     bag = open_bag(args.bag)
     for w in bag.warnings:
@@ -133,7 +133,7 @@ def cmd_play(args: argparse.Namespace) -> int:
 
 def cmd_info(args: argparse.Namespace) -> int:
     """``ant-bag info``."""
-    from excavation_sim.bag.storage import latched, open_bag
+    from excavation_bags.storage import latched, open_bag
 
     bag = open_bag(args.bag)
     print(f"bag:       {bag.path}")
@@ -151,7 +151,7 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 def cmd_recover(args: argparse.Namespace) -> int:
     """``ant-bag recover``."""
-    from excavation_sim.bag.storage import open_bag, recover_bag
+    from excavation_bags.storage import open_bag, recover_bag
 
     bag = open_bag(args.bag)
     new = recover_bag(args.bag, args.out)
@@ -162,8 +162,8 @@ def cmd_recover(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """``ant-bag report``."""
-    from excavation_sim.bag.report import make_report
-    from excavation_sim.bag.storage import open_bag
+    from excavation_bags.report import make_report
+    from excavation_bags.storage import open_bag
 
     bag = open_bag(args.bag)
     report = make_report(
@@ -227,7 +227,7 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``ant-bag`` (and ``ros2 run excavation_sim bag``)."""
+    """Entry point of ``ant-bag`` (also ``ros2 run excavation_bags ant-bag``)."""
     from rclpy.utilities import remove_ros_args
 
     argv = sys.argv[1:] if argv is None else argv
