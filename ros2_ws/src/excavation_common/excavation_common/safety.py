@@ -1,0 +1,93 @@
+"""The team's safety state as every moving node sees it (DESIGN.md, "Operator oversight").
+
+The supervisor (``team_supervisor``) owns the team state and announces it on two topics:
+
+* ``/team/estop`` (``std_msgs/Bool``, reliable, transient local): ``True`` from an e-stop
+  until a reset; latched, so a node that starts late still sees it;
+* ``/team/heartbeat`` (``std_msgs/Header``, 10 Hz): ``stamp`` = the supervisor's clock,
+  ``frame_id`` = the team state (:data:`TEAM_STATES`);
+
+and, per robot, ``/robot_k/enabled`` (``std_msgs/Bool``, reliable, transient local).
+
+:class:`MotionGate` is the pure rule a drive executor or a blade driver applies before it
+moves anything: motion is allowed only while the node is active (lifecycle), no e-stop is
+latched, the last heartbeat is younger than the deadman limit and says ``armed``, and the
+robot is enabled. Everything else means: zero twist, blade home. The gate starts closed:
+nothing moves before the first ``armed`` heartbeat.
+
+A ROS-level stop is not a safety function: a dome still needs a hardware e-stop that cuts
+motor power (docs/operator.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+ESTOP_TOPIC = "/team/estop"
+HEARTBEAT_TOPIC = "/team/heartbeat"
+ENABLED_TOPIC = "enabled"
+"""Relative: ``/robot_k/enabled`` in robot k's namespace."""
+
+DISARMED, ARMED, PAUSED, ESTOPPED = "disarmed", "armed", "paused", "estop"
+TEAM_STATES = (DISARMED, ARMED, PAUSED, ESTOPPED)
+
+DEADMAN_TIMEOUT = 0.5
+"""Seconds without a heartbeat after which every robot stops (as ``cmd_vel_timeout``)."""
+
+
+@dataclass
+class MotionGate:
+    """Whether a robot may move now, and if not, why.
+
+    Times are seconds on the node's clock (sim time in CI). Feed it every message; ask
+    :meth:`allowed` (or :meth:`reason`) before publishing anything that moves the robot.
+
+    Attributes:
+        deadman: Heartbeat age limit, seconds.
+        active: The node is in the lifecycle ``active`` state.
+        estop: An e-stop is latched on ``/team/estop``.
+        enabled: The robot is enabled (``/robot_k/enabled``); ``None`` = never heard.
+        team_state: ``frame_id`` of the last heartbeat (``None`` = never heard).
+        heartbeat_time: Local time of the last heartbeat, seconds.
+    """
+
+    deadman: float = DEADMAN_TIMEOUT
+    active: bool = False
+    estop: bool = False
+    enabled: bool | None = None
+    team_state: str | None = None
+    heartbeat_time: float | None = None
+
+    def on_heartbeat(self, state: str, now: float) -> None:
+        """A heartbeat arrived at local time ``now``."""
+        self.team_state = state
+        self.heartbeat_time = now
+
+    def on_estop(self, latched: bool) -> None:
+        """``/team/estop`` changed."""
+        self.estop = bool(latched)
+
+    def on_enabled(self, enabled: bool) -> None:
+        """``/robot_k/enabled`` changed."""
+        self.enabled = bool(enabled)
+
+    def reason(self, now: float) -> str | None:
+        """Why the robot must stand still at ``now``, or ``None`` when it may move."""
+        if not self.active:
+            return "not active (lifecycle)"
+        if self.estop:
+            return "e-stop latched"
+        if self.heartbeat_time is None:
+            return "no heartbeat yet"
+        age = now - self.heartbeat_time
+        if age > self.deadman or age < -self.deadman:
+            return f"heartbeat lost ({age:.2f} s old)"
+        if self.team_state != ARMED:
+            return f"team {self.team_state}"
+        if self.enabled is not True:
+            return "robot disabled" if self.enabled is False else "no enable state yet"
+        return None
+
+    def allowed(self, now: float) -> bool:
+        """True when nothing stops the robot at ``now``."""
+        return self.reason(now) is None
