@@ -31,9 +31,11 @@ def _node(kind, context, tmp_path):
 
         return SensorsNode(context=context)
     if kind == "localizer":
+        from overhead_localizer.beacons import CONFIG_DIR
         from overhead_localizer.localizer_node import LocalizerNode
 
-        return LocalizerNode(context=context)
+        calibration = Parameter("calibration", value=str(CONFIG_DIR / "camera_sim.yaml"))
+        return LocalizerNode(context=context, parameter_overrides=[calibration])
     if kind == "mapper":
         from terrain_mapper.mapper_node import MapperNode
 

@@ -8,9 +8,9 @@ controllers read. The camera is calibrated first, as in the field: marks at know
 are "clicked" in a frame (with pixel noise) and :func:`overhead_localizer.camera_model.calibrate`
 fits the model the localizer loads.
 
-The mapper starts from a level site (``prior_height`` 0: the survey before the robots
-enter), so the cells under the robots' start positions have a value before any beam
-reaches them.
+The mapper starts from a level site (``prior_known``, ``prior_height`` 0: the survey
+before the robots enter), so the cells under the robots' start positions have a value
+before any beam reaches them.
 """
 
 from __future__ import annotations
@@ -94,9 +94,9 @@ def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
             Parameter("mount_y", value=float(sensors.laser_params.mount[1])),
             Parameter("mount_z", value=float(sensors.laser_params.mount[2])),
             Parameter("sweep_scans", value=sensors.laser_params.sweep_scans),
+            Parameter("prior_known", value=True),
             Parameter("prior_height", value=0.0),
             Parameter("robot_height", value=float(sensors.laser_params.robot_height)),
-            Parameter("publish_map_info", value=False),
             Parameter("pose_wait", value=2.0),
             Parameter("reliable", value=True),
         ],
