@@ -15,7 +15,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*")),
     ],
-    install_requires=["numpy", "pyyaml", "matplotlib"],
+    install_requires=["excavation_common", "numpy", "pyyaml", "matplotlib", "rosbags"],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
     maintainer_email="maintainers@ant-excavation.org",
@@ -25,6 +25,7 @@ setup(
         "console_scripts": [
             "mapper = terrain_mapper.mapper_node:main",
             "field-metrics = terrain_mapper.field_metrics:main",
+            "calibrate_mount = terrain_mapper.calibrate_mount:main",
         ],
     },
 )
