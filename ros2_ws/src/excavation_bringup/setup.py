@@ -25,6 +25,8 @@ setup(
         "blade_driver",
         "excavation_bags",
         "numpy",
+        "pyyaml",
+        "foxglove-sdk",
     ],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
@@ -34,6 +36,8 @@ setup(
     entry_points={
         "console_scripts": [
             "ant-trial = excavation_bringup.trial:main",
+            "ant-dome = excavation_bringup.dome:main",
+            "ant-view = excavation_bringup.view:main",
         ],
     },
 )

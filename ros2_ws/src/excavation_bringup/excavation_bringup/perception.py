@@ -29,6 +29,28 @@ trial's single executor a few milliseconds; one such sweep still measures every 
 under a robot to 0.05 soil unit RMSE (docs/perception.md)."""
 
 
+def simulated_calibration(blueprint, seed: int):
+    """The synthetic camera over ``blueprint``'s site, calibrated from surveyed marks.
+
+    As in the field: marks at known places are "clicked" in a frame (with pixel noise,
+    seeded by ``seed``) and :func:`overhead_localizer.camera_model.calibrate` fits the
+    model. ``ant-dome up --sim`` uses the same model as this trial.
+    """
+    from excavation_sim.camera import (
+        CameraParams,
+        OverheadCamera,
+        calibration_marks,
+        default_beacons,
+    )
+    from overhead_localizer.camera_model import calibrate
+
+    rows, cols = blueprint.shape
+    params = CameraParams.for_site(cols * blueprint.cell_size, rows * blueprint.cell_size)
+    camera = OverheadCamera(params, default_beacons(), rows, cols, blueprint.cell_size, seed)
+    pixels, points = calibration_marks(camera, np.random.default_rng([seed, 1]))
+    return calibrate(pixels, points, (params.width, params.height))
+
+
 def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
     """Sensors, localizer and mapper nodes for a lockstep trial on ``context``.
 
@@ -40,22 +62,13 @@ def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
     """
     from rclpy.parameter import Parameter
 
-    from excavation_sim.camera import (
-        CameraParams,
-        OverheadCamera,
-        calibration_marks,
-        default_beacons,
-    )
     from excavation_sim.sensors_node import SensorsNode
-    from overhead_localizer.camera_model import calibrate, save_model
+    from overhead_localizer.camera_model import save_model
     from overhead_localizer.localizer_node import LocalizerNode
     from terrain_mapper.mapper_node import MapperNode
 
     rows, cols = blueprint.shape
-    params = CameraParams.for_site(cols * blueprint.cell_size, rows * blueprint.cell_size)
-    camera = OverheadCamera(params, default_beacons(), rows, cols, blueprint.cell_size, seed)
-    pixels, points = calibration_marks(camera, np.random.default_rng([seed, 1]))
-    model = calibrate(pixels, points, (params.width, params.height))
+    model = simulated_calibration(blueprint, seed)
     fd, calibration = tempfile.mkstemp(prefix="ant-trial-camera-", suffix=".yaml")
     os.close(fd)
     try:

@@ -123,7 +123,7 @@ class Worksite:
     cols: int = 16
     cell_size: float = 0.25
     soil_unit: float = 0.05
-    prior_height: float = 0.0
+    prior_height: float | None = 0.0
 
 
 @dataclass(frozen=True)
@@ -278,7 +278,9 @@ def _worksite(r: _Reader, doc: dict) -> Worksite:
         r.number(s, "worksite", "cols", d.cols, integer=True, positive=True),
         r.number(s, "worksite", "cell_size", d.cell_size, positive=True),
         r.number(s, "worksite", "soil_unit", d.soil_unit, positive=True),
-        r.number(s, "worksite", "prior_height", d.prior_height),
+        None
+        if s.get("prior_height", 0.0) is None
+        else r.number(s, "worksite", "prior_height", 0.0),
     )
 
 
@@ -515,7 +517,8 @@ def _check_camera(site: Site, sim: bool) -> list[SiteError]:
         try:
             load_model(c.calibration)
         except FieldError as exc:
-            err("camera.calibration", c.calibration, str(exc))
+            same = exc.path == c.calibration and exc.field == "file"
+            err("camera.calibration", c.calibration, exc.reason if same else str(exc))
     if c.compressed and not c.image_topic.endswith("/compressed"):
         err(
             "camera.image_topic",
@@ -659,6 +662,7 @@ DERIVED = {
         "scan_topic": "laser.scan_topic",
         "mount_topic": "laser.mount_state_topic",
         "robot_height": "laser.robot_height",
+        "prior_known": "worksite.prior_height",
         "prior_height": "worksite.prior_height",
     },
     "controller": {
@@ -841,7 +845,8 @@ def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
             "sweep_scans": las.sweep_scans,
             "scan_topic": las.scan_topic,
             "mount_topic": las.mount_state_topic,
-            "prior_height": float(w.prior_height),
+            "prior_known": w.prior_height is not None,
+            "prior_height": float(w.prior_height or 0.0),
             "robot_height": float(las.robot_height),
             "publish_map_info": False,
             "pose_wait": 2.0,
