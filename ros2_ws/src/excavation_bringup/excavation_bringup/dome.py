@@ -20,7 +20,7 @@ first, stops last and finishes the bag).
 as every robot's blade board (the blade drivers' ``sim`` backend); the localizer and the
 mapper see only the synthetic sensors, as in ``ant-trial --perception full``. The run ends
 when the simulator has run its ticks; its fitness is printed. (The continuous-motion
-simulator ``dynamics`` replaces the lockstep one as one entry of :func:`sim_hardware`.)
+simulator ``dynamics`` replaces the lockstep one as the one entry :func:`simulator`.)
 
 Examples::
 
@@ -90,26 +90,29 @@ class NodeSpec:
         return False
 
 
-def sim_hardware(site: sitefile.Site, run_dir: Path, ticks: int) -> list[NodeSpec]:
-    """What ``--sim`` puts in place of the dome: simulator, synthetic camera and laser.
+def simulator(site: sitefile.Site, run_dir: Path, ticks: int) -> NodeSpec:
+    """The simulator ``--sim`` puts in place of the dome's robots.
 
     The lockstep simulator until the continuous-motion ``dynamics`` simulator lands (then
-    its entry replaces the ``sim`` one). The simulator is not restartable: a new one would
-    start the trial over.
+    this entry names it instead). It starts last, once every other node is up and
+    connected, so that no node misses tick 0. It is not restartable: a new one would start
+    the trial over.
     """
-    return [
-        NodeSpec(
-            "sim",
-            "excavation_sim.sim_node",
-            sitefile.sim_params(site, ticks, str(run_dir / "result.json")),
-            ("sim: lockstep",),
-            restart=False,
-            final=True,
-        ),
-        NodeSpec(
-            "sensors", "excavation_sim.sensors_node", sitefile.sensors_params(site), ("/sensors",)
-        ),
-    ]
+    return NodeSpec(
+        "sim",
+        "excavation_sim.sim_node",
+        sitefile.sim_params(site, ticks, str(run_dir / "result.json")),
+        ("sim: lockstep",),
+        restart=False,
+        final=True,
+    )
+
+
+def synthetic_sensors(site: sitefile.Site) -> NodeSpec:
+    """The overhead camera and laser ``--sim`` renders from the simulator's truth."""
+    return NodeSpec(
+        "sensors", "excavation_sim.sensors_node", sitefile.sensors_params(site), ("/sensors",)
+    )
 
 
 def node_table(
@@ -162,7 +165,7 @@ def node_table(
         )
     )
     if sim:
-        table += sim_hardware(site, run_dir, ticks or site.sim.ticks)
+        table.append(synthetic_sensors(site))
     table.append(
         NodeSpec(
             "localizer",
@@ -205,6 +208,8 @@ def node_table(
                 namespace=ns,
             )
         )
+    if sim:
+        table.append(simulator(site, run_dir, ticks or site.sim.ticks))
     if view:
         table.append(
             NodeSpec(
@@ -212,7 +217,7 @@ def node_table(
                 "excavation_bringup.view",
                 {},
                 ("/ant_view",),
-                args=("--site", site.path, "--port", str(view_port)),
+                args=("--site", str(Path(site.path).resolve()), "--port", str(view_port)),
             )
         )
     return table
@@ -554,6 +559,7 @@ class Dome:
                         self._start(action.name)
                         self.report(f"starting {action.name} (pid {self.procs[action.name].pid})")
                     elif action.kind == "stop":
+                        self.report(f"stopping {action.name}")
                         self._signal(action.name, signal.SIGINT)
                     elif action.kind == "kill":
                         self._signal(action.name, signal.SIGKILL)
@@ -600,7 +606,7 @@ def cmd_up(args: argparse.Namespace) -> int:
         for e in errors:
             print(f"ant-dome: error: {e}", file=sys.stderr)
         return 2
-    run_dir = Path(args.run_dir or Path("dome_runs") / time.strftime("%Y%m%d-%H%M%S"))
+    run_dir = Path(args.run_dir or Path("dome_runs") / time.strftime("%Y%m%d-%H%M%S")).resolve()
     record = str(Path(args.record).resolve()) if args.record else None
     specs = node_table(site, run_dir, args.sim, record, args.view, args.ticks, args.view_port)
     env = sitefile.environment(site, args.domain)

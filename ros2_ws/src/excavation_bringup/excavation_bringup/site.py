@@ -628,10 +628,13 @@ def _check_robots(site: Site, sim: bool) -> list[SiteError]:
 
             try:
                 load_genome(robot.genome)
-            except FileNotFoundError:
-                err(f"{where}.genome", robot.genome, "does not exist")
-            except (FieldError, OSError) as exc:
-                err(f"{where}.genome", robot.genome, f"cannot be loaded: {exc}")
+            except FieldError as exc:
+                if exc.field == "<file>":
+                    err(f"{where}.genome", robot.genome, exc.reason)
+                else:
+                    err(f"{where}.genome", robot.genome, f"cannot be loaded: {exc}")
+            except OSError as exc:
+                err(f"{where}.genome", robot.genome, f"cannot be read: {exc}")
     if sim and len(site.robots) > len(sim_pairs):
         err("robots", len(site.robots), f"the simulator paints LEDs on {len(sim_pairs)} robots")
     return out
@@ -850,6 +853,8 @@ def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
             "robot_height": float(las.robot_height),
             "publish_map_info": False,
             "pose_wait": 2.0,
+            # reliable delivery repairs a lost sample within a heartbeat (seconds): wait
+            "mount_wait": 10.0 if reliable else 1.0,
             "reliable": bool(reliable),
         },
     )
