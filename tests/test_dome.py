@@ -37,7 +37,10 @@ def state(tmp_path):
 
 
 def events(tmp_path):
-    return (tmp_path / "run" / "events.log").read_text()
+    try:
+        return (tmp_path / "run" / "events.log").read_text()
+    except FileNotFoundError:
+        return ""
 
 
 def wait_for(condition, timeout):
@@ -84,10 +87,10 @@ def test_dome_up_sim_runs_40_ticks_with_the_fitness_of_ant_trial(tmp_path):
 
 
 def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
-    proc = dome(tmp_path, ticks=25)
+    proc = dome(tmp_path, ticks=150)
     try:
         assert wait_for(lambda: "all 9 nodes are up" in events(tmp_path), 600)
-        time.sleep(8.0)  # a few ticks
+        time.sleep(2.0)  # a few ticks
         victim = state(tmp_path)["controller_1"]["pid"]
         os.kill(victim, signal.SIGKILL)
         out, err = proc.communicate(timeout=900)
@@ -96,7 +99,7 @@ def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
             proc.kill()
     assert proc.returncode == 0, err + events(tmp_path)
     summary = json.loads(out.strip().splitlines()[-1])
-    assert summary["ticks"] == 25 and summary["restarts"] == {"controller_1": 1}
+    assert summary["ticks"] == 150 and summary["restarts"] == {"controller_1": 1}
     log = events(tmp_path)
     assert "controller_1 exited with code -9" in log
     assert "restarting controller_1 in 1.0 s (restart 1)" in log

@@ -217,7 +217,14 @@ def node_table(
                 "excavation_bringup.view",
                 {},
                 ("/ant_view",),
-                args=("--site", str(Path(site.path).resolve()), "--port", str(view_port)),
+                args=(
+                    "--site",
+                    str(Path(site.path).resolve()),
+                    "--calibration",
+                    str(calibration),
+                    "--port",
+                    str(view_port),
+                ),
             )
         )
     return table
