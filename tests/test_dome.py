@@ -43,6 +43,14 @@ def events(tmp_path):
         return ""
 
 
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 def wait_for(condition, timeout):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -112,9 +120,10 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag(tmp_path):
     from excavation_bags.storage import open_bag
 
     bag = tmp_path / "bag"
-    proc = dome(tmp_path, "--record", str(bag), ticks=300)
+    port = _free_port()
+    proc = dome(tmp_path, "--record", str(bag), "--view", "--view-port", str(port), ticks=300)
     try:
-        assert wait_for(lambda: "all 10 nodes are up" in events(tmp_path), 600)
+        assert wait_for(lambda: "all 11 nodes are up" in events(tmp_path), 600)
         time.sleep(5.0)
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=300)
@@ -134,7 +143,8 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag(tmp_path):
         for line in log.splitlines()
         if " starting " in line
     ]
-    assert stopped == started[::-1] and started[0] == "recorder"
+    assert stopped == started[::-1] and started[0] == "recorder" and started[-1] == "view"
+    assert f"serving ws://127.0.0.1:{port}" in (tmp_path / "run" / "logs" / "view.log").read_text()
     recorded = open_bag(bag)
     assert not recorded.warnings  # closed properly: summary and footer written
     assert recorded.topics["/worksite/height_map"].count > 0

@@ -16,10 +16,10 @@ PACKAGES = {
     "blueprint_server": ["blueprint_info", "server"],
     "excavation_sim": ["sim", "sensors"],
     "overhead_localizer": ["localizer", "calibrate"],
-    "terrain_mapper": ["mapper", "field-metrics"],
+    "terrain_mapper": ["mapper", "field-metrics", "calibrate_mount"],
     "blade_driver": ["driver", "fake_board"],
     "excavation_bags": ["ant-bag"],
-    "excavation_bringup": ["ant-trial"],
+    "excavation_bringup": ["ant-trial", "ant-dome", "ant-view"],
 }
 
 

@@ -147,7 +147,7 @@ def grid(values: np.ndarray, cell_size: float, field: str, stamp=(0, 0)):
 
 
 def frame_transforms(frames: dict[str, tuple[np.ndarray, np.ndarray]], stamp=(0, 0)):
-    """``FrameTransforms`` from ``map`` to each child: ``{child: (translation, quaternion xyzw)}``."""
+    """``FrameTransforms`` from ``map``: ``{child: (translation, quaternion xyzw)}``."""
     from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Vector3
 
     out = []
