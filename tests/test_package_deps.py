@@ -92,3 +92,23 @@ def test_no_stale_dependency_on_our_packages(package):
         d for d in exec_depends(package) if d in PACKAGES and d not in imports_of(package)
     )
     assert not stale, f"{package}/package.xml depends on {stale} but never imports them"
+
+
+def test_no_package_imports_another_packages_private_names():
+    """``from other_pkg.mod import _name`` couples two packages through an internal detail."""
+    ours = set(PACKAGES) | {"ant_evolution"}
+    roots = [SRC / p / p for p in PACKAGES] + [SRC.parents[1] / "evolution" / "ant_evolution"]
+    offenders = []
+    for root in roots:
+        for path in root.rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if not isinstance(node, ast.ImportFrom) or not node.module or node.level:
+                    continue
+                top = node.module.split(".")[0]
+                if top in ours and top != root.name:
+                    offenders += [
+                        f"{path.name}: {node.module}.{a.name}"
+                        for a in node.names
+                        if a.name.startswith("_")
+                    ]
+    assert not offenders, offenders
