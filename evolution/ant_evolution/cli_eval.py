@@ -45,7 +45,7 @@ def _steps_list(text: str) -> list[int]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list") from None
     if not steps or steps[0] < 0 or steps[-1] > MAX_STEPS:
-        raise argparse.ArgumentTypeError(f"{text!r}: steps must lie in 0..{MAX_STEPS}")
+        raise argparse.ArgumentTypeError(f"{text!r}: steps must lie in 0..{MAX_STEPS} (the limit)")
     return steps
 
 

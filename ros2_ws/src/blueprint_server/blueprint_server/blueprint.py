@@ -353,13 +353,14 @@ def blueprint_from_dict(data: object, path: str = "<memory>") -> Blueprint:
         image_path = (Path(path).parent / image) if path != "<memory>" else Path(image)
         if "scale" not in data:
             raise BlueprintError(path, "scale", None, "is required with 'image' (metres per pixel)")
-        return from_image(
-            image_path,
-            scale=_positive_number(path, data, "scale", 1.0),
-            cell_size=cell_size,
-            height_unit=height_unit,
-            max_depth=_positive_number(path, data, "max_depth", 3 * height_unit),
-        )
+        scale = _positive_number(path, data, "scale", 1.0)
+        max_depth = _positive_number(path, data, "max_depth", 3 * height_unit)
+        try:
+            return from_image(image_path, scale, cell_size, height_unit, max_depth)
+        except BlueprintError as exc:  # name the blueprint file, and the image in the reason
+            raise BlueprintError(
+                path, exc.field, exc.value, f"{exc.reason} [{image_path}]"
+            ) from None
     _check_keys(path, "", data, _PARAMETRIC_KEYS)
     grid = _int_pair(path, "grid", data.get("grid", [16, 16]))
     pit = data["pit"]

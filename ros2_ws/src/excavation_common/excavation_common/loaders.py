@@ -133,21 +133,20 @@ class _BoundedSafeLoader(yaml.SafeLoader):
     def construct_mapping(self, node, deep=False):  # noqa: D102 (PyYAML hook)
         if isinstance(node, yaml.MappingNode):
             self.flatten_mapping(node)
-            seen: dict[object, int] = {}
+            seen: dict[object, str] = {}
             for key_node, _ in node.value:
                 key = self.construct_object(key_node, deep=True)
                 try:
                     first = seen.get(key)
                 except TypeError:
                     continue  # unhashable: SafeConstructor reports it
-                line = key_node.start_mark.line + 1
+                mark = key_node.start_mark
+                where = f"line {mark.line + 1} column {mark.column + 1}"
                 if first is not None:
                     raise _YamlRefused(
-                        str(key),
-                        f"line {line}",
-                        f"is given twice (first at line {first}); a key may appear once",
+                        str(key), where, f"is given twice (first at {first}); a key may appear once"
                     )
-                seen[key] = line
+                seen[key] = where
         return super().construct_mapping(node, deep)
 
 
