@@ -89,5 +89,11 @@ def test_cli_bad_inputs_exit_2(tmp_path, capsys):
     assert str(bad) in err and "not valid JSON" in err
     assert main(["--hand-coded", "--blueprint", str(tmp_path / "none.yaml")]) == 2
     assert "does not exist" in capsys.readouterr().err
-    assert main(["--hand-coded", "--robots", "200", "--scenarios", "1"]) == 2
+    small = tmp_path / "small.yaml"
+    small.write_text('format: ant-blueprint/1\nrows: ["1111", "1111", "1111", "1111"]\n')
+    assert main(["--hand-coded", "--robots", "64", "--blueprint", str(small)]) == 2
     assert "could not place" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:  # beyond the team limit: an argparse error
+        main(["--hand-coded", "--robots", "200", "--scenarios", "1"])
+    assert exit_info.value.code == 2
+    assert "limit" in capsys.readouterr().err

@@ -37,8 +37,10 @@ from ant_evolution.backends import Evaluator
 from ant_evolution.errors import CheckpointError, ConfigError
 from ant_evolution.evaluate import DEFAULT_STEPS, ScenarioSet
 from ant_evolution.ga import GAParams, next_generation
+from ant_evolution.limits import MAX_CONFIG_BYTES, check_config_value
 from blueprint_server.blueprint import Blueprint, resolve_blueprint
 from excavation_common.files import write_text_atomic
+from excavation_common.loaders import load_yaml
 
 CHECKPOINT_FORMAT = "ant-checkpoint/1"
 HISTORY_FIELDS = (
@@ -194,6 +196,7 @@ def config_from_dict(
             value = tuple(value) if ok else value
         if not ok:
             raise ConfigError(path, key, value, f"must be like {default!r}")
+        check_config_value(path, key, value)
         values[key] = value
     try:
         return dataclasses.replace(base, **values)
@@ -208,12 +211,7 @@ def load_config(path: str | Path, base: EvolveConfig | None = None) -> EvolveCon
         ConfigError: For an unreadable file, bad YAML, unknown keys or bad values.
     """
     label = str(path)
-    try:
-        data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError(label, "<file>", label, "does not exist") from None
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise ConfigError(label, "<file>", label, f"cannot be read: {exc}") from None
+    data = load_yaml(label, ConfigError, max_bytes=MAX_CONFIG_BYTES)
     return config_from_dict(data or {}, label, base)
 
 
