@@ -77,6 +77,8 @@ def cmd_record(args: argparse.Namespace) -> int:
         overrides.append(Parameter("flush_period", value=float(args.flush_period)))
     if args.height_unit is not None:
         overrides.append(Parameter("height_unit", value=float(args.height_unit)))
+    if args.image_codec is not None:
+        overrides.append(Parameter("image_codec", value=args.image_codec))
     if args.topics:
         overrides.append(Parameter("topics", value=list(args.topics)))
     started = time.monotonic()
@@ -104,7 +106,7 @@ def cmd_play(args: argparse.Namespace) -> int:
     from rclpy.parameter import Parameter
 
     from excavation_bags.player_node import PlayerNode
-    from excavation_bags.storage import open_bag
+    from excavation_bags.reader import open_bag
 
     bag = open_bag(args.bag)
     for w in bag.warnings:
@@ -131,19 +133,29 @@ def cmd_play(args: argparse.Namespace) -> int:
     return 0
 
 
+def size_per_minute(bag) -> str:
+    """``"12.3 MB/min"`` of a bag (file size over its recorded time span), or ``"-"``."""
+    rate = bag.bytes_per_minute
+    return "-" if rate is None else f"{rate / 1e6:.2f} MB/min"
+
+
 def cmd_info(args: argparse.Namespace) -> int:
     """``ant-bag info``."""
-    from excavation_bags.storage import latched, open_bag
+    from excavation_bags.metadata import latched
+    from excavation_bags.reader import open_bag, topic_sizes
 
     bag = open_bag(args.bag)
+    sizes = topic_sizes(bag) if args.sizes else {}
     print(f"bag:       {bag.path}")
-    print(f"file:      {bag.mcap.name} ({bag.mcap.stat().st_size} bytes)")
+    print(f"file:      {bag.mcap.name} ({bag.size_bytes} bytes)")
     print(f"producer:  {bag.producer or 'unknown'}   ros_distro: {bag.ros_distro or 'unknown'}")
+    print(f"duration:  {bag.duration_s:.3f} s   size: {size_per_minute(bag)}")
     print(f"messages:  {bag.message_count}" + ("   TRUNCATED" if bag.truncated else ""))
     width = max((len(t) for t in bag.topics), default=5)
     for t in bag.topics.values():
         flag = "latched" if latched(t.qos) else ""
-        print(f"  {t.name:<{width}}  {t.msgtype:<45} {t.count:>7}  {flag}")
+        size = f"{sizes[t.name] / 1e6:>9.3f} MB  " if args.sizes else ""
+        print(f"  {t.name:<{width}}  {t.msgtype:<45} {t.count:>7}  {size}{flag}")
     for w in bag.warnings:
         print(f"warning: {w}")
     return 0
@@ -151,7 +163,8 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 def cmd_recover(args: argparse.Namespace) -> int:
     """``ant-bag recover``."""
-    from excavation_bags.storage import open_bag, recover_bag
+    from excavation_bags.reader import open_bag
+    from excavation_bags.recover import recover_bag
 
     bag = open_bag(args.bag)
     new = recover_bag(args.bag, args.out)
@@ -162,8 +175,8 @@ def cmd_recover(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """``ant-bag report``."""
+    from excavation_bags.reader import open_bag
     from excavation_bags.report import make_report
-    from excavation_bags.storage import open_bag
 
     bag = open_bag(args.bag)
     report = make_report(
@@ -193,6 +206,12 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--duration", type=float, default=None, metavar="S")
     r.add_argument("--flush-period", type=float, default=None, metavar="S", help="default 0.5")
     r.add_argument("--height-unit", type=float, default=None, metavar="M", help="default 0.05")
+    r.add_argument(
+        "--image-codec",
+        choices=("jpeg", "png", "none"),
+        default=None,
+        help="how raw camera frames are stored (default jpeg; png is lossless; none: raw)",
+    )
     r.add_argument("--domain", type=int, default=None)
     r.set_defaults(run=cmd_record)
 
@@ -209,6 +228,7 @@ def parser() -> argparse.ArgumentParser:
 
     i = sub.add_parser("info", help="topics, counts and QoS of a bag")
     i.add_argument("bag", metavar="DIR")
+    i.add_argument("--sizes", action="store_true", help="message bytes per topic (reads all)")
     i.set_defaults(run=cmd_info)
 
     rc = sub.add_parser("recover", help="write a complete copy of a truncated bag")
