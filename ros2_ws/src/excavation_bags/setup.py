@@ -26,6 +26,7 @@ setup(
         "tqdm",
         "rosbags",
         "mcap",
+        "opencv-python-headless",
     ],
     zip_safe=True,
     maintainer="ANT excavation maintainers",

@@ -86,9 +86,13 @@ def cmd_record(args: argparse.Namespace) -> int:
     def until(_node) -> bool:
         return args.duration is not None and time.monotonic() - started >= args.duration
 
-    print(f"ant-bag: recording into {args.out} (Ctrl-C stops)", file=sys.stderr, flush=True)
+    def make(ctx) -> RecorderNode:
+        node = RecorderNode(context=ctx, parameter_overrides=overrides)
+        print(f"ant-bag: recording into {args.out} (Ctrl-C stops)", file=sys.stderr, flush=True)
+        return node
+
     node = _spin(
-        lambda ctx: RecorderNode(context=ctx, parameter_overrides=overrides),
+        make,
         args.domain,
         until,
         args.ros_args,
