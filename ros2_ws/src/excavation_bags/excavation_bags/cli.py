@@ -21,6 +21,7 @@ import argparse
 import os
 import signal
 import sys
+import threading
 import time
 
 from excavation_common.errors import FieldError
@@ -40,19 +41,22 @@ def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> objec
     if domain is None:
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
     rclpy.init(args=["ant-bag", *ros_args], context=context, domain_id=domain)
-
-    def stop(_signum, _frame):
-        raise KeyboardInterrupt  # SIGTERM ends like Ctrl-C: the bag is finished
-
-    signal.signal(signal.SIGTERM, stop)
+    # Ctrl-C and SIGTERM only set a flag that the loop below checks: a KeyboardInterrupt
+    # raised at a random point (inside a write, or inside rclpy) could leave the bag or
+    # the executor half-done, and the bag must be finished cleanly.
+    stopping: list[int] = []
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda signum, _frame: stopping.append(signum))
     executor = SingleThreadedExecutor(context=context)
     node = None
     try:
         node = node_factory(context)
         executor.add_node(node)
-        while context.ok() and not until(node):
+        while context.ok() and not stopping and not until(node):
             executor.spin_once(timeout_sec=0.05)
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except ExternalShutdownException:
         pass
     finally:
         if node is not None:
@@ -63,6 +67,8 @@ def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> objec
             node.destroy_node()
         executor.shutdown()
         rclpy.try_shutdown(context=context)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return node
 
 
