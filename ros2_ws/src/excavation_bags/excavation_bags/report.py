@@ -341,7 +341,7 @@ def summary_markdown(bag: Bag, data: TrialData, report: Report) -> str:
         mean = cam["mean_frame_bytes"]
         lines.append(
             f"- camera: {cam['frames']} frames on `{cam['topic']}`"
-            + (f", {rate:.1f} per s" if rate else "")
+            + (f", {rate:.1f} per s of header stamps" if rate else "")
             + (f", {mean / 1e3:.1f} kB per frame" if mean else "")
         )
     fit = report.numbers.get("fitness")
