@@ -27,6 +27,7 @@ setup(
         "rosbags",
         "mcap",
         "terrain_mapper",
+        "opencv-python-headless",
     ],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
