@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ant_controller.layout import BIT_CLEAR, BIT_SET, N_SENSORS
+from ant_controller.layout import N_SENSORS
+from ant_controller.memory import next_memory
 from ant_controller.sensing import is_tilted_down, sensor_vector
 from excavation_bags.images import COMPRESSED_TYPE, IMAGE_TYPE, frame_array
 from excavation_bags.reader import Bag
@@ -273,10 +274,7 @@ def read_trial(bag: Bag, height_unit: float | None = None) -> TrialData:
                     data.decisions.append(
                         Decision(len(data.heights) - 1, k, mask, codes, int(poses[k, 2]))
                     )
-                    if mask >> BIT_SET & 1:
-                        memory[k] = 1
-                    if mask >> BIT_CLEAR & 1:
-                        memory[k] = 0
+                    memory[k] = int(next_memory(memory[k], mask))
         except FieldError as exc:
             problem(str(exc))
     end_frame()
