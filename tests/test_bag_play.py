@@ -15,8 +15,10 @@ from ant_controller.controller import Controller
 from ant_controller.controller_node import ControllerNode
 from excavation_bags.cli import main as ant_bag
 from excavation_bags.errors import MissingTopicError
+from excavation_bags.metadata import qos_from_profile
 from excavation_bags.player_node import PlayerNode
-from excavation_bags.storage import BagWriter, open_bag, qos_from_profile
+from excavation_bags.reader import open_bag
+from excavation_bags.writer import BagWriter
 from excavation_common.ros import LATCHED
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -158,7 +160,7 @@ def test_config_files_set_every_parameter(ros, tmp_path, kind):
 
     from excavation_bags.recorder_node import RecorderNode
 
-    path = ROOT / "ros2_ws" / "src" / "excavation_sim" / "config" / f"bag_{kind}.yaml"
+    path = ROOT / "ros2_ws" / "src" / "excavation_bags" / "config" / f"bag_{kind}.yaml"
     values = yaml.safe_load(path.read_text())["/**"]["ros__parameters"]
     values["depth" if kind == "recorder" else "rate"] = 3 if kind == "recorder" else 2.5
     if kind == "recorder":

@@ -12,7 +12,9 @@ import pytest
 from conftest import next_domain
 from ruamel.yaml import YAML
 
-from excavation_bags.storage import PRODUCER, latched, open_bag, recover_bag
+from excavation_bags.metadata import PRODUCER, latched
+from excavation_bags.reader import open_bag
+from excavation_bags.recover import recover_bag
 from excavation_bringup.trial import run_trial
 
 

@@ -12,9 +12,10 @@ import pytest
 from ant_controller.controller import Controller
 from blueprint_server.blueprint import default_blueprint
 from excavation_bags.cli import main as ant_bag
+from excavation_bags.reader import open_bag
 from excavation_bags.report import make_report
-from excavation_bags.storage import BagWriter, open_bag
 from excavation_bags.trial_data import read_trial
+from excavation_bags.writer import BagWriter
 from excavation_sim.detectors import count, random_turn_direction
 
 ROOT = Path(__file__).resolve().parents[1]

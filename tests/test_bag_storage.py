@@ -13,14 +13,10 @@ from std_msgs.msg import UInt16
 
 from excavation_bags.cli import main as ant_bag
 from excavation_bags.errors import BagExistsError, BagFormatError, BagNotFoundError
-from excavation_bags.storage import (
-    PRODUCER,
-    BagWriter,
-    latched,
-    open_bag,
-    qos_from_profile,
-    recover_bag,
-)
+from excavation_bags.metadata import PRODUCER, latched, qos_from_profile
+from excavation_bags.reader import open_bag
+from excavation_bags.recover import recover_bag
+from excavation_bags.writer import BagWriter
 from excavation_common.messages import grid_to_image
 from excavation_common.ros import LATCHED
 

@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 from ant_controller.layout import N_BEHAVIOURS, SENSOR_SCALE, SENSOR_STATES
+from ant_controller.tissue import activation
+from ant_evolution.backends import Evaluator
 from ant_evolution.baselines.fixed import (
     FixedTopology,
     compile_fixed,
@@ -15,12 +17,7 @@ from ant_evolution.baselines.fixed import (
     mutate,
     random_network,
 )
-from ant_evolution.baselines.network import (
-    ProgramEvaluator,
-    decide_program_reference,
-    program_decide,
-    score_program,
-)
+from ant_evolution.baselines.network import decide_program_reference, program_decide
 from ant_evolution.baselines.runs import (
     load_program,
     program_from_dict,
@@ -74,7 +71,7 @@ def test_fixed_network_kernel_equals_reference(seed):
     states = set()
     for c in codes:
         ref, values = decide_program_reference(prog, c)
-        assert program_decide(c, prog.arrays()) == ref
+        assert program_decide(c, prog.record()) == ref
         states.add(tuple(values))
     assert len(states) > 1  # the comparison is not between constant networks
 
@@ -85,8 +82,6 @@ def test_fixed_network_reference_is_the_layered_ant_neuron():
     top = FixedTopology((20, 9))
     net = random_network(rng, top)
     prog = compile_fixed(top, net)
-    from ant_evolution.baselines.network import _psi
-
     for c in _random_codes(rng, 50):
         s = c * SENSOR_SCALE
         w0 = 0
@@ -98,7 +93,7 @@ def test_fixed_network_reference_is_the_layered_ant_neuron():
             sig = (w @ s) / den if den else np.zeros(size)
             s = np.array(
                 [
-                    _psi(int(net.func[n0 + j]), *net.theta[n0 + j], float(sig[j]))
+                    activation(int(net.func[n0 + j]), *net.theta[n0 + j], float(sig[j]))
                     for j in range(size)
                 ],
                 dtype=float,
@@ -120,17 +115,17 @@ def test_neat_compiled_equals_neat_python_and_reference(tmp_path):
             outs = net.activate([float(c[i]) * float(SENSOR_SCALE[i]) for i in range(len(c))])
             mask = sum(1 << q for q, o in enumerate(outs) if o >= 0.5)
             ref, values = decide_program_reference(prog, c)
-            assert ref == mask == program_decide(c, prog.arrays())
+            assert ref == mask == program_decide(c, prog.record())
             for q, o in enumerate(prog.out_node):
                 if o >= 0:
                     assert values[o] == pytest.approx(outs[q], abs=1e-12)
 
 
 def test_batched_kernel_equals_stepping_with_the_reference():
-    """The second kernel path: whole episodes agree with Python decisions step by step."""
+    """The one kernel with a network program: whole episodes agree with Python decisions."""
     _, prog = _fixed_program(11)
     batch = ScenarioSet.create(default_blueprint(1), 3, 3, 60, seed=2)
-    scores = score_program(prog, batch)
+    scores = batch.score(prog)
     for i in range(batch.size):
         w = batch.world(i)
         for _ in range(batch.steps):
@@ -143,9 +138,9 @@ def test_batched_kernel_equals_stepping_with_the_reference():
 def test_program_evaluator_is_the_same_for_any_worker_count(tmp_path):
     progs = [_fixed_program(s)[1] for s in range(3)] + _neat_programs(tmp_path, 2)[2]
     sets = [ScenarioSet.create(default_blueprint(d), 2, 2, 40, seed=d) for d in (1, 2)]
-    with ProgramEvaluator(1) as one, ProgramEvaluator(2) as two:
-        a = one.evaluate(progs, sets)
-        b = two.evaluate(progs, sets)
+    with Evaluator(1) as one, Evaluator(2) as two:
+        a = one.evaluate(progs, sets, compile_fn=None)
+        b = two.evaluate(progs, sets, compile_fn=None)
     assert np.array_equal(a, b)
 
 
@@ -168,7 +163,7 @@ def test_program_file_round_trip_and_errors(tmp_path):
     path = tmp_path / "p.json"
     path.write_text(json.dumps(program_to_dict(prog, {"fitness": 0.5})))
     back = load_program(path)
-    assert all(np.array_equal(x, y) for x, y in zip(prog.arrays(), back.arrays(), strict=True))
+    assert all(np.array_equal(x, y) for x, y in zip(prog.record(), back.record(), strict=True))
     bad = program_to_dict(prog)
     del bad["edge_w"]
     with pytest.raises(ValueError, match="edge_w: missing"):

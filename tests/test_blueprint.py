@@ -583,7 +583,7 @@ def test_image_form_unreadable_image(tmp_path: Path, make_file: bool) -> None:
     if make_file:
         (tmp_path / "broken.png").write_bytes(b"this is not a png")
     path = write(tmp_path, "img.yaml", f"format: {FORMAT}\nimage: broken.png\nscale: 0.05\n")
-    with pytest.raises(BlueprintError, match="cannot be read") as info:
+    with pytest.raises(BlueprintError, match="is not a PNG|does not exist") as info:
         load_blueprint(path)
     assert info.value.field == "image"
     assert "broken.png" in str(info.value)
@@ -810,3 +810,70 @@ def test_cli_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     image = cv2.imread(str(png))
     assert image is not None and image.shape[2] == 3
     assert f"wrote {png}" in capsys.readouterr().out
+
+
+# --- 8. limits (checked before any grid is allocated) ---------------------------------------
+
+
+def test_grid_limits_before_allocation(monkeypatch: pytest.MonkeyPatch) -> None:
+    from blueprint_server.limits import MAX_GRID_CELLS, MAX_GRID_SIDE
+
+    def no_allocation(*args, **kwargs):
+        raise AssertionError("allocated before the limit check")
+
+    monkeypatch.setattr(np, "zeros", no_allocation)
+    with pytest.raises(BlueprintError, match=f"limit of {MAX_GRID_SIDE} cells a side"):
+        pit_blueprint((MAX_GRID_SIDE + 1, 16), (8, 8))
+    with pytest.raises(BlueprintError, match=f"more than the limit of {MAX_GRID_CELLS}"):
+        pit_blueprint((2048, 2048), (8, 8))
+    with pytest.raises(BlueprintError, match="pit.depth"):
+        pit_blueprint((16, 16), (8, 8), depth=10**20)
+    with pytest.raises(BlueprintError, match="limit of 4096 cells a side"):
+        landing_pad(cell_size=0.001)  # 16,500 cells long
+
+
+def test_largest_grid_and_depth_are_accepted() -> None:
+    from blueprint_server.limits import MAX_DEPTH_UNITS
+
+    bp = pit_blueprint((1024, 1024), (8, 8), depth=MAX_DEPTH_UNITS)
+    assert bp.shape == (1024, 1024)
+    assert int(bp.goal.min()) == -MAX_DEPTH_UNITS
+    assert resolve_blueprint(f"default:{MAX_DEPTH_UNITS}").goal.min() == -MAX_DEPTH_UNITS
+    with pytest.raises(BlueprintError, match="the limit"):
+        resolve_blueprint(f"default:{MAX_DEPTH_UNITS + 1}")
+
+
+def test_blueprint_file_size_limit(tmp_path: Path) -> None:
+    from blueprint_server.limits import MAX_BLUEPRINT_BYTES
+
+    path = tmp_path / "big.yaml"
+    with path.open("wb") as f:
+        f.truncate(MAX_BLUEPRINT_BYTES + 1)  # sparse: costs no disk
+    with pytest.raises(BlueprintError, match=f"limit of {MAX_BLUEPRINT_BYTES} bytes") as info:
+        load_blueprint(path)
+    assert info.value.field == "<file>"
+
+
+def test_image_header_checked_before_decoding(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    corpus = Path(__file__).parent / "data" / "broken" / "blueprint"
+
+    def no_decode(*args, **kwargs):
+        raise AssertionError("decoded before the header check")
+
+    monkeypatch.setattr(cv2, "imread", no_decode)
+    with pytest.raises(BlueprintError, match="20000 x 20000") as info:
+        from_image(corpus / "huge_image.png", scale=0.05)
+    assert info.value.field == "image"
+    # Cells smaller than pixels: a 64 x 64 image at 1 mm per pixel in 0.001 m cells is fine,
+    # but at 1 m per pixel it would make 64,000 x 64,000 cells.
+    with pytest.raises(BlueprintError, match="limit of 4096 cells a side"):
+        from_image(corpus / "ok_image.png", scale=1.0, cell_size=0.001, height_unit=0.001)
+
+
+def test_duplicate_key_is_refused(tmp_path: Path) -> None:
+    path = write(tmp_path, "dup.yaml", f"format: {FORMAT}\npit: {{size: [8, 8]}}\npit: {{}}\n")
+    with pytest.raises(BlueprintError, match="given twice") as info:
+        load_blueprint(path)
+    assert info.value.field == "pit"

@@ -10,8 +10,10 @@ import pytest
 from ant_controller.controller import Controller
 from ant_controller.genome import random_genome
 from ant_controller.genome_io import save_genome
+from ant_evolution.baselines.fixed import FixedTopology, compile_fixed, random_network
+from ant_evolution.baselines.network import decide_program_reference
 from ant_evolution.cli_eval import main
-from ant_evolution.evaluate import evaluate, scenario_worlds
+from ant_evolution.evaluate import ScenarioSet, evaluate, scenario_worlds
 from blueprint_server.blueprint import default_blueprint
 
 
@@ -22,16 +24,34 @@ def genome_file(tmp_path_factory):
     return path
 
 
-@pytest.mark.parametrize("kind", ["hand", "genome"])
+def _program(kind: str, genome_file):
+    """A decision program of each kind, and a Python decision function for it."""
+    if kind == "hand":
+        ctl = Controller.hand_coded()
+    elif kind == "genome":
+        ctl = Controller.from_file(genome_file)
+    elif kind == "shipped":
+        ctl = Controller.from_file("genomes/best.json")
+    else:
+        top = FixedTopology((24,))
+        prog = compile_fixed(top, random_network(np.random.default_rng(8), top))
+        return prog, lambda codes: decide_program_reference(prog, codes)[0]
+    return ctl, ctl.decide
+
+
+@pytest.mark.parametrize("kind", ["hand", "genome", "shipped", "network"])
 def test_compiled_episode_equals_python_step_loop(kind, genome_file):
-    """The numba episode kernel and a Python loop over sense/decide/step agree exactly."""
-    ctl = Controller.hand_coded() if kind == "hand" else Controller.from_file(genome_file)
+    """The one episode kernel and a Python loop over sense/decide/step agree exactly."""
+    program, decide = _program(kind, genome_file)
     bp = default_blueprint(2)
-    fast = evaluate(ctl, bp, n_robots=3, scenarios=3, steps=120, seed=11)
+    fast = evaluate(program, bp, n_robots=3, scenarios=3, steps=120, seed=11)
+    batch = ScenarioSet.create(bp, 3, 3, 120, 11)
+    assert np.array_equal(batch.score(program), fast.scores)
     for i, world in enumerate(scenario_worlds(bp, 3, 3, 11)):
-        for _ in range(120):
+        for t in range(120):
             s = world.sense()
-            world.step([ctl.decide(s[k]) for k in range(world.n_robots)])
+            world.step([decide(s[k]) if world.active[k] else 0 for k in range(world.n_robots)])
+            assert world.fitness() == fast.curves[i, t + 1]
         assert world.fitness() == fast.scores[i]
 
 
@@ -89,5 +109,11 @@ def test_cli_bad_inputs_exit_2(tmp_path, capsys):
     assert str(bad) in err and "not valid JSON" in err
     assert main(["--hand-coded", "--blueprint", str(tmp_path / "none.yaml")]) == 2
     assert "does not exist" in capsys.readouterr().err
-    assert main(["--hand-coded", "--robots", "200", "--scenarios", "1"]) == 2
+    small = tmp_path / "small.yaml"
+    small.write_text('format: ant-blueprint/1\nrows: ["1111", "1111", "1111", "1111"]\n')
+    assert main(["--hand-coded", "--robots", "64", "--blueprint", str(small)]) == 2
     assert "could not place" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_info:  # beyond the team limit: an argparse error
+        main(["--hand-coded", "--robots", "200", "--scenarios", "1"])
+    assert exit_info.value.code == 2
+    assert "limit" in capsys.readouterr().err

@@ -450,3 +450,43 @@ def test_genome_info_bad_file(tmp_path, capsys, write, field):
     assert str(path) in err
     assert field in err
     assert err.startswith("genome_info: error: ")
+
+
+# --- limits ------------------------------------------------------------------------------------
+
+
+def test_gene_count_limit(tmp_path: Path) -> None:
+    from ant_controller.limits import MAX_GENES
+
+    data = _good_dict()
+    data["cells"] = [data["cells"][0]] * (MAX_GENES + 1)
+    with pytest.raises(GenomeFormatError, match=f"limit of {MAX_GENES} genes") as info:
+        genome_from_dict(data, "g.json")
+    assert info.value.field == "cells"
+
+
+def test_genome_file_size_limit(tmp_path: Path) -> None:
+    from ant_controller.limits import MAX_GENOME_BYTES
+
+    path = tmp_path / "big.json"
+    with path.open("wb") as f:
+        f.truncate(MAX_GENOME_BYTES + 1)  # sparse: costs no disk
+    with pytest.raises(GenomeFormatError, match=f"limit of {MAX_GENOME_BYTES} bytes"):
+        load_genome(path)
+
+
+def test_duplicate_key_and_team_limit(tmp_path: Path) -> None:
+    from ant_controller.limits import MAX_ROBOTS
+
+    path = tmp_path / "g.json"
+    text = json.dumps(_good_dict())
+    path.write_text(text.replace('"format": ', '"format": "x", "format": ', 1))
+    with pytest.raises(GenomeFormatError, match="given twice") as info:
+        load_genome(path)
+    assert info.value.field == "format"
+    data = _good_dict()
+    data["tissue"]["robots"] = MAX_ROBOTS + 1
+    with pytest.raises(GenomeFormatError, match=f"1..{MAX_ROBOTS}"):
+        genome_from_dict(data, "g.json")
+    data["tissue"]["robots"] = MAX_ROBOTS
+    assert genome_from_dict(data, "g.json").tissue.robots == MAX_ROBOTS

@@ -26,7 +26,6 @@ from ant_controller.layout import (
     TURN_LEFT,
 )
 from ant_controller.tissue import (
-    _psi,
     activation,
     compile_tissue,
     decide_reference,
@@ -128,6 +127,15 @@ def test_zero_sensor_vector_on_random_genomes():
 # --- the modular activation function -------------------------------------------------------
 
 
+def paper_psi(k1: int, k2: int, t1: float, t2: float, sigma: float) -> int:
+    """The modular activation as the paper writes it (section 3.3), term by term."""
+    down = 0 if sigma >= t1 else 1
+    up = 0 if sigma <= t2 else 1
+    ditch = 0 if min(t1, t2) <= sigma < max(t1, t2) else 1
+    mound = 0 if (sigma <= min(t1, t2) or sigma > max(t1, t2)) else 1
+    return (1 - k1) * ((1 - k2) * down + k2 * up) + k1 * ((1 - k2) * ditch + k2 * mound)
+
+
 @pytest.mark.parametrize(
     ("func", "t1", "t2", "sigma", "out"),
     [
@@ -165,7 +173,7 @@ def test_zero_sensor_vector_on_random_genomes():
 )
 def test_activation_hand_picked(func, t1, t2, sigma, out):
     assert activation(func, t1, t2, sigma) == out
-    assert _psi(*K_BITS[func], t1, t2, sigma) == out
+    assert paper_psi(*K_BITS[func], t1, t2, sigma) == out
 
 
 def test_activation_boundary_rules_on_a_grid():
@@ -184,7 +192,7 @@ def test_activation_matches_psi_on_a_grid():
         for t1, t2, sigma in itertools.product(values, repeat=3):
             t1, t2, sigma = float(t1), float(t2), float(sigma)
             got = activation(k1 * 2 + k2, t1, t2, sigma)
-            assert got == _psi(k1, k2, t1, t2, sigma), (k1, k2, t1, t2, sigma)
+            assert got == paper_psi(k1, k2, t1, t2, sigma), (k1, k2, t1, t2, sigma)
             assert got in (0, 1)
 
 

@@ -1,9 +1,11 @@
-"""Where a population is evaluated: this process, a local process pool, or a Ray cluster.
+"""The one evaluator: a population scored in this process, a local process pool, or Ray.
 
-Every backend computes the same pure function per genome (compile the tissue, score it on
-every scenario set, average), so fitness is identical for any worker count and either
-backend; only the wall time differs. Genomes travel to workers as plain mappings
-(``genome_to_dict``) and come back as floats.
+Every backend computes the same pure function per individual: compile it into a decision
+program (``compile_fn``: an ANT genome into its tissue, a fixed network or a NEAT genome
+into a network program; in the workers, in parallel), score it on every scenario set
+(:func:`ant_evolution.evaluate.program_fitness`) and average. So fitness is identical for
+any worker count and either backend; only the wall time differs. Individuals travel to
+workers pickled and come back as floats.
 
 * ``workers <= 1`` and no Ray address: in this process.
 * ``workers > 1``: a ``ProcessPoolExecutor`` (spawned processes, each loads the numba
@@ -17,6 +19,7 @@ backend; only the wall time differs. Genomes travel to workers as plain mappings
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 
@@ -24,22 +27,26 @@ import numpy as np
 
 from ant_controller.controller import Controller
 from ant_controller.genome import Genome
-from ant_evolution.evaluate import ScenarioSet
+from ant_evolution.evaluate import ScenarioSet, program_fitness
 
 
-def genome_fitness(genome: Genome, sets: list[ScenarioSet]) -> float:
+def compile_genome(genome: Genome) -> Controller:
+    """An ANT genome as a decision program (its compiled tissue and N gene)."""
+    return Controller.from_genome(genome)
+
+
+def genome_fitness(genome: Genome, sets: Sequence[ScenarioSet]) -> float:
     """Mean final fitness of one genome over every scenario of every set."""
-    controller = Controller.from_genome(genome)
-    n_robots = genome.tissue.robots or 0
-    scores = np.concatenate([s.score(controller, n_robots) for s in sets])
-    return float(scores.mean())
+    return program_fitness(compile_genome(genome), sets)
 
 
-def _evaluate_parts(genomes: list[Genome], sets: list[ScenarioSet]) -> list[float]:
-    return [genome_fitness(g, sets) for g in genomes]
+def _evaluate_parts(items: list, sets: Sequence[ScenarioSet], compile_fn) -> list[float]:
+    if compile_fn is None:
+        return [program_fitness(p, sets) for p in items]
+    return [program_fitness(compile_fn(x), sets) for x in items]
 
 
-def _evaluate_chunk(payload: tuple[list[Genome], list[ScenarioSet]]) -> list[float]:
+def _evaluate_chunk(payload: tuple) -> list[float]:
     return _evaluate_parts(*payload)
 
 
@@ -71,7 +78,7 @@ def start_workers(workers: int, ray_address: str | None, task) -> tuple:
 
 
 class Evaluator:
-    """Scores populations on fixed scenario sets with the chosen backend.
+    """Scores populations on fixed scenario sets with the chosen backend (every method's).
 
     Args:
         workers: Local processes (``None``: all cores; 1: this process).
@@ -92,16 +99,30 @@ class Evaluator:
             return "ray"
         return "process-pool" if self._pool is not None else "in-process"
 
-    def evaluate(self, genomes: list[Genome], sets: list[ScenarioSet]) -> np.ndarray:
-        """Fitness of every genome (same order)."""
+    def evaluate(
+        self,
+        items: Sequence,
+        sets: Sequence[ScenarioSet],
+        compile_fn: Callable | None = compile_genome,
+    ) -> np.ndarray:
+        """Fitness of every individual (same order).
+
+        Args:
+            items: The population: ANT genomes by default, or anything ``compile_fn`` turns
+                into a decision program.
+            sets: The scenario sets.
+            compile_fn: Picklable function run in the workers on every item; ``None``:
+                the items are decision programs already.
+        """
         if self._ray is None and self._pool is None:
-            return np.array([genome_fitness(g, sets) for g in genomes])
-        chunks = _chunks(list(genomes), self.workers)
+            return np.array(_evaluate_parts(list(items), sets, compile_fn))
+        chunks = _chunks(list(items), self.workers)
         if self._ray is not None:
-            sets_ref = self._ray.put(sets)
-            results = self._ray.get([self._remote.remote(c, sets_ref) for c in chunks])
+            sets_ref = self._ray.put(list(sets))
+            results = self._ray.get([self._remote.remote(c, sets_ref, compile_fn) for c in chunks])
         else:
-            results = list(self._pool.map(_evaluate_chunk, [(c, sets) for c in chunks]))
+            payloads = [(c, sets, compile_fn) for c in chunks]
+            results = list(self._pool.map(_evaluate_chunk, payloads))
         return np.array([f for chunk in results for f in chunk])
 
     def close(self) -> None:

@@ -57,7 +57,7 @@ generation (100 genomes x 100 scenarios x 300 steps x 4 robots = 1.2e7 robot-ste
   functions; on this machine every call site that passes arrays cost 40-70 ns per robot
   and step even when its branch was not taken (a micro-benchmark: an empty per-robot
   `apply` went from 2 ns to 55 ns once it merely contained a call to `try_forward`). The
-  step loop (`_run_steps` in `evolution/ant_evolution/evaluate.py`) is now compiled with
+  step loop (`_run_steps` in `evolution/ant_evolution/kernel.py`) is now compiled with
   `_nrt=False` and allocates nothing; helpers that run several times per robot take scalars
   (`zone_code`, `in_grid`). Together about 10x (0.33 to 3-4 million robot-steps per
   second on one core for the same scenarios).

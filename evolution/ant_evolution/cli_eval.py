@@ -21,6 +21,7 @@ import numpy as np
 
 from ant_controller.controller import Controller
 from ant_controller.errors import GenomeFormatError
+from ant_evolution.errors import ConfigError
 from ant_evolution.evaluate import (
     DEFAULT_ROBOTS,
     DEFAULT_STEPS,
@@ -28,22 +29,14 @@ from ant_evolution.evaluate import (
     evaluate,
     scenario_worlds,
 )
+from ant_evolution.limits import MAX_DEPTH_UNITS, MAX_STEPS, check_workload, option
 from blueprint_server.blueprint import resolve_blueprint
 from blueprint_server.errors import BlueprintError
+from excavation_common.limits import int_in
 from excavation_sim.world import PlacementError
 
 DEFAULT_SNAPSHOT_STEPS = (0, 50, 75, 100, 170)
 """The paper's snapshot figure shows these timesteps; the last step is always added."""
-
-
-def _positive(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"{v} must be at least 1")
-    return v
 
 
 def _steps_list(text: str) -> list[int]:
@@ -51,8 +44,8 @@ def _steps_list(text: str) -> list[int]:
         steps = sorted({int(s) for s in text.split(",") if s.strip()})
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list") from None
-    if not steps or steps[0] < 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: steps must be 0 or more")
+    if not steps or steps[0] < 0 or steps[-1] > MAX_STEPS:
+        raise argparse.ArgumentTypeError(f"{text!r}: steps must lie in 0..{MAX_STEPS} (the limit)")
     return steps
 
 
@@ -64,7 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     who.add_argument("--hand-coded", action="store_true", help="the paper's hand-coded rules")
     p.add_argument(
         "--robots",
-        type=_positive,
+        type=option("robots"),
         default=None,
         help=f"robots per scenario (default: the genome's N gene, else {DEFAULT_ROBOTS})",
     )
@@ -76,18 +69,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--depth",
-        type=_positive,
+        type=int_in(1, MAX_DEPTH_UNITS),
         default=1,
         help="goal depth of the default blueprint (soil units, default 1)",
     )
-    p.add_argument("--scenarios", type=_positive, default=100, help="scenarios (default 100)")
+    p.add_argument(
+        "--scenarios", type=option("scenarios"), default=100, help="scenarios (default 100)"
+    )
     p.add_argument(
         "--steps",
-        type=_positive,
+        type=option("steps"),
         default=DEFAULT_STEPS,
         help=f"timesteps per scenario (default {DEFAULT_STEPS})",
     )
-    p.add_argument("--seed", type=int, default=0, help="scenario seed (default 0)")
+    p.add_argument("--seed", type=option("seed"), default=0, help="scenario seed (default 0)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--snapshots", metavar="DIR", help="write terrain PNGs of scenario 0 here")
     p.add_argument(
@@ -152,6 +147,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         blueprint = resolve_blueprint(args.blueprint, args.depth)
         n_robots = args.robots or controller.robots or DEFAULT_ROBOTS
+        check_workload("<command line>", blueprint.zones.size, args.scenarios, args.steps)
         result = evaluate(controller, blueprint, n_robots, args.scenarios, args.steps, args.seed)
         snaps = []
         if args.snapshots:
@@ -164,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
                 Path(args.snapshots),
                 args.snapshot_steps,
             )
-    except (GenomeFormatError, BlueprintError, PlacementError) as exc:
+    except (GenomeFormatError, BlueprintError, PlacementError, ConfigError) as exc:
         print(f"ant-eval: error: {exc}", file=sys.stderr)
         return 2
     summary = result.summary()

@@ -24,20 +24,19 @@ from pathlib import Path
 from tqdm import tqdm
 
 from ant_evolution.errors import CheckpointError, ConfigError
-from ant_evolution.evolve import EvolveConfig, load_config, run_evolution
+from ant_evolution.evolve import EvolveConfig, blueprints_of, load_config, run_evolution
+from ant_evolution.limits import (
+    LIST_RANGES,
+    MAX_DOMAIN,
+    MAX_WORKERS,
+    check_workload,
+    int_list,
+    option,
+)
 from ant_evolution.ros_evaluator import TrialError
 from blueprint_server.errors import BlueprintError
+from excavation_common.limits import int_in
 from excavation_sim.world import PlacementError
-
-
-def _int_list(text: str) -> tuple[int, ...]:
-    try:
-        values = tuple(int(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list") from None
-    if not values:
-        raise argparse.ArgumentTypeError("the list is empty")
-    return values
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -45,28 +44,35 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="ant-evolve", description=__doc__.split("\n\n")[0])
     p.add_argument("--config", metavar="FILE", help="YAML run configuration")
     p.add_argument("--out", required=True, metavar="DIR", help="run directory")
-    p.add_argument("--population", type=int, help="P (default 100)")
-    p.add_argument("--generations", type=int, help="generations (default 100)")
-    p.add_argument("--scenarios", type=int, help="scenarios per generation S (default 100)")
+    p.add_argument("--population", type=option("population"), help="P (default 100)")
+    p.add_argument("--generations", type=option("generations"), help="generations (default 100)")
+    p.add_argument(
+        "--scenarios", type=option("scenarios"), help="scenarios per generation S (default 100)"
+    )
     robots = p.add_mutually_exclusive_group()
-    robots.add_argument("--robots", type=int, help="robots per scenario (default 4)")
+    robots.add_argument("--robots", type=option("robots"), help="robots per scenario (default 4)")
     robots.add_argument(
         "--robots-mix",
-        type=_int_list,
+        type=int_list(*LIST_RANGES["robots_mix"]),
         metavar="N1,N2",
         help="alternate robot counts between scenarios, e.g. 1,4",
     )
     robots.add_argument("--evolve-robots", action="store_true", help="N is a gene")
-    p.add_argument("--steps", type=int, help="timesteps per scenario T (default 300)")
+    p.add_argument("--steps", type=option("steps"), help="timesteps per scenario T (default 300)")
     p.add_argument("--blueprint", metavar="FILE", help="blueprint file (default: 8 x 8 pit)")
     p.add_argument(
         "--depths",
-        type=_int_list,
+        type=int_list(*LIST_RANGES["depths"]),
         metavar="D1,D2",
         help="goal depths of the default blueprint (default 1,2,3)",
     )
     p.add_argument("--no-coarse-coding", action="store_true", help="ANT without coarse coding")
-    p.add_argument("--workers", type=int, default=None, help="local processes (default: cores)")
+    p.add_argument(
+        "--workers",
+        type=int_in(1, MAX_WORKERS),
+        default=None,
+        help="local processes (default: cores)",
+    )
     p.add_argument("--ray-address", metavar="ADDR", help="Ray cluster ('local' starts one)")
     p.add_argument(
         "--evaluator",
@@ -83,12 +89,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--domain-base",
-        type=int,
+        type=int_in(0, MAX_DOMAIN),
         default=100,
         help="with --evaluator ros: trials use ROS domains from this one on (default 100)",
     )
-    p.add_argument("--seed", type=int, help="run seed (default 0)")
-    p.add_argument("--checkpoint-every", type=int, help="generations between checkpoints")
+    p.add_argument("--seed", type=option("seed"), help="run seed (default 0)")
+    p.add_argument(
+        "--checkpoint-every",
+        type=option("checkpoint_every"),
+        help="generations between checkpoints",
+    )
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.json")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -132,7 +142,18 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         config = resolve_config(args)
-    except ConfigError as exc:
+        cells = max(b.zones.size for b in blueprints_of(config))
+        check_workload(
+            args.config or "<command line>", cells, config.scenarios, None, config.population
+        )
+        if args.evaluator == "ros" and args.domain_base + (args.workers or 1) > MAX_DOMAIN + 1:
+            raise ConfigError(
+                "<command line>",
+                "--domain-base",
+                args.domain_base,
+                f"plus --workers passes the highest ROS domain {MAX_DOMAIN}",
+            )
+    except (ConfigError, BlueprintError) as exc:
         print(f"ant-evolve: error: {exc}", file=sys.stderr)
         return 2
     bar = tqdm(total=config.generations, unit="gen", disable=args.quiet, dynamic_ncols=True)

@@ -12,8 +12,10 @@ scenario places ``max(robots)`` robots and switches off the ones it does not use
 genome whose N gene asks for fewer robots uses the first N of the same placements (common
 random numbers).
 
-Whole episodes run inside numba (:func:`run_scenarios`): sensing, the controller (through a
-per-tissue decision cache) and the world step, with no Python in the per-step path.
+Whole episodes run inside the one episode kernel (:mod:`ant_evolution.kernel`): sensing,
+the decision program (an ANT tissue, the hand-coded rules or a network program, through a
+per-program decision cache) and the world step, with no Python in the per-step path.
+:func:`program_fitness` is the one evaluation function every backend runs.
 """
 
 from __future__ import annotations
@@ -21,150 +23,21 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
 
-from ant_controller.controller import KIND_HAND_CODED, Controller
-from ant_controller.hand_coded import hand_coded_decide
-from ant_controller.layout import N_SENSORS
-from ant_controller.tissue import CACHE_BITS, decide_cached, new_cache, new_scratch
+from ant_evolution.kernel import DecisionProgram, ScenarioArrays, run_episode, run_scenarios
 from blueprint_server.blueprint import Blueprint
 from excavation_sim.world import (
     DEFAULT_PARAMS,
     World,
     WorldParams,
-    apply_all,
-    fitness,
     scenario_start,
-    sense_all,
 )
 
 DEFAULT_STEPS = 300
 """Timesteps per scenario. Long enough for the hand-coded controller's fitness to level
 off on the default blueprint with four robots (see docs/world-model.md)."""
 DEFAULT_ROBOTS = 4
-
-
-@nb.njit(cache=True, _nrt=False, error_model="numpy")
-def _run_steps(
-    heights,
-    zones,
-    goal,
-    robots,
-    active,
-    rng,
-    params,
-    steps,
-    kind,
-    tissue,
-    cache,
-    scratch,
-    codes,
-    masks,
-    trace,
-):
-    """The per-step loop, compiled without numba's reference counting (``_nrt=False``).
-
-    It allocates nothing; with reference counting on, every call that passes arrays costs
-    tens of nanoseconds in reference-count traffic even when its branch is not taken. The
-    numpy error model drops Python's division checks (every division here is guarded).
-    Both measured in docs/benchmarks.md.
-    """
-    n = robots.shape[0]
-    cache_keys, cache_masks = cache
-    for t in range(steps):
-        sense_all(heights, zones, goal, robots, active, codes)
-        for k in range(n):
-            if not active[k]:
-                masks[k] = 0
-            elif kind == KIND_HAND_CODED:
-                masks[k] = hand_coded_decide(codes[k])
-            else:
-                masks[k] = decide_cached(codes[k], tissue, cache_keys, cache_masks, scratch)
-        apply_all(heights, robots, active, masks, rng, params)
-        if trace.shape[0] > t:
-            trace[t] = fitness(heights, zones, goal)
-
-
-@nb.njit(cache=True)
-def run_episode(
-    heights, zones, goal, robots, active, rng, params, steps, kind, tissue, cache, trace
-):
-    """Run ``steps`` timesteps in place; ``trace[t]`` gets the fitness after step t.
-
-    ``cache`` is a ``(keys, masks)`` decision cache of this tissue (:func:`new_cache`);
-    ``trace`` may be empty (length 0) when the curve is not wanted.
-    """
-    n = robots.shape[0]
-    codes = np.zeros((n, N_SENSORS), dtype=np.int64)
-    masks = np.zeros(n, dtype=np.int64)
-    _run_steps(
-        heights,
-        zones,
-        goal,
-        robots,
-        active,
-        rng,
-        params,
-        steps,
-        kind,
-        tissue,
-        cache,
-        new_scratch(tissue),
-        codes,
-        masks,
-        trace,
-    )
-
-
-@nb.njit(cache=True)
-def run_scenarios(
-    heights0, zones, goal, robots0, active0, rng0, params, steps, kind, tissue, n_robots, scores
-):
-    """Score one controller on every scenario of a set; ``scores[s]`` gets the final fitness.
-
-    ``n_robots`` > 0 switches off robots ``n_robots ..`` in every scenario (the N gene);
-    0 keeps each scenario's own robot count. One decision cache serves all scenarios.
-    """
-    cache = (
-        np.full(1 << CACHE_BITS, -1, dtype=np.int64),
-        np.zeros(1 << CACHE_BITS, dtype=np.int64),
-    )
-    scratch = new_scratch(tissue)
-    n = robots0.shape[1]
-    codes = np.zeros((n, N_SENSORS), dtype=np.int64)
-    masks = np.zeros(n, dtype=np.int64)
-    no_trace = np.zeros(0)
-    heights = np.empty_like(heights0[0])
-    robots = np.empty_like(robots0[0])
-    active = np.empty_like(active0[0])
-    rng = np.empty(1, dtype=np.uint64)
-    for s in range(heights0.shape[0]):
-        heights[:] = heights0[s]
-        robots[:] = robots0[s]
-        active[:] = active0[s]
-        if n_robots > 0:
-            for k in range(n):
-                active[k] = k < n_robots
-        rng[0] = rng0[s]
-        _run_steps(
-            heights,
-            zones,
-            goal,
-            robots,
-            active,
-            rng,
-            params,
-            steps,
-            kind,
-            tissue,
-            cache,
-            scratch,
-            codes,
-            masks,
-            no_trace,
-        )
-        scores[s] = fitness(heights, zones, goal)
 
 
 @dataclass(frozen=True)
@@ -258,42 +131,34 @@ class ScenarioSet:
             params=self.params,
         )
 
-    def score(self, controller: Controller, n_robots: int = 0) -> np.ndarray:
-        """Final fitness of ``controller`` on every scenario (``n_robots``: the N gene)."""
-        scores = np.zeros(self.size)
-        run_scenarios(
-            self.heights,
-            self.zones,
-            self.goal,
-            self.robots,
-            self.active,
-            self.rng,
-            self.params,
-            self.steps,
-            controller.kind,
-            controller.tissue.arrays(),
-            n_robots,
-            scores,
+    def arrays(self) -> ScenarioArrays:
+        """The starting states as the kernel takes them."""
+        return ScenarioArrays(
+            self.heights, self.zones, self.goal, self.robots, self.active, self.rng, self.params
         )
+
+    def score(self, program: DecisionProgram, n_robots: int = 0) -> np.ndarray:
+        """Final fitness of ``program`` on every scenario (``n_robots``: the N gene, 0: none)."""
+        scores = np.zeros(self.size)
+        run_scenarios(self.arrays(), self.steps, program.record(), n_robots, scores)
         return scores
 
 
-def advance(world: World, controller: Controller, steps: int, trace: np.ndarray | None = None):
-    """Step ``world`` in place ``steps`` times under ``controller``."""
-    run_episode(
-        world.heights,
-        world.zones,
-        world.goal,
-        world.robots,
-        world.active,
-        world.rng,
-        world.params,
-        steps,
-        controller.kind,
-        controller.tissue.arrays(),
-        new_cache(),
-        np.zeros(0) if trace is None else trace,
-    )
+def program_fitness(program: DecisionProgram, sets: Sequence[ScenarioSet]) -> float:
+    """A program's fitness: the mean final fitness over every scenario of every set.
+
+    A program with an N gene (``program.robots``) uses that many robots of each scenario.
+    """
+    n_robots = program.robots or 0
+    return float(np.concatenate([s.score(program, n_robots) for s in sets]).mean())
+
+
+def advance(
+    world: World, program: DecisionProgram, steps: int, trace: np.ndarray | None = None
+) -> None:
+    """Step ``world`` in place ``steps`` times under ``program``."""
+    trace = np.zeros(0) if trace is None else trace
+    run_episode(world.arrays(), steps, program.record(), trace)
 
 
 def scenario_worlds(
@@ -337,7 +202,7 @@ class Evaluation:
 
 
 def evaluate(
-    controller: Controller,
+    controller: DecisionProgram,
     blueprint: Blueprint,
     n_robots: int = DEFAULT_ROBOTS,
     scenarios: int = 100,

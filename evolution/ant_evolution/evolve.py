@@ -1,10 +1,14 @@
-"""An evolution run: configuration, the generation loop, checkpoints and outputs (paper, 4.3).
+"""An ANT evolution run: its configuration and its strategy on the one loop (paper, 4.3).
 
-A run is fully described by an :class:`EvolveConfig`. Randomness comes from two places,
-both derived from ``config.seed``: the GA's generator (whose state is checkpointed), and
-the scenarios of generation g, seeded by ``SeedSequence([seed, g])`` and shared by every
-genome of that generation (common random numbers). So a run resumed from a checkpoint ends
-bit-identical to an uninterrupted one, whatever the worker count or backend.
+A run is fully described by an :class:`EvolveConfig` (the baselines take the same one).
+:class:`AntStrategy` is ANT behind the ask / tell seam of :mod:`ant_evolution.loop`: its
+state is the population and the GA generator's state, ``tell`` breeds with
+:func:`ant_evolution.ga.next_generation`. Randomness comes from two places, both derived
+from ``config.seed``: the GA's generator (whose state is checkpointed), and the scenarios
+of generation g, seeded by ``SeedSequence([seed, g])`` and shared by every genome of that
+generation (common random numbers; :func:`scenario_sets`). So a run resumed from a
+checkpoint ends bit-identical to an uninterrupted one, whatever the worker count or
+backend.
 
 Outputs in the run directory:
 
@@ -18,41 +22,27 @@ Outputs in the run directory:
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import hashlib
-import io
 import json
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ant_controller.genome import Genome, random_genome
-from ant_controller.genome_io import genome_from_dict, genome_to_dict, save_genome
-from ant_evolution.backends import Evaluator
-from ant_evolution.errors import CheckpointError, ConfigError
+from ant_controller.genome_io import genome_from_dict, genome_to_dict
+from ant_evolution.backends import Evaluator, compile_genome
+from ant_evolution.errors import ConfigError
 from ant_evolution.evaluate import DEFAULT_STEPS, ScenarioSet
 from ant_evolution.ga import GAParams, next_generation
+from ant_evolution.limits import MAX_CONFIG_BYTES, check_config_value
+from ant_evolution.loop import RunState, run_strategy
 from blueprint_server.blueprint import Blueprint, resolve_blueprint
-from excavation_common.files import write_text_atomic
+from excavation_common.loaders import load_yaml
 
 CHECKPOINT_FORMAT = "ant-checkpoint/1"
-HISTORY_FIELDS = (
-    "generation",
-    "evaluations",
-    "best",
-    "mean",
-    "std",
-    "best_ever",
-    "neurons_best",
-    "neurons_mean",
-    "robots_hist",
-    "seconds",
-)
 
 
 @dataclass(frozen=True)
@@ -194,6 +184,7 @@ def config_from_dict(
             value = tuple(value) if ok else value
         if not ok:
             raise ConfigError(path, key, value, f"must be like {default!r}")
+        check_config_value(path, key, value)
         values[key] = value
     try:
         return dataclasses.replace(base, **values)
@@ -208,12 +199,7 @@ def load_config(path: str | Path, base: EvolveConfig | None = None) -> EvolveCon
         ConfigError: For an unreadable file, bad YAML, unknown keys or bad values.
     """
     label = str(path)
-    try:
-        data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError(label, "<file>", label, "does not exist") from None
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise ConfigError(label, "<file>", label, f"cannot be read: {exc}") from None
+    data = load_yaml(label, ConfigError, max_bytes=MAX_CONFIG_BYTES)
     return config_from_dict(data or {}, label, base)
 
 
@@ -258,112 +244,113 @@ def initial_population(config: EvolveConfig, rng: np.random.Generator) -> list[G
     return pop
 
 
-@dataclass
-class RunState:
-    """What a checkpoint holds."""
-
-    generation: int
-    population: list[Genome]
-    rng_state: dict
-    history: list[dict]
-    best: Genome | None
-    best_fitness: float
-    evaluations: int
+def generator(state: dict) -> np.random.Generator:
+    """A PCG64 generator restored from ``bit_generator.state`` (a strategy state's)."""
+    rng = np.random.Generator(np.random.PCG64())
+    rng.bit_generator.state = state
+    return rng
 
 
-def save_checkpoint(out: Path, config: EvolveConfig, state: RunState) -> None:
-    """Write ``checkpoint.json`` atomically."""
-    data = {
-        "format": CHECKPOINT_FORMAT,
-        "run_key": config.run_key(),
-        "generation": state.generation,
-        "rng_state": state.rng_state,
-        "evaluations": state.evaluations,
-        "best_fitness": state.best_fitness,
-        "best": genome_to_dict(state.best) if state.best is not None else None,
-        "history": state.history,
-        "population": [genome_to_dict(g) for g in state.population],
-    }
-    write_text_atomic(out / "checkpoint.json", json.dumps(data, allow_nan=False))
+@dataclass(frozen=True)
+class GAState:
+    """The state of a GA strategy between generations.
 
-
-def load_checkpoint(out: Path, config: EvolveConfig) -> RunState:
-    """Read and check ``checkpoint.json``.
-
-    Raises:
-        CheckpointError: Missing, corrupt, or written by a different configuration.
+    Attributes:
+        population: The individuals of the generation to evaluate next.
+        rng_state: The GA generator's ``bit_generator.state``.
     """
-    path = out / "checkpoint.json"
-    label = str(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CheckpointError(label, "does not exist; nothing to resume") from None
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
-        raise CheckpointError(
-            label, f"is corrupt ({exc}); it was not written by a finished checkpoint"
-        ) from None
-    if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
-        raise CheckpointError(label, f"is not an {CHECKPOINT_FORMAT} file")
-    if data.get("run_key") != config.run_key():
-        raise CheckpointError(
-            label,
-            "was written by a run with a different configuration (compare "
-            f"{out / 'config.yaml'}); start a new run directory or restore that config",
-        )
-    try:
-        pop = [genome_from_dict(d, f"{label}:population") for d in data["population"]]
-        best = genome_from_dict(data["best"], f"{label}:best") if data["best"] else None
-        rng = np.random.Generator(np.random.PCG64())
-        rng.bit_generator.state = data["rng_state"]
-        return RunState(
-            int(data["generation"]),
-            pop,
-            data["rng_state"],
-            list(data["history"]),
-            best,
-            float(data["best_fitness"]),
-            int(data["evaluations"]),
-        )
-    except (KeyError, TypeError, ValueError) as exc:
-        raise CheckpointError(label, f"is corrupt: {exc!r}") from None
+
+    population: list
+    rng_state: dict
 
 
-def _history_csv(rows: list[dict]) -> str:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=HISTORY_FIELDS, lineterminator="\n")
-    w.writeheader()
-    w.writerows(rows)
-    return buf.getvalue()
-
-
-def plot_history(rows: list[dict], path: Path, title: str) -> None:
-    """Best and mean fitness against generations, with the 0.9 solution line."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    gens = [r["generation"] for r in rows]
-    fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
-    ax.plot(gens, [r["best"] for r in rows], label="best")
-    ax.plot(gens, [r["mean"] for r in rows], label="mean")
-    ax.plot(gens, [r["best_ever"] for r in rows], "--", label="best so far", alpha=0.7)
-    ax.axhline(0.9, color="gray", lw=0.8, ls=":")
-    ax.set_xlabel("generation")
-    ax.set_ylabel("fitness")
-    ax.set_ylim(0, 1)
-    ax.set_title(title, fontsize=9)
-    ax.legend()
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-
-
-def _neurons(genome: Genome) -> int:
+def neurons(genome: Genome) -> int:
     """Grown, living neurons (expressed genes without the cell-death flag)."""
     return sum(g.expressed and not g.dead for g in genome.cells)
+
+
+class AntStrategy:
+    """ANT behind the ask / tell seam (:class:`ant_evolution.loop.Strategy`).
+
+    Args:
+        config: The run's configuration.
+    """
+
+    checkpoint_name = "checkpoint.json"
+    checkpoint_formats = (CHECKPOINT_FORMAT,)
+
+    def __init__(self, config: EvolveConfig) -> None:
+        self.config = config
+        self.run_key = config.run_key()
+
+    def init(self) -> GAState:
+        """P random tissues from the run's GA generator."""
+        rng = np.random.Generator(
+            np.random.PCG64(np.random.SeedSequence([self.config.seed, 0xA17]))
+        )
+        return GAState(initial_population(self.config, rng), rng.bit_generator.state)
+
+    def ask(self, state: GAState) -> tuple[list[Genome], GAState]:
+        """The population (ANT draws nothing at ask time)."""
+        return state.population, state
+
+    def tell(self, state: GAState, fitness: np.ndarray) -> GAState:
+        """Breed the next generation."""
+        rng = generator(state.rng_state)
+        population = next_generation(rng, state.population, fitness, self.config.ga)
+        return GAState(population, rng.bit_generator.state)
+
+    def compiler(self, state: GAState) -> Callable:
+        """Genomes compile into tissues in the workers."""
+        return compile_genome
+
+    def title(self, state: GAState) -> str:
+        """Plot title."""
+        c = self.config
+        return (
+            f"ANT{'' if c.coarse_coding else ' without coarse coding'}, "
+            f"P={c.population}, S={c.scenarios}, T={c.steps}"
+        )
+
+    def neurons(self, state: GAState, genome: Genome) -> int:
+        """Grown, living neurons."""
+        return neurons(genome)
+
+    def robots(self, genome: Genome) -> int | None:
+        """The N gene."""
+        return genome.tissue.robots
+
+    def best_document(self, state: GAState, genome: Genome, info: dict) -> dict:
+        """The genome file with training metadata (``ant-genome/1``)."""
+        metadata = {
+            "fitness": info["fitness"],
+            "generation": info["generation"],
+            "seed": self.config.seed,
+            "evaluations": info["evaluations"],
+            "config": self.config.to_dict(),
+        }
+        return genome_to_dict(dataclasses.replace(genome, metadata=metadata))
+
+    def dump_best(self, document: dict) -> str:
+        """As :func:`ant_controller.genome_io.save_genome` writes it."""
+        return json.dumps(document, indent=1, allow_nan=False) + "\n"
+
+    def check_best(self, document: dict, label: str) -> None:
+        """A valid genome file (``GenomeFormatError``, a ``ValueError``, when not)."""
+        genome_from_dict(document, label)
+
+    def state_to_dict(self, state: GAState, out: Path) -> dict:
+        """Population and generator state."""
+        return {
+            "rng_state": state.rng_state,
+            "population": [genome_to_dict(g) for g in state.population],
+        }
+
+    def state_from_dict(self, data: dict, out: Path, label: str) -> GAState:
+        """Inverse of :meth:`state_to_dict` (every genome validated)."""
+        population = [genome_from_dict(d, f"{label}:population") for d in data["population"]]
+        generator(data["rng_state"])  # a bad state fails here, not a generation later
+        return GAState(population, data["rng_state"])
 
 
 def run_evolution(
@@ -379,7 +366,12 @@ def run_evolution(
     trial_command: str | None = None,
     domain_base: int = 100,
 ) -> RunState:
-    """Run (or resume) an evolution, writing outputs into ``out``.
+    """Run (or resume) an ANT evolution, writing outputs into ``out``.
+
+    Outputs: ``config.yaml`` (the resolved configuration), ``history.csv`` (one row per
+    generation), ``best.json`` (the best genome so far with training metadata),
+    ``fitness.png`` and ``checkpoint.json`` (every ``checkpoint_every`` generations and at
+    the end, atomically).
 
     Args:
         config: The run's configuration.
@@ -400,27 +392,6 @@ def run_evolution(
         CheckpointError: ``resume`` without a usable checkpoint, or a fresh run into a
             directory that already holds one.
     """
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    if resume:
-        state = load_checkpoint(out, config)
-        rng = np.random.Generator(np.random.PCG64())
-        rng.bit_generator.state = state.rng_state
-    else:
-        if (out / "checkpoint.json").exists():
-            raise CheckpointError(
-                str(out / "checkpoint.json"),
-                "exists: pass --resume to continue that run, or choose a new output directory",
-            )
-        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([config.seed, 0xA17])))
-        state = RunState(0, initial_population(config, rng), {}, [], None, -1.0, 0)
-    write_text_atomic(out / "config.yaml", yaml.safe_dump(config.to_dict(), sort_keys=False))
-    blueprints = blueprints_of(config)
-    title = (
-        f"ANT{'' if config.coarse_coding else ' without coarse coding'}, "
-        f"P={config.population}, S={config.scenarios}, T={config.steps}"
-    )
-    done_here = 0
     if evaluator == "ros":
         from ant_evolution.ros_evaluator import DEFAULT_TRIAL, RosEvaluator
 
@@ -429,57 +400,14 @@ def run_evolution(
         scorer = Evaluator(workers, ray_address)
     else:
         raise ConfigError("<arguments>", "evaluator", evaluator, "must be 'batched' or 'ros'")
-    with scorer as evaluator:
-        while state.generation < config.generations:
-            t0 = time.perf_counter()
-            g = state.generation
-            sets = scenario_sets(config, g, blueprints)
-            fit = evaluator.evaluate(state.population, sets)
-            state.evaluations += len(state.population) * config.scenarios
-            i_best = int(np.argmax(fit))
-            if fit[i_best] > state.best_fitness:
-                state.best_fitness = float(fit[i_best])
-                best = state.population[i_best]
-                state.best = dataclasses.replace(
-                    best,
-                    metadata={
-                        "fitness": state.best_fitness,
-                        "generation": g,
-                        "seed": config.seed,
-                        "evaluations": state.evaluations,
-                        "config": config.to_dict(),
-                    },
-                )
-                save_genome(state.best, out / "best.json")
-            hist = ""
-            if config.evolve_robots:
-                counts = np.bincount([p.tissue.robots for p in state.population])
-                hist = ";".join(f"{n}:{c}" for n, c in enumerate(counts) if c)
-            row = {
-                "generation": g,
-                "evaluations": state.evaluations,
-                "best": float(fit[i_best]),
-                "mean": float(fit.mean()),
-                "std": float(fit.std()),
-                "best_ever": state.best_fitness,
-                "neurons_best": _neurons(state.population[i_best]),
-                "neurons_mean": float(np.mean([_neurons(p) for p in state.population])),
-                "robots_hist": hist,
-                "seconds": round(time.perf_counter() - t0, 3),
-            }
-            state.history.append(row)
-            state.population = next_generation(rng, state.population, fit, config.ga)
-            state.generation = g + 1
-            state.rng_state = rng.bit_generator.state
-            done_here += 1
-            if progress is not None:
-                progress(row)
-            last = state.generation == config.generations
-            stopping = stop_after is not None and done_here >= stop_after
-            if last or stopping or state.generation % config.checkpoint_every == 0:
-                write_text_atomic(out / "history.csv", _history_csv(state.history))
-                plot_history(state.history, out / "fitness.png", title)
-                save_checkpoint(out, config, state)
-            if stopping:
-                break
-    return state
+    blueprints = blueprints_of(config)
+    with scorer:
+        return run_strategy(
+            AntStrategy(config),
+            out,
+            scorer,
+            lambda g: scenario_sets(config, g, blueprints),
+            resume=resume,
+            progress=progress,
+            stop_after=stop_after,
+        )

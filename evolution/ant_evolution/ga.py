@@ -18,11 +18,13 @@ crossover probability 0.7, mutation probability 0.025 per gene parameter.
   same lattice site when both are expressed or both repressed (the compatibility criterion);
   otherwise it stays.
 * :func:`next_generation`: elitism (a documented option, default 1: the best genome is
-  copied unchanged), then tournament selection, crossover and mutation.
+  copied unchanged), then tournament selection, crossover and mutation. It is the one
+  breeding loop: the fixed-topology baseline passes its own ``crossover`` and ``mutate``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -230,9 +232,20 @@ def tournament(rng: np.random.Generator, fitness: np.ndarray, size: int) -> int:
 
 
 def next_generation(
-    rng: np.random.Generator, population: list[Genome], fitness: np.ndarray, params: GAParams
-) -> list[Genome]:
-    """Breed the next population from the current one and its fitness."""
+    rng: np.random.Generator,
+    population: Sequence,
+    fitness: np.ndarray,
+    params: GAParams,
+    crossover: Callable = crossover,
+    mutate: Callable = mutate,
+) -> list:
+    """Breed the next population from the current one and its fitness.
+
+    Elitism, then pairs of tournament winners, crossed with ``crossover_prob`` and each
+    mutated. ``crossover(rng, a, b) -> (a', b')`` and ``mutate(rng, x, params) -> x'``
+    default to ANT's operators; any genome type with its own operators breeds the same way
+    (the same draws in the same order).
+    """
     order = np.argsort(-fitness, kind="stable")
     out = [population[i] for i in order[: params.elitism]]
     size = params.tournament_size

@@ -26,6 +26,7 @@ import shlex
 import subprocess
 import sys
 import tempfile
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -115,8 +116,13 @@ class RosEvaluator:
             )
         return fitness
 
-    def evaluate(self, genomes: list[Genome], sets: list[ScenarioSet]) -> np.ndarray:
+    def evaluate(
+        self, genomes: list[Genome], sets: list[ScenarioSet], compile_fn: Callable | None = None
+    ) -> np.ndarray:
         """Fitness of every genome (same order): the mean over every scenario of every set.
+
+        The same call as :meth:`ant_evolution.backends.Evaluator.evaluate`; the trials run
+        the genome files themselves, so ``compile_fn`` (ANT's compiler) is not used.
 
         Raises:
             TrialError: A trial failed, missed ticks, or the sets cannot be run as trials

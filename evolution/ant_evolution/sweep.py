@@ -19,21 +19,30 @@ from tqdm import tqdm
 
 from ant_controller.controller import Controller
 from ant_controller.errors import GenomeFormatError
+from ant_evolution.errors import ConfigError
 from ant_evolution.evaluate import DEFAULT_STEPS, evaluate
+from ant_evolution.limits import MAX_DEPTH_UNITS, MAX_ROBOTS, check_workload, option
 
 
-def _int_list(text: str) -> list[int]:
-    out: set[int] = set()
-    for part in text.split(","):
-        lo, _, hi = part.partition("-")
-        try:
-            a, b = int(lo), int(hi or lo)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r}: use '1,2,3' or '1-10'") from None
-        if a < 1 or b < a:
-            raise argparse.ArgumentTypeError(f"{text!r}: values must be positive and ordered")
-        out.update(range(a, b + 1))
-    return sorted(out)
+def _int_list(high: int):
+    """An ``argparse`` type: ``'1,2,3'`` or ``'1-10'``, values in ``1..high``."""
+
+    def parse(text: str) -> list[int]:
+        out: set[int] = set()
+        for part in text.split(","):
+            lo, _, hi = part.partition("-")
+            try:
+                a, b = int(lo), int(hi or lo)
+            except ValueError:
+                raise argparse.ArgumentTypeError(f"{text!r}: use '1,2,3' or '1-10'") from None
+            if a < 1 or b < a:
+                raise argparse.ArgumentTypeError(f"{text!r}: values must be positive and ordered")
+            if b > high:
+                raise argparse.ArgumentTypeError(f"{text!r}: {b} is above the limit of {high}")
+            out.update(range(a, b + 1))
+        return sorted(out)
+
+    return parse
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -42,18 +51,19 @@ def main(argv: list[str] | None = None) -> int:
     who = p.add_mutually_exclusive_group(required=True)
     who.add_argument("--genome", metavar="FILE")
     who.add_argument("--hand-coded", action="store_true")
-    p.add_argument("--robots", type=_int_list, default=_int_list("1-10"))
-    p.add_argument("--depths", type=_int_list, default=[1, 2, 3])
-    p.add_argument("--scenarios", type=int, default=100)
-    p.add_argument("--steps", type=int, default=DEFAULT_STEPS)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--robots", type=_int_list(MAX_ROBOTS), default=list(range(1, 11)))
+    p.add_argument("--depths", type=_int_list(MAX_DEPTH_UNITS), default=[1, 2, 3])
+    p.add_argument("--scenarios", type=option("scenarios"), default=100)
+    p.add_argument("--steps", type=option("steps"), default=DEFAULT_STEPS)
+    p.add_argument("--seed", type=option("seed"), default=0)
     p.add_argument("--out", required=True, type=Path)
     args = p.parse_args(argv)
     from blueprint_server.blueprint import default_blueprint
 
     try:
+        check_workload("<command line>", 16 * 16, args.scenarios, args.steps)
         ctl = Controller.hand_coded() if args.hand_coded else Controller.from_file(args.genome)
-    except GenomeFormatError as exc:
+    except (GenomeFormatError, ConfigError) as exc:
         print(f"ant-sweep: error: {exc}", file=sys.stderr)
         return 2
     rows = []

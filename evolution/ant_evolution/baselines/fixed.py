@@ -22,7 +22,7 @@ import numpy as np
 
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS
 from ant_evolution.baselines.network import AGG_MEAN, NetworkProgram
-from ant_evolution.ga import GAParams, tournament
+from ant_evolution.ga import GAParams
 
 
 @dataclass(frozen=True)
@@ -162,7 +162,10 @@ def mutate(rng: np.random.Generator, net: FixedNetwork, params: GAParams) -> Fix
 def crossover(
     rng: np.random.Generator, a: FixedNetwork, b: FixedNetwork, topology: FixedTopology
 ) -> tuple[FixedNetwork, FixedNetwork]:
-    """Swap every neuron (its inputs' weights and its thresholds) after one random cut."""
+    """Swap every neuron (its inputs' weights and its thresholds) after one random cut.
+
+    Bred by :func:`ant_evolution.ga.next_generation` with ``topology`` bound.
+    """
     n = topology.n_neurons
     cut = int(rng.integers(1, n))
     wcut = int(_neuron_bounds(topology)[cut])
@@ -175,25 +178,3 @@ def crossover(
         )
 
     return join(a, b), join(b, a)
-
-
-def next_generation(
-    rng: np.random.Generator,
-    population: list[FixedNetwork],
-    fit: np.ndarray,
-    params: GAParams,
-    topology: FixedTopology,
-) -> list[FixedNetwork]:
-    """Elitism, tournament selection, crossover and mutation (ANT's GA settings)."""
-    order = np.argsort(-fit, kind="stable")
-    out = [population[i] for i in order[: params.elitism]]
-    size = params.tournament_size
-    while len(out) < params.population:
-        a = population[tournament(rng, fit, size)]
-        b = population[tournament(rng, fit, size)]
-        if rng.random() < params.crossover_prob:
-            a, b = crossover(rng, a, b, topology)
-        out.append(mutate(rng, a, params))
-        if len(out) < params.population:
-            out.append(mutate(rng, b, params))
-    return out

@@ -1,17 +1,21 @@
-"""Evolution runs of the baselines, with ANT's budget, scenarios, outputs and checkpoints.
+"""The baselines as strategies on the one generation loop, and network-program files.
 
-:func:`run_fixed` and :func:`run_neat` take the same :class:`~ant_evolution.evolve.EvolveConfig`
-as :func:`ant_evolution.evolve.run_evolution` and use the same scenarios per generation
-(:func:`~ant_evolution.evolve.scenario_sets`: ``SeedSequence([seed, g])``), so an ANT run, a
-fixed-network run and a NEAT run with one seed see identical worksites. Each writes
-``config.yaml``, ``history.csv`` (the same columns as ANT's), ``fitness.png``, ``best.json``
-(the best network program, ``network-program/1``) and a checkpoint, written atomically
-every ``checkpoint_every`` generations and at the end; ``resume=True`` continues exactly.
+:class:`FixedStrategy` and :class:`NeatStrategy` stand behind the same ask / tell seam as
+:class:`ant_evolution.evolve.AntStrategy` (:mod:`ant_evolution.loop`), so :func:`run_fixed`
+and :func:`run_neat` take the same :class:`~ant_evolution.evolve.EvolveConfig`, see the same
+scenarios per generation (:func:`~ant_evolution.evolve.scenario_sets`:
+``SeedSequence([seed, g])``), use the same evaluator and write the same outputs:
+``config.yaml``, ``history.csv`` (ANT's columns), ``fitness.png``, ``best.json`` (the best
+network program, ``network-program/1``) and a checkpoint, written atomically every
+``checkpoint_every`` generations and at the end; ``resume=True`` continues exactly.
 
-* Fixed network: the checkpoint is JSON (population, GA generator state, history, best).
-* NEAT: neat-python's own checkpoint (its gzip pickle of population, species, innovation
-  tracker and ``random`` state: the library's mechanism, read only from the run's own
-  directory), renamed into place atomically, plus a JSON side file with our history.
+* Fixed network: the GA of :mod:`ant_evolution.ga` with the fixed network's operators;
+  the checkpoint is JSON (topology, population, GA generator state, history, best).
+* NEAT: neat-python does selection, speciation and reproduction; ``tell`` hands it the
+  fitness through ``Population.run`` for one generation. Its checkpoint is neat-python's
+  own (its gzip pickle of population, species, innovation tracker and ``random`` state:
+  the library's mechanism, read only from the run's own directory), renamed into place
+  atomically, beside the loop's JSON file.
 """
 
 from __future__ import annotations
@@ -22,31 +26,28 @@ import functools
 import io
 import json
 import os
-import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import yaml
 
-from ant_evolution.baselines.fixed import (
-    FixedNetwork,
-    FixedTopology,
-    compile_fixed,
-    next_generation,
-    random_network,
-)
+from ant_evolution.backends import Evaluator
+from ant_evolution.baselines import fixed
+from ant_evolution.baselines.fixed import FixedNetwork, FixedTopology, compile_fixed
 from ant_evolution.baselines.neat_baseline import compile_neat, neat_config, neat_hidden
-from ant_evolution.baselines.network import NetworkProgram, ProgramEvaluator
+from ant_evolution.baselines.network import NetworkProgram
 from ant_evolution.errors import CheckpointError
 from ant_evolution.evolve import (
     EvolveConfig,
-    _history_csv,
+    GAState,
     blueprints_of,
-    plot_history,
+    generator,
     scenario_sets,
 )
-from excavation_common.files import write_text_atomic
+from ant_evolution.ga import next_generation
+from ant_evolution.loop import Strategy, run_strategy
 
 PROGRAM_FORMAT = "network-program/1"
 _ARRAYS = [f.name for f in dataclasses.fields(NetworkProgram)]
@@ -90,38 +91,126 @@ def load_program(path: str | Path) -> NetworkProgram:
     return program_from_dict(json.loads(Path(path).read_text(encoding="utf-8")), str(path))
 
 
-def _row(g: int, evaluations: int, fit: np.ndarray, best_ever: float, neurons, t0) -> dict:
-    i = int(np.argmax(fit))
-    return {
-        "generation": g,
-        "evaluations": evaluations,
-        "best": float(fit[i]),
-        "mean": float(fit.mean()),
-        "std": float(fit.std()),
-        "best_ever": best_ever,
-        "neurons_best": int(neurons[i]),
-        "neurons_mean": float(np.mean(neurons)),
-        "robots_hist": "",
-        "seconds": round(time.perf_counter() - t0, 3),
-    }
-
-
-def _write_outputs(out: Path, history: list[dict], title: str) -> None:
-    write_text_atomic(out / "history.csv", _history_csv(history))
-    plot_history(history, out / "fitness.png", title)
-
-
-def _start(out: Path, config: EvolveConfig, resume: bool, checkpoint: str) -> None:
-    out.mkdir(parents=True, exist_ok=True)
-    if not resume and (out / checkpoint).exists():
-        raise CheckpointError(
-            str(out / checkpoint),
-            "exists: pass resume to continue that run, or choose a new output directory",
+def _run(
+    strategy: Strategy,
+    out: Path,
+    workers: int | None,
+    ray_address: str | None,
+    resume: bool,
+    progress: Callable[[dict], None] | None,
+    stop_after: int | None,
+) -> list[dict]:
+    config = strategy.config
+    blueprints = blueprints_of(config)
+    with Evaluator(workers, ray_address) as evaluator:
+        run = run_strategy(
+            strategy,
+            out,
+            evaluator,
+            lambda g: scenario_sets(config, g, blueprints),
+            resume=resume,
+            progress=progress,
+            stop_after=stop_after,
         )
-    write_text_atomic(out / "config.yaml", yaml.safe_dump(config.to_dict(), sort_keys=False))
+    return run.history
 
 
 # --- fixed-topology network ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FixedState(GAState):
+    """The GA state of a fixed-network run, with the run's topology.
+
+    Attributes:
+        topology: Layer sizes, drawn once per run.
+    """
+
+    topology: FixedTopology
+
+
+class FixedStrategy:
+    """The fixed-topology network behind the ask / tell seam (ANT's GA settings)."""
+
+    checkpoint_name = "checkpoint.json"
+    checkpoint_formats = ("fixed-checkpoint/1",)
+
+    def __init__(self, config: EvolveConfig) -> None:
+        self.config = config
+        self.run_key = "fixed-" + config.run_key()
+
+    def init(self) -> FixedState:
+        """The topology, then P random networks, from the run's generator."""
+        seq = np.random.SeedSequence([self.config.seed, 0xF1])
+        rng = np.random.Generator(np.random.PCG64(seq))
+        topology = FixedTopology.random(rng, self.config.neurons)
+        population = [fixed.random_network(rng, topology) for _ in range(self.config.population)]
+        return FixedState(population, rng.bit_generator.state, topology)
+
+    def ask(self, state: FixedState) -> tuple[list[FixedNetwork], FixedState]:
+        """The population."""
+        return state.population, state
+
+    def tell(self, state: FixedState, fitness: np.ndarray) -> FixedState:
+        """Breed with ANT's GA and the fixed network's operators."""
+        rng = generator(state.rng_state)
+        population = next_generation(
+            rng,
+            state.population,
+            fitness,
+            self.config.ga,
+            crossover=functools.partial(fixed.crossover, topology=state.topology),
+            mutate=fixed.mutate,
+        )
+        return FixedState(population, rng.bit_generator.state, state.topology)
+
+    def compiler(self, state: FixedState) -> Callable:
+        """Networks compile into programs in the workers."""
+        return functools.partial(compile_fixed, state.topology)
+
+    def title(self, state: FixedState) -> str:
+        """Plot title."""
+        c = self.config
+        return (
+            f"fixed network {state.topology.layers}, P={c.population}, S={c.scenarios}, T={c.steps}"
+        )
+
+    def neurons(self, state: FixedState, net: FixedNetwork) -> int:
+        """Hidden plus output neurons."""
+        return state.topology.n_neurons
+
+    def robots(self, net: FixedNetwork) -> None:
+        """No N gene."""
+        return None
+
+    def best_document(self, state: FixedState, net: FixedNetwork, info: dict) -> dict:
+        """The network program with its metadata."""
+        meta = {"kind": "fixed", "fitness": info["fitness"], "generation": info["generation"]}
+        meta.update(hidden=list(state.topology.hidden), seed=self.config.seed)
+        return program_to_dict(compile_fixed(state.topology, net), meta)
+
+    def dump_best(self, document: dict) -> str:
+        """Compact JSON."""
+        return json.dumps(document)
+
+    def check_best(self, document: dict, label: str) -> None:
+        """A valid network program."""
+        program_from_dict(document, label)
+
+    def state_to_dict(self, state: FixedState, out: Path) -> dict:
+        """Topology, population and generator state."""
+        return {
+            "hidden": list(state.topology.hidden),
+            "rng_state": state.rng_state,
+            "population": [p.to_dict() for p in state.population],
+        }
+
+    def state_from_dict(self, data: dict, out: Path, label: str) -> FixedState:
+        """Inverse of :meth:`state_to_dict`."""
+        topology = FixedTopology(tuple(data["hidden"]))
+        population = [FixedNetwork.from_dict(d) for d in data["population"]]
+        generator(data["rng_state"])
+        return FixedState(population, data["rng_state"], topology)
 
 
 def run_fixed(
@@ -139,76 +228,126 @@ def run_fixed(
     Raises:
         CheckpointError: As :func:`ant_evolution.evolve.run_evolution`.
     """
-    out = Path(out)
-    ckpt = out / "checkpoint.json"
-    _start(out, config, resume, ckpt.name)
-    key = "fixed-" + config.run_key()
-    if resume:
-        try:
-            data = json.loads(ckpt.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise CheckpointError(str(ckpt), "does not exist; nothing to resume") from None
-        except ValueError as exc:
-            raise CheckpointError(str(ckpt), f"is corrupt ({exc})") from None
-        if data.get("run_key") != key:
-            raise CheckpointError(str(ckpt), "was written by a run with a different configuration")
-        topology = FixedTopology(tuple(data["hidden"]))
-        population = [FixedNetwork.from_dict(d) for d in data["population"]]
-        rng = np.random.Generator(np.random.PCG64())
-        rng.bit_generator.state = data["rng_state"]
-        g, history, evaluations = data["generation"], data["history"], data["evaluations"]
-        best_fit = data["best_fitness"]
-    else:
-        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([config.seed, 0xF1])))
-        topology = FixedTopology.random(rng, config.neurons)
-        population = [random_network(rng, topology) for _ in range(config.population)]
-        g, history, evaluations, best_fit = 0, [], 0, -1.0
-    title = (
-        f"fixed network {topology.layers}, P={config.population}, "
-        f"S={config.scenarios}, T={config.steps}"
-    )
-    blueprints = blueprints_of(config)
-    done = 0
-    with ProgramEvaluator(workers, ray_address) as evaluator:
-        while g < config.generations:
-            t0 = time.perf_counter()
-            programs = [compile_fixed(topology, p) for p in population]
-            fit = evaluator.evaluate(programs, scenario_sets(config, g, blueprints))
-            evaluations += len(population) * config.scenarios
-            i = int(np.argmax(fit))
-            if fit[i] > best_fit:
-                best_fit = float(fit[i])
-                meta = {"kind": "fixed", "fitness": best_fit, "generation": g}
-                meta.update(hidden=list(topology.hidden), seed=config.seed)
-                write_text_atomic(out / "best.json", json.dumps(program_to_dict(programs[i], meta)))
-            neurons = [topology.n_neurons] * len(population)
-            history.append(_row(g, evaluations, fit, best_fit, neurons, t0))
-            population = next_generation(rng, population, fit, config.ga, topology)
-            g += 1
-            done += 1
-            if progress is not None:
-                progress(history[-1])
-            stopping = stop_after is not None and done >= stop_after
-            if g == config.generations or stopping or g % config.checkpoint_every == 0:
-                _write_outputs(out, history, title)
-                state = {
-                    "format": "fixed-checkpoint/1",
-                    "run_key": key,
-                    "hidden": list(topology.hidden),
-                    "generation": g,
-                    "rng_state": rng.bit_generator.state,
-                    "evaluations": evaluations,
-                    "best_fitness": best_fit,
-                    "history": history,
-                    "population": [p.to_dict() for p in population],
-                }
-                write_text_atomic(ckpt, json.dumps(state))
-            if stopping:
-                break
-    return history
+    strategy = FixedStrategy(config)
+    return _run(strategy, Path(out), workers, ray_address, resume, progress, stop_after)
 
 
 # --- NEAT ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class NeatState:
+    """A NEAT run's state: neat-python's ``Population`` (``tell`` advances it in place).
+
+    Attributes:
+        population: The library's population object (genomes, species, reproduction).
+    """
+
+    population: Any
+
+
+class NeatStrategy:
+    """NEAT (neat-python) behind the ask / tell seam.
+
+    Population size, generations, scenarios and seed come from ``config``; the GA
+    operators are NEAT's own (``neat.ini`` in ``out`` holds them).
+
+    Args:
+        config: The run's configuration.
+        out: The run directory (``neat.ini`` and neat-python's checkpoint live there).
+    """
+
+    checkpoint_name = "neat-state.json"
+    checkpoint_formats = ("neat-state/1", None)  # None: side files written before the format
+
+    def __init__(self, config: EvolveConfig, out: Path) -> None:
+        self.config = config
+        self.run_key = "neat-" + config.run_key()
+        self.out = out
+        hidden = neat_hidden(config.seed, config.neurons)
+        self.neat_config = neat_config(out / "neat.ini", config.population, hidden)
+
+    def init(self) -> NeatState:
+        """neat-python's initial population (seeded with ``config.seed``)."""
+        import neat
+
+        return NeatState(neat.Population(self.neat_config, seed=self.config.seed))
+
+    def ask(self, state: NeatState) -> tuple[list, NeatState]:
+        """The genomes, in neat-python's order."""
+        return list(state.population.population.values()), state
+
+    def tell(self, state: NeatState, fitness: np.ndarray) -> NeatState:
+        """One generation of neat-python with the given fitness (its own ``run``)."""
+        pop = state.population
+
+        def assign(genomes, _config) -> None:
+            for (_, genome), f in zip(genomes, fitness, strict=True):
+                genome.fitness = float(f)
+
+        pop.run(assign, 1)
+        return state
+
+    def compiler(self, state: NeatState) -> Callable:
+        """Genomes compile into programs in the workers, with the population's config."""
+        return functools.partial(compile_neat, config=state.population.config)
+
+    def title(self, state: NeatState) -> str:
+        """Plot title."""
+        c = self.config
+        return f"NEAT, P={c.population}, S={c.scenarios}, T={c.steps}"
+
+    def neurons(self, state: NeatState, genome) -> int:
+        """Hidden plus output nodes."""
+        return len(genome.nodes)
+
+    def robots(self, genome) -> None:
+        """No N gene."""
+        return None
+
+    def best_document(self, state: NeatState, genome, info: dict) -> dict:
+        """The compiled network program with its metadata."""
+        meta = {"kind": "neat", "fitness": info["fitness"], "generation": info["generation"]}
+        meta["seed"] = self.config.seed
+        return program_to_dict(compile_neat(genome, state.population.config), meta)
+
+    def dump_best(self, document: dict) -> str:
+        """Compact JSON."""
+        return json.dumps(document)
+
+    def check_best(self, document: dict, label: str) -> None:
+        """A valid network program."""
+        program_from_dict(document, label)
+
+    def state_to_dict(self, state: NeatState, out: Path) -> dict:
+        """Write neat-python's checkpoint (atomically); the JSON part holds nothing more."""
+        import neat
+
+        pop = state.population
+        g = pop.generation
+        saver = neat.Checkpointer(None, filename_prefix=str(out / ".tmp-neat-"))
+        with contextlib.redirect_stdout(io.StringIO()):
+            saver.save_checkpoint(pop.config, pop.population, pop.species, g)
+        os.replace(out / f".tmp-neat-{g}", out / "neat-checkpoint.gz")
+        return {}
+
+    def state_from_dict(self, data: dict, out: Path, label: str) -> NeatState:
+        """neat-python's population from its checkpoint (with its pickled config).
+
+        Raises:
+            CheckpointError: The library's checkpoint is missing or from another generation.
+        """
+        import neat
+
+        ckpt = out / "neat-checkpoint.gz"
+        if not ckpt.exists():
+            raise CheckpointError(str(ckpt), "does not exist; nothing to resume")
+        # the pickled config carries neat-python's node indexer: a fresh config would
+        # restart it and hand out node keys that genomes already use
+        pop = neat.Checkpointer.restore_checkpoint(str(ckpt))
+        if pop.generation != data["generation"]:
+            raise CheckpointError(label, "does not match neat-checkpoint.gz")
+        return NeatState(pop)
 
 
 def run_neat(
@@ -223,82 +362,10 @@ def run_neat(
 ) -> list[dict]:
     """Evolve NEAT networks with neat-python (or resume); returns the history rows.
 
-    Population size, generations, scenarios and seed come from ``config``; the GA
-    operators are NEAT's own (``neat.ini`` in ``out`` holds them).
-
     Raises:
         CheckpointError: As :func:`ant_evolution.evolve.run_evolution`.
     """
-    import neat
-
     out = Path(out)
-    ckpt = out / "neat-checkpoint.gz"
-    side = out / "neat-state.json"
-    _start(out, config, resume, ckpt.name)
-    key = "neat-" + config.run_key()
-    cfg = neat_config(out / "neat.ini", config.population, neat_hidden(config.seed, config.neurons))
-    if resume:
-        if not ckpt.exists() or not side.exists():
-            raise CheckpointError(str(ckpt), "does not exist; nothing to resume")
-        data = json.loads(side.read_text(encoding="utf-8"))
-        if data.get("run_key") != key:
-            raise CheckpointError(str(side), "was written by a run with a different configuration")
-        # the pickled config carries neat-python's node indexer: a fresh config would
-        # restart it and hand out node keys that genomes already use
-        pop = neat.Checkpointer.restore_checkpoint(str(ckpt))
-        if pop.generation != data["generation"]:
-            raise CheckpointError(str(side), "does not match neat-checkpoint.gz")
-        history, evaluations, best_fit = data["history"], data["evaluations"], data["best_fitness"]
-    else:
-        pop = neat.Population(cfg, seed=config.seed)
-        history, evaluations, best_fit = [], 0, -1.0
-    title = f"NEAT, P={config.population}, S={config.scenarios}, T={config.steps}"
-    blueprints = blueprints_of(config)
-    saver = neat.Checkpointer(None, filename_prefix=str(out / ".tmp-neat-"))
-    done = 0
-    with ProgramEvaluator(workers, ray_address) as evaluator:
-
-        def fitness_function(genomes, neat_cfg) -> None:
-            nonlocal evaluations, best_fit
-            t0 = time.perf_counter()
-            g = pop.generation
-            fit = evaluator.evaluate(
-                [genome for _, genome in genomes],
-                scenario_sets(config, g, blueprints),
-                functools.partial(compile_neat, config=neat_cfg),
-            )
-            for (_, genome), f in zip(genomes, fit, strict=True):
-                genome.fitness = float(f)
-            evaluations += len(genomes) * config.scenarios
-            i = int(np.argmax(fit))
-            if fit[i] > best_fit:
-                best_fit = float(fit[i])
-                meta = {"kind": "neat", "fitness": best_fit, "generation": g, "seed": config.seed}
-                best = compile_neat(genomes[i][1], neat_cfg)
-                write_text_atomic(out / "best.json", json.dumps(program_to_dict(best, meta)))
-            neurons = [len(genome.nodes) for _, genome in genomes]
-            history.append(_row(g, evaluations, fit, best_fit, neurons, t0))
-
-        while pop.generation < config.generations:
-            pop.run(fitness_function, 1)
-            done += 1
-            if progress is not None:
-                progress(history[-1])
-            g = pop.generation
-            stopping = stop_after is not None and done >= stop_after
-            if g == config.generations or stopping or g % config.checkpoint_every == 0:
-                _write_outputs(out, history, title)
-                with contextlib.redirect_stdout(io.StringIO()):
-                    saver.save_checkpoint(pop.config, pop.population, pop.species, g)
-                os.replace(out / f".tmp-neat-{g}", ckpt)
-                state = {
-                    "run_key": key,
-                    "generation": g,
-                    "evaluations": evaluations,
-                    "best_fitness": best_fit,
-                    "history": history,
-                }
-                write_text_atomic(side, json.dumps(state))
-            if stopping:
-                break
-    return history
+    out.mkdir(parents=True, exist_ok=True)
+    strategy = NeatStrategy(config, out)
+    return _run(strategy, out, workers, ray_address, resume, progress, stop_after)

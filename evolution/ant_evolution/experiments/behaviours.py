@@ -8,8 +8,9 @@ Two parts (paper, section 5.1 "Evolution of Behaviors through Task Decomposition
    run: every generation's best fitness is checked against its ``history.csv`` when it
    exists). Every ``trace_every`` generations the generation's best genome runs on
    ``trace_scenarios`` scenarios, step by step, and each robot-step is classified by the
-   Table 3 detectors of :mod:`excavation_sim.detectors`. The replay checkpoints with
-   :func:`ant_evolution.evolve.save_checkpoint`, so it resumes.
+   Table 3 detectors of :mod:`excavation_sim.detectors`. The replay is the one generation
+   loop (:func:`ant_evolution.loop.run_generations`) with ANT's strategy and a hook that
+   checks and traces; it checkpoints at every traced generation, so it resumes.
 2. **Neuronal activity.** The 4-robot controller (``--genome`` or the best of the run) runs
    one 4-robot scenario; for robot 0 we record, per timestep, every living decision
    neuron's state, how many motor neurons coarse coding selects, and the detectors. The
@@ -32,15 +33,7 @@ from ant_controller.layout import N_SENSORS, SENSOR_SCALE
 from ant_controller.tissue import CompiledTissue, activation
 from ant_evolution.backends import Evaluator
 from ant_evolution.evaluate import ScenarioSet
-from ant_evolution.evolve import (
-    RunState,
-    blueprints_of,
-    initial_population,
-    load_checkpoint,
-    load_config,
-    save_checkpoint,
-    scenario_sets,
-)
+from ant_evolution.evolve import AntStrategy, blueprints_of, load_config, scenario_sets
 from ant_evolution.experiments.core import (
     EVAL_SEED,
     Context,
@@ -52,7 +45,13 @@ from ant_evolution.experiments.core import (
     write_csv,
     write_section,
 )
-from ant_evolution.ga import next_generation
+from ant_evolution.loop import (
+    Generation,
+    RunState,
+    load_checkpoint,
+    run_generations,
+    save_checkpoint,
+)
 from excavation_sim.detectors import DETECTOR_TITLES, DETECTORS, detect, random_turn_direction
 from excavation_sim.world import HEADING
 
@@ -147,41 +146,41 @@ def _replay(ctx: Context, out) -> tuple[list[dict], object]:
     rows_path = out / "rows.json"
     ckpt_dir = out / "replay"
     ckpt_dir.mkdir(exist_ok=True)
-    if (ckpt_dir / "checkpoint.json").exists() and rows_path.exists():
-        state = load_checkpoint(ckpt_dir, config)
+    strategy = AntStrategy(config)
+    if (ckpt_dir / strategy.checkpoint_name).exists() and rows_path.exists():
+        run = load_checkpoint(ckpt_dir, strategy)
         rows = json.loads(rows_path.read_text())
-        rng = np.random.Generator(np.random.PCG64())
-        rng.bit_generator.state = state.rng_state
     else:
-        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([config.seed, 0xA17])))
-        state = RunState(0, initial_population(config, rng), {}, [], None, -1.0, 0)
+        run = RunState.start(strategy)
         rows = []
     blueprints = blueprints_of(config)
     bp = site(8, 1)
+
+    def check_and_trace(event: Generation) -> None:
+        g = event.index
+        i = int(np.argmax(event.fitness))
+        best = float(event.fitness[i])
+        if g < len(history) and history[g]["best"] != best:
+            raise RuntimeError(f"replay of {hist_path} differs at generation {g}")
+        if g in traced:
+            batch = ScenarioSet.create(bp, robots, n_trace, config.steps, EVAL_SEED + 7)
+            res = trace(Controller.from_genome(event.population[i]), batch)
+            rows.append({"generation": g, "best": best, "robot_steps": res["robot_steps"],
+                         **res["hits"]})  # fmt: skip
+        bar.update()
+        if g in traced or event.run.generation == config.generations:
+            save_checkpoint(ckpt_dir, strategy, event.run)
+            rows_path.write_text(json.dumps(rows))
+
     with (
         Evaluator(ctx.workers, ctx.ray_address) as ev,
         tqdm(
-            total=config.generations, initial=state.generation, desc="behaviours", unit="gen"
+            total=config.generations, initial=run.generation, desc="behaviours", unit="gen"
         ) as bar,
     ):
-        while state.generation < config.generations:
-            g = state.generation
-            fit = ev.evaluate(state.population, scenario_sets(config, g, blueprints))
-            i = int(np.argmax(fit))
-            if g < len(history) and history[g]["best"] != float(fit[i]):
-                raise RuntimeError(f"replay of {hist_path} differs at generation {g}")
-            if g in traced:
-                batch = ScenarioSet.create(bp, robots, n_trace, config.steps, EVAL_SEED + 7)
-                res = trace(Controller.from_genome(state.population[i]), batch)
-                rows.append({"generation": g, "best": float(fit[i]),
-                             "robot_steps": res["robot_steps"], **res["hits"]})  # fmt: skip
-            state.population = next_generation(rng, state.population, fit, config.ga)
-            state.generation = g + 1
-            state.rng_state = rng.bit_generator.state
-            bar.update()
-            if g in traced or state.generation == config.generations:
-                save_checkpoint(ckpt_dir, config, state)
-                rows_path.write_text(json.dumps(rows))
+        run_generations(
+            strategy, run, ev, lambda g: scenario_sets(config, g, blueprints), [check_and_trace]
+        )
     return rows, hist_path.parent
 
 

@@ -17,6 +17,8 @@ from pathlib import Path
 
 from ant_evolution.errors import CheckpointError, ConfigError
 from ant_evolution.experiments.core import SCALES, Context, scale_dict
+from ant_evolution.limits import MAX_WORKERS, option
+from excavation_common.limits import int_in
 
 
 def _experiments() -> dict:
@@ -49,8 +51,10 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="ant-experiment", description=__doc__.split("\n\n")[0])
     p.add_argument("name", choices=NAMES)
     p.add_argument("--scale", choices=sorted(SCALES), default="medium")
-    p.add_argument("--runs", type=int, default=None, help="repetitions per setting")
-    p.add_argument("--workers", type=int, default=1, help="local worker processes")
+    p.add_argument("--runs", type=int_in(1, 1000), default=None, help="repetitions per setting")
+    p.add_argument(
+        "--workers", type=int_in(1, MAX_WORKERS), default=1, help="local worker processes"
+    )
     p.add_argument("--ray-address", default=None, help="Ray address ('local' for a local Ray)")
     p.add_argument("--genome", type=Path, default=None,
                    help="4-robot ANT genome for antagonism/depth/area/behaviours")  # fmt: skip
@@ -62,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument(
         "--generations",
-        type=int,
+        type=option("generations"),
         default=None,
         help="behaviours: replay only this many generations",
     )

@@ -22,7 +22,7 @@ from tqdm import tqdm
 
 from ant_controller.controller import Controller
 from ant_controller.genome_io import load_genome
-from ant_evolution.baselines.network import NetworkProgram, score_program
+from ant_evolution.baselines.network import NetworkProgram
 from ant_evolution.baselines.runs import load_program, run_fixed, run_neat
 from ant_evolution.evaluate import ScenarioSet
 from ant_evolution.evolve import EvolveConfig, run_evolution
@@ -293,10 +293,7 @@ def four_robot_genome(ctx: Context) -> Path:
 
 def score(controller, blueprint: Blueprint, robots: int, scenarios: int, steps: int, seed: int):
     """Final fitness of a controller (ANT, hand-coded or network program) per scenario."""
-    batch = ScenarioSet.create(blueprint, robots, scenarios, steps, seed)
-    if isinstance(controller, NetworkProgram):
-        return score_program(controller, batch)
-    return batch.score(controller)
+    return ScenarioSet.create(blueprint, robots, scenarios, steps, seed).score(controller)
 
 
 def score_depths(controller, ctx: Context, robots: int, steps: int | None = None, size: int = 8):

@@ -26,6 +26,8 @@ setup(
         "tqdm",
         "rosbags",
         "mcap",
+        "terrain_mapper",
+        "opencv-python-headless",
     ],
     zip_safe=True,
     maintainer="ANT excavation maintainers",

@@ -4,8 +4,8 @@
 :class:`ControllerCore` is the per-robot state machine a ROS controller node runs: from
 arrays decoded from messages (heights and goal in soil units, zones, poses, blade code and
 load, stuck flag) it computes the sensor vector with :func:`ant_controller.sensing.sense`,
-the same function the simulator uses, asks the controller, and updates the memory bit the
-way the simulator does (bit set, then bit clear, in Table 2 order). R1 (tilt) is computed
+the same function the simulator uses, asks the controller, and updates the memory bit with
+the simulator's own rule (:func:`ant_controller.memory.next_memory`). R1 (tilt) is computed
 from the height map as in the simulator. ``tests/test_controller_core.py`` runs whole
 episodes through messages and this core and gets the offline evaluator's results exactly.
 """
@@ -19,10 +19,11 @@ import numpy as np
 
 from ant_controller.genome import Genome, TissueGene
 from ant_controller.genome_io import load_genome
-from ant_controller.hand_coded import hand_coded_decide
-from ant_controller.layout import BIT_CLEAR, BIT_SET, N_SENSORS
+from ant_controller.hand_coded import HandCodedRules, hand_coded_decide
+from ant_controller.layout import N_SENSORS
+from ant_controller.memory import next_memory
 from ant_controller.sensing import is_tilted_down, sensor_vector
-from ant_controller.tissue import CompiledTissue, compile_tissue, decide
+from ant_controller.tissue import CompiledTissue, TissueRecord, compile_tissue, decide
 
 KIND_ANT = 0
 KIND_HAND_CODED = 1
@@ -59,12 +60,18 @@ class Controller:
         """The appendix's hand-coded controller."""
         return cls(KIND_HAND_CODED, _EMPTY_TISSUE, "hand-coded")
 
+    def record(self) -> TissueRecord | HandCodedRules:
+        """The decision program as the kernels take it (a tissue record or the rules)."""
+        if self.kind == KIND_HAND_CODED:
+            return HandCodedRules()
+        return self.tissue.record()
+
     def decide(self, codes: np.ndarray) -> int:
         """Behaviour mask for one sensor vector."""
         c = np.asarray(codes, dtype=np.int64)
         if self.kind == KIND_HAND_CODED:
             return int(hand_coded_decide(c))
-        return int(decide(c, self.tissue.arrays()))
+        return int(decide(c, self.tissue.record()))
 
 
 _EMPTY_TISSUE = compile_tissue(Genome(tissue=TissueGene(), cells=()))
@@ -125,10 +132,7 @@ class ControllerCore:
             active=active,
         )
         mask = self.controller.decide(self._codes)
-        if mask >> BIT_SET & 1:
-            self.memory = 1
-        if mask >> BIT_CLEAR & 1:
-            self.memory = 0
+        self.memory = int(next_memory(self.memory, mask))
         return mask
 
     @property

@@ -19,7 +19,9 @@ Layout of a file (``docs/genome-format.md`` has a complete example)::
     }
 
 Loading never executes or unpickles anything: it parses JSON and checks every field,
-raising :class:`GenomeFormatError` with the file, the field path and the value.
+raising :class:`GenomeFormatError` with the file, the field path and the value. The limits
+of :mod:`ant_controller.limits` (file size, nesting, gene count, lattice, team size) are
+checked before anything is built from the file; a key given twice is an error.
 """
 
 from __future__ import annotations
@@ -39,11 +41,18 @@ from ant_controller.genome import (
     TissueGene,
 )
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, layout_dict
+from ant_controller.limits import (
+    MAX_GENES,
+    MAX_GENOME_BYTES,
+    MAX_HALF_WIDTH,
+    MAX_LAYERS,
+    MAX_NESTING,
+    MAX_ROBOTS,
+)
 from excavation_common.files import write_text_atomic
+from excavation_common.loaders import load_json
 
 FORMAT = "ant-genome/1"
-MAX_HALF_WIDTH = 64
-MAX_LAYERS = 3
 
 _TOP_KEYS = {"format", "layout", "lattice", "controller", "tissue", "cells", "metadata"}
 _CELL_KEYS = {
@@ -120,24 +129,7 @@ def load_genome(path: str | Path) -> Genome:
         GenomeFormatError: For any problem, naming the file, the field and the value.
     """
     label = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise GenomeFormatError(label, "<file>", label, "does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise GenomeFormatError(label, "<file>", label, f"cannot be read: {exc}") from None
-
-    def reject_constant(name: str) -> float:
-        raise GenomeFormatError(label, "<json>", name, "NaN and Infinity are not allowed")
-
-    try:
-        data = json.loads(text, parse_constant=reject_constant)
-    except json.JSONDecodeError as exc:
-        raise GenomeFormatError(
-            label, f"line {exc.lineno} column {exc.colno}", None, f"is not valid JSON: {exc.msg}"
-        ) from None
-    except (ValueError, RecursionError) as exc:  # huge integers, absurd nesting
-        raise GenomeFormatError(label, "<json>", None, f"cannot be parsed: {exc}") from None
+    data = load_json(label, GenomeFormatError, max_bytes=MAX_GENOME_BYTES, max_depth=MAX_NESTING)
     return genome_from_dict(data, label)
 
 
@@ -255,7 +247,7 @@ def genome_from_dict(data: object, path: str = "<memory>") -> Genome:
     t = ck.mapping(data["tissue"], "tissue", _TISSUE_KEYS, _TISSUE_KEYS - {"robots"})
     robots = t.get("robots")
     if robots is not None:
-        robots = ck.integer(robots, "tissue.robots", 1, 1000)
+        robots = ck.integer(robots, "tissue.robots", 1, MAX_ROBOTS)
     seed = ck.int_triple(t, "seed", "tissue.seed", -MAX_HALF_WIDTH, MAX_HALF_WIDTH)
     if not lattice.contains(seed):
         raise ck.fail("tissue.seed", list(seed), f"lies outside the lattice {lattice}")
@@ -269,6 +261,8 @@ def genome_from_dict(data: object, path: str = "<memory>") -> Genome:
     raw_cells = data["cells"]
     if not isinstance(raw_cells, list):
         raise ck.fail("cells", type(raw_cells).__name__, "must be a list of cell genes")
+    if len(raw_cells) > MAX_GENES:
+        raise ck.fail("cells", f"{len(raw_cells)} genes", f"exceeds the limit of {MAX_GENES} genes")
     cells = []
     seen: dict[tuple[int, int, int], int] = {}
     span = 2 * MAX_HALF_WIDTH + MAX_LAYERS

@@ -30,6 +30,8 @@ forward and back on the spot forever).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba as nb
 import numpy as np
 
@@ -48,6 +50,11 @@ from ant_controller.layout import (
     Z_LEVEL,
     mask_of,
 )
+
+
+class HandCodedRules(NamedTuple):
+    """The hand-coded controller as a decision program for the kernels (it has no data)."""
+
 
 _STUCK = mask_of(1, 4, 7, 10, 12)
 _OBSTACLE = mask_of(4)

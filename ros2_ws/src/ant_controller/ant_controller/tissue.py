@@ -1,9 +1,11 @@
 """Development of a genome into a tissue, and the tissue's computation (paper, 3.1-3.3).
 
 ``develop`` grows the cells of a genome on the lattice; ``compile_tissue`` flattens the
-grown tissue into arrays once; ``decide`` (numba) and ``decide_reference`` (plain Python,
-written for reading) map a sensor vector to a behaviour bit mask. Tests hold the two to
-bit-identical answers.
+grown tissue into arrays once (a :class:`TissueRecord`, the form the kernels take, its
+fields read by name); ``decide`` (numba) and ``decide_reference`` (plain Python, written
+for reading) map a sensor vector to a behaviour bit mask. Tests hold the two to
+bit-identical answers. :func:`activation` is the one modular activation function of the
+code base (the network baselines and both forms here call it).
 
 The computation of one decision, in order:
 
@@ -29,12 +31,13 @@ The computation of one decision, in order:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
 from ant_controller.genome import DECISION, MOTOR, Genome
-from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, SENSOR_SCALE, SENSOR_STATES
+from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, SENSOR_SCALE
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,51 @@ def develop(genome: Genome) -> list[Cell]:
         taken.add(pos)
         cells.append(Cell(i, gene.kind, pos, gene.dead))
     return cells
+
+
+class TissueRecord(NamedTuple):
+    """A compiled tissue as the numba kernels take it (fields by name, never by position).
+
+    Attributes:
+        mn_layer: ``int64 [M]`` layer of each living motor neuron (sorted by layer, l, m).
+        mn_func: ``int64 [M]`` activation function ``k1 * 2 + k2``.
+        mn_theta: ``float64 [M, 2]`` thresholds.
+        mn_sensor_w: ``float64 [M, 14]`` sensor weights (layer 1).
+        mn_in_idx: ``int64 [M, 9]`` motor neuron at each of the 3 x 3 sites below, -1: none.
+        mn_in_w: ``float64 [M, 9]`` weights of those inputs.
+        mn_behaviour: ``int64 [M]`` behaviour an output neuron votes for, -1: not an output.
+        dn_func: ``int64 [D]`` decision neurons' activation functions.
+        dn_theta: ``float64 [D, 2]`` their thresholds.
+        dn_sensor_w: ``float64 [D, 14]`` their sensor weights.
+        dn_conc: ``float64 [D]`` their concentration c.
+        dn_member: ``bool [D, M]`` motor neuron j lies in decision neuron d's field.
+        coarse_coding: False: every motor neuron is always active.
+    """
+
+    mn_layer: np.ndarray
+    mn_func: np.ndarray
+    mn_theta: np.ndarray
+    mn_sensor_w: np.ndarray
+    mn_in_idx: np.ndarray
+    mn_in_w: np.ndarray
+    mn_behaviour: np.ndarray
+    dn_func: np.ndarray
+    dn_theta: np.ndarray
+    dn_sensor_w: np.ndarray
+    dn_conc: np.ndarray
+    dn_member: np.ndarray
+    coarse_coding: bool
+
+
+class TissueScratch(NamedTuple):
+    """Work buffers of one decision (:func:`new_scratch`), sized for one tissue."""
+
+    x: np.ndarray
+    active: np.ndarray
+    conc: np.ndarray
+    state: np.ndarray
+    votes: np.ndarray
+    voters: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -112,22 +160,22 @@ class CompiledTissue:
         """Output neurons (living motor neurons of the top occupied layer)."""
         return int(np.count_nonzero(self.mn_behaviour >= 0))
 
-    def arrays(self) -> tuple:
-        """The arrays as one tuple, the form :func:`decide` takes."""
-        return (
-            self.mn_layer,
-            self.mn_func,
-            self.mn_theta,
-            self.mn_sensor_w,
-            self.mn_in_idx,
-            self.mn_in_w,
-            self.mn_behaviour,
-            self.dn_func,
-            self.dn_theta,
-            self.dn_sensor_w,
-            self.dn_conc,
-            self.dn_member,
-            self.coarse_coding,
+    def record(self) -> TissueRecord:
+        """The arrays as a :class:`TissueRecord`, the form the kernels take."""
+        return TissueRecord(
+            mn_layer=self.mn_layer,
+            mn_func=self.mn_func,
+            mn_theta=self.mn_theta,
+            mn_sensor_w=self.mn_sensor_w,
+            mn_in_idx=self.mn_in_idx,
+            mn_in_w=self.mn_in_w,
+            mn_behaviour=self.mn_behaviour,
+            dn_func=self.dn_func,
+            dn_theta=self.dn_theta,
+            dn_sensor_w=self.dn_sensor_w,
+            dn_conc=self.dn_conc,
+            dn_member=self.dn_member,
+            coarse_coding=bool(self.coarse_coding),
         )
 
 
@@ -207,9 +255,14 @@ def compile_tissue(genome: Genome, coarse_coding: bool | None = None) -> Compile
 
 @nb.njit(cache=True, inline="always")
 def activation(func, theta1, theta2, sigma):
-    """The modular activation function psi, ``func = k1 * 2 + k2``.
+    """The modular activation function psi, ``func = k1 * 2 + k2`` (paper, section 3.3).
 
-    0: psi_down, 1: psi_up, 2: psi_ditch, 3: psi_mound (paper, section 3.3).
+    The paper writes it as one sum of the four terms,
+    ``psi = (1 - k1)((1 - k2) psi_down + k2 psi_up) + k1((1 - k2) psi_ditch + k2 psi_mound)``;
+    exactly one term is selected, so this evaluates only that one:
+    0: psi_down (``0 if sigma >= theta1 else 1``), 1: psi_up (``0 if sigma <= theta2``),
+    2: psi_ditch (``0 if min <= sigma < max``), 3: psi_mound (``0 if sigma <= min or
+    sigma > max``), with ``min, max`` of the two thresholds.
     """
     if func == 0:
         return 0 if sigma >= theta1 else 1
@@ -224,9 +277,9 @@ def activation(func, theta1, theta2, sigma):
 
 @nb.njit(cache=True)
 def new_scratch(tissue):
-    """Work buffers for :func:`decide_into`, sized for one compiled tissue."""
-    m = tissue[0].shape[0]
-    return (
+    """Work buffers for :func:`decide_into`, sized for one :class:`TissueRecord`."""
+    m = tissue.mn_layer.shape[0]
+    return TissueScratch(
         np.empty(N_SENSORS, dtype=np.float64),
         np.empty(m, dtype=np.bool_),
         np.empty(m, dtype=np.float64),
@@ -242,7 +295,7 @@ def decide(codes, tissue):
 
     Args:
         codes: Integer sensor vector (length 14).
-        tissue: The tuple :meth:`CompiledTissue.arrays` returns.
+        tissue: A :class:`TissueRecord` (:meth:`CompiledTissue.record`).
     """
     return decide_into(codes, tissue, new_scratch(tissue))
 
@@ -250,29 +303,31 @@ def decide(codes, tissue):
 @nb.njit(cache=True, inline="always")
 def decide_into(codes, tissue, scratch):
     """:func:`decide` with caller-owned work buffers (:func:`new_scratch`); allocates nothing."""
-    (
-        mn_layer,
-        mn_func,
-        mn_theta,
-        mn_sensor_w,
-        mn_in_idx,
-        mn_in_w,
-        mn_behaviour,
-        dn_func,
-        dn_theta,
-        dn_sensor_w,
-        dn_conc,
-        dn_member,
-        coarse_coding,
-    ) = tissue
-    x, active, conc, state, votes, voters = scratch
+    mn_layer = tissue.mn_layer
+    mn_func = tissue.mn_func
+    mn_theta = tissue.mn_theta
+    mn_sensor_w = tissue.mn_sensor_w
+    mn_in_idx = tissue.mn_in_idx
+    mn_in_w = tissue.mn_in_w
+    mn_behaviour = tissue.mn_behaviour
+    dn_func = tissue.dn_func
+    dn_theta = tissue.dn_theta
+    dn_sensor_w = tissue.dn_sensor_w
+    dn_conc = tissue.dn_conc
+    dn_member = tissue.dn_member
+    x = scratch.x
+    active = scratch.active
+    conc = scratch.conc
+    state = scratch.state
+    votes = scratch.votes
+    voters = scratch.voters
     n_s = codes.shape[0]
     sx = 0.0
     for i in range(n_s):
         x[i] = codes[i] * SENSOR_SCALE[i]
         sx += x[i]
     m = mn_layer.shape[0]
-    if coarse_coding:
+    if tissue.coarse_coding:
         conc[:] = 0.0
         for d in range(dn_conc.shape[0]):
             num = 0.0
@@ -323,65 +378,19 @@ def decide_into(codes, tissue, scratch):
     return mask
 
 
-CACHE_BITS = 16
-"""A decision cache holds ``2 ** CACHE_BITS`` entries (direct-mapped)."""
-
-_RADIX = np.cumprod(np.concatenate(([1], SENSOR_STATES[:-1]))).astype(np.int64)
-
-
-def new_cache() -> tuple[np.ndarray, np.ndarray]:
-    """An empty decision cache: ``(keys, masks)``, keys -1 = empty slot."""
-    size = 1 << CACHE_BITS
-    return np.full(size, -1, dtype=np.int64), np.zeros(size, dtype=np.int64)
-
-
-@nb.njit(cache=True, inline="always")
-def sensor_key(codes):
-    """A unique integer for a sensor vector (mixed radix over the sensor state counts)."""
-    key = 0
-    for i in range(codes.shape[0]):
-        key += codes[i] * _RADIX[i]
-    return key
-
-
-@nb.njit(cache=True, inline="always")
-def decide_cached(codes, tissue, cache_keys, cache_masks, scratch):
-    """:func:`decide_into` through a direct-mapped cache of earlier answers.
-
-    A tissue's answer depends on the sensor vector alone, so a cache hit returns exactly
-    what :func:`decide` would. Use one cache per tissue (:func:`new_cache`).
-    """
-    key = sensor_key(codes)
-    slot = (np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(64 - CACHE_BITS)
-    if cache_keys[slot] == key:
-        return cache_masks[slot]
-    mask = decide_into(codes, tissue, scratch)
-    cache_keys[slot] = key
-    cache_masks[slot] = mask
-    return mask
-
-
 def decide_tissue(tissue: CompiledTissue, codes: np.ndarray) -> int:
     """:func:`decide` for a compiled tissue and one integer sensor vector."""
-    return int(decide(np.asarray(codes, dtype=np.int64), tissue.arrays()))
+    return int(decide(np.asarray(codes, dtype=np.int64), tissue.record()))
 
 
 # --- plain reference -------------------------------------------------------------------------
 
 
-def _psi(k1: int, k2: int, t1: float, t2: float, sigma: float) -> int:
-    """The modular activation as the paper writes it, term by term."""
-    down = 0 if sigma >= t1 else 1
-    up = 0 if sigma <= t2 else 1
-    ditch = 0 if min(t1, t2) <= sigma < max(t1, t2) else 1
-    mound = 0 if (sigma <= min(t1, t2) or sigma > max(t1, t2)) else 1
-    return (1 - k1) * ((1 - k2) * down + k2 * up) + k1 * ((1 - k2) * ditch + k2 * mound)
-
-
 def decide_reference(genome: Genome, codes, coarse_coding: bool | None = None) -> int:
     """Behaviour mask computed straight from the developed cells, for reading and testing.
 
-    Slow on purpose: no precomputed arrays, every rule spelled out over lattice positions.
+    Slow on purpose: no precomputed arrays, every rule spelled out over lattice positions
+    (the activation itself is the one :func:`activation`).
     """
     use_cc = genome.coarse_coding if coarse_coding is None else coarse_coding
     cells = [c for c in develop(genome) if not c.dead]
@@ -404,7 +413,7 @@ def decide_reference(genome: Genome, codes, coarse_coding: bool | None = None) -
     concentration = {c.position: 0.0 for c in motor}
     for c in decision:
         g = genome.cells[c.gene]
-        if _psi(g.k1, g.k2, g.theta1, g.theta2, weighted(g.sensor_weights, x, sx)) != 1:
+        if activation(g.k1 * 2 + g.k2, g.theta1, g.theta2, weighted(g.sensor_weights, x, sx)) != 1:
             continue
         for mc in motor:
             if all(abs(mc.position[a] - c.position[a]) <= g.extent[a] for a in range(3)):
@@ -433,7 +442,7 @@ def decide_reference(genome: Genome, codes, coarse_coding: bool | None = None) -
                         num += g.input_weights[3 * a + b] * s
                         den += s
             sigma = num / den if den != 0.0 else 0.0
-        state[c.position] = _psi(g.k1, g.k2, g.theta1, g.theta2, sigma)
+        state[c.position] = int(activation(g.k1 * 2 + g.k2, g.theta1, g.theta2, sigma))
     top = max((c.position[2] for c in motor), default=0)
     mask = 0
     for q in range(N_BEHAVIOURS):

@@ -14,8 +14,9 @@ Sources:
   or a per-cell form (rows of characters, northern row first, as drawn on a map);
 * images plus a scale (metres per pixel), see :func:`from_image`.
 
-Every loader raises :class:`BlueprintError` naming the file, the field and the value.
-This module imports no ``rclpy``.
+Every loader raises :class:`BlueprintError` naming the file, the field and the value, and
+checks the limits of :mod:`blueprint_server.limits` (grid cells, depths, file size, image
+pixels) before it allocates a grid or decodes an image. This module imports no ``rclpy``.
 """
 
 from __future__ import annotations
@@ -28,9 +29,18 @@ import numpy as np
 import yaml
 
 from blueprint_server.errors import BlueprintError
+from blueprint_server.limits import (
+    CELL_SIZE_RANGE,
+    HEIGHT_UNIT_RANGE,
+    MAX_BLUEPRINT_BYTES,
+    MAX_DEPTH_UNITS,
+    check_depth,
+    check_grid,
+)
 from excavation_common.constants import ZONE_DIG as DIG  # noqa: F401 (zone codes)
 from excavation_common.constants import ZONE_DONT_CARE as DONT_CARE  # noqa: F401
 from excavation_common.constants import ZONE_DUMP as DUMP  # noqa: F401
+from excavation_common.loaders import check_image, load_yaml
 
 FORMAT = "ant-blueprint/1"
 
@@ -174,10 +184,15 @@ def pit_blueprint(
     for fname, value in (("grid", grid), ("pit.size", pit_size)):
         if min(value) < 1:
             raise BlueprintError(label, fname, list(value), "sizes must be positive")
-    if depth < 1:
-        raise BlueprintError(label, "pit.depth", depth, "depth must be at least 1 soil unit")
-    if dump_band < 0:
-        raise BlueprintError(label, "dump_band", dump_band, "must be 0 or more")
+        check_grid(label, fname, int(value[0]), int(value[1]))
+    check_depth(label, "pit.depth", int(depth))
+    if not 0 <= dump_band <= max(rows, cols):
+        raise BlueprintError(
+            label,
+            "dump_band",
+            dump_band,
+            f"must be 0 or more, at most {max(rows, cols)} (the grid's side)",
+        )
     if origin is None:
         origin = ((rows - pr) // 2, (cols - pc) // 2)
     r0, c0 = (int(v) for v in origin)
@@ -218,9 +233,15 @@ def landing_pad(
         BlueprintError: When a size is not positive or rounds to zero cells.
     """
     label = f"landing pad (cell {cell_size} m, unit {height_unit} m)"
-    for fname, value in (("cell_size", cell_size), ("height_unit", height_unit)):
-        if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-            raise BlueprintError(label, fname, value, "must be a positive number of metres")
+    for fname, value, (lo, hi) in (
+        ("cell_size", cell_size, CELL_SIZE_RANGE),
+        ("height_unit", height_unit, HEIGHT_UNIT_RANGE),
+    ):
+        if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
+            raise BlueprintError(label, fname, value, f"must lie in {lo}..{hi} metres")
+    for fname, value in (("dump_band_m", dump_band_m), ("margin_m", margin_m)):
+        if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+            raise BlueprintError(label, fname, value, "must be 0 or more metres")
 
     def cells(m: float, fname: str) -> int:
         n = int(round(m / cell_size))
@@ -234,8 +255,10 @@ def landing_pad(
     margin = int(round(margin_m / cell_size))
     pad_depth = max(1, int(round(2.0 / height_unit)))
     ramp_depth = max(1, int(round(1.0 / height_unit)))
+    check_depth(label, "pad.depth", pad_depth)
     rows = margin + band + ramp_len + pad_r + band + margin
     cols = margin + band + pad_c + band + margin
+    check_grid(label, "grid", rows, cols)
     zones = np.zeros((rows, cols), dtype=np.uint8)
     goal = np.zeros((rows, cols), dtype=np.int32)
     pad_r0 = margin + band + ramp_len
@@ -259,13 +282,24 @@ _IMAGE_KEYS = {"format", "cell_size", "height_unit", "image", "scale", "max_dept
 _PIT_KEYS = {"size", "depth", "origin"}
 
 
-def _positive_number(path: str, data: dict, key: str, default: float) -> float:
+def _positive_number(
+    path: str, data: dict, key: str, default: float, limits: tuple[float, float] | None = None
+) -> float:
     value = data.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, int | float) or not _finite(value):
         raise BlueprintError(path, key, value, "must be a finite number")
     if value <= 0:
         raise BlueprintError(path, key, value, "must be positive")
+    if limits is not None and not limits[0] <= value <= limits[1]:
+        raise BlueprintError(path, key, value, f"must lie in {limits[0]}..{limits[1]} (the limit)")
     return float(value)
+
+
+def _finite(value: int | float) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer too large for a float
+        return False
 
 
 def _int_pair(path: str, key: str, value: object) -> tuple[int, int]:
@@ -299,8 +333,10 @@ def blueprint_from_dict(data: object, path: str = "<memory>") -> Blueprint:
         raise BlueprintError(path, "<root>", type(data).__name__, "must be a mapping")
     if data.get("format") != FORMAT:
         raise BlueprintError(path, "format", data.get("format"), f"must be '{FORMAT}'")
-    cell_size = _positive_number(path, data, "cell_size", DEFAULT_CELL_SIZE)
-    height_unit = _positive_number(path, data, "height_unit", DEFAULT_HEIGHT_UNIT)
+    cell_size = _positive_number(path, data, "cell_size", DEFAULT_CELL_SIZE, CELL_SIZE_RANGE)
+    height_unit = _positive_number(
+        path, data, "height_unit", DEFAULT_HEIGHT_UNIT, HEIGHT_UNIT_RANGE
+    )
     forms = [k for k in ("rows", "pit", "image") if k in data]
     if len(forms) != 1:
         raise BlueprintError(
@@ -317,13 +353,14 @@ def blueprint_from_dict(data: object, path: str = "<memory>") -> Blueprint:
         image_path = (Path(path).parent / image) if path != "<memory>" else Path(image)
         if "scale" not in data:
             raise BlueprintError(path, "scale", None, "is required with 'image' (metres per pixel)")
-        return from_image(
-            image_path,
-            scale=_positive_number(path, data, "scale", 1.0),
-            cell_size=cell_size,
-            height_unit=height_unit,
-            max_depth=_positive_number(path, data, "max_depth", 3 * height_unit),
-        )
+        scale = _positive_number(path, data, "scale", 1.0)
+        max_depth = _positive_number(path, data, "max_depth", 3 * height_unit)
+        try:
+            return from_image(image_path, scale, cell_size, height_unit, max_depth)
+        except BlueprintError as exc:  # name the blueprint file, and the image in the reason
+            raise BlueprintError(
+                path, exc.field, exc.value, f"{exc.reason} [{image_path}]"
+            ) from None
     _check_keys(path, "", data, _PARAMETRIC_KEYS)
     grid = _int_pair(path, "grid", data.get("grid", [16, 16]))
     pit = data["pit"]
@@ -349,6 +386,7 @@ def _from_rows(path: str, rows: object, cell_size: float, height_unit: float) ->
         raise BlueprintError(path, "rows", rows, "must be a non-empty list of strings")
     width = len(rows[0])
     n = len(rows)
+    check_grid(path, "rows", n, width)
     zones = np.zeros((n, width), dtype=np.uint8)
     goal = np.zeros((n, width), dtype=np.int32)
     for i, line in enumerate(rows):
@@ -403,16 +441,28 @@ def from_image(
         max_depth = 3 * height_unit
     if not (math.isfinite(scale) and scale > 0):
         raise BlueprintError(label, "scale", scale, "must be a positive number of metres per pixel")
-    image = cv2.imread(label, cv2.IMREAD_COLOR)
-    if image is None:
-        raise BlueprintError(label, "image", label, "cannot be read as an image")
+    if not (math.isfinite(max_depth) and 0 < max_depth / height_unit <= MAX_DEPTH_UNITS):
+        raise BlueprintError(
+            label,
+            "max_depth",
+            max_depth,
+            f"must be positive and at most {MAX_DEPTH_UNITS} soil units "
+            f"({MAX_DEPTH_UNITS * height_unit:g} m, the limit)",
+        )
+    try:
+        w, h = check_image(label, BlueprintError)  # header only: pixels within the limits
+    except BlueprintError as exc:
+        raise BlueprintError(label, "image", exc.value, exc.reason) from None
     px_per_cell = cell_size / scale
-    h, w = image.shape[:2]
     rows, cols = int(h / px_per_cell), int(w / px_per_cell)
     if rows < 1 or cols < 1:
         raise BlueprintError(
             label, "scale", scale, f"a {w} x {h} image is smaller than one {cell_size} m cell"
         )
+    check_grid(label, "scale", rows, cols)
+    image = cv2.imread(label, cv2.IMREAD_COLOR)
+    if image is None or image.shape[:2] != (h, w):
+        raise BlueprintError(label, "image", label, "cannot be read as an image")
     b, g, r = (image[..., i].astype(np.int32) for i in range(3))
     white = (b >= 250) & (g >= 250) & (r >= 250)
     green = (g - r >= 64) & (g - b >= 64)
@@ -448,20 +498,8 @@ def load_blueprint(path: str | Path) -> Blueprint:
     Raises:
         BlueprintError: Naming the file, field and value at fault.
     """
-    p = Path(path)
-    label = str(p)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise BlueprintError(label, "<file>", label, "does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise BlueprintError(label, "<file>", label, f"cannot be read: {exc}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark is not None else "<yaml>"
-        raise BlueprintError(label, where, None, f"is not valid YAML: {exc}") from None
+    label = str(Path(path))
+    data = load_yaml(label, BlueprintError, max_bytes=MAX_BLUEPRINT_BYTES)
     return blueprint_from_dict(data, label)
 
 
@@ -484,5 +522,9 @@ def resolve_blueprint(spec: str | None, depth: int = 1) -> Blueprint:
         text = spec.partition(":")[2]
         if not text.isdigit() or int(text) < 1:
             raise BlueprintError(spec, "depth", text, "must be a positive integer")
+        if len(text) > 6 or int(text) > MAX_DEPTH_UNITS:
+            raise BlueprintError(
+                spec, "depth", text, f"must lie in 1..{MAX_DEPTH_UNITS} soil units (the limit)"
+            )
         return default_blueprint(int(text))
     return load_blueprint(spec)

@@ -21,6 +21,7 @@ import argparse
 import os
 import signal
 import sys
+import threading
 import time
 
 from excavation_common.errors import FieldError
@@ -40,19 +41,22 @@ def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> objec
     if domain is None:
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
     rclpy.init(args=["ant-bag", *ros_args], context=context, domain_id=domain)
-
-    def stop(_signum, _frame):
-        raise KeyboardInterrupt  # SIGTERM ends like Ctrl-C: the bag is finished
-
-    signal.signal(signal.SIGTERM, stop)
+    # Ctrl-C and SIGTERM only set a flag that the loop below checks: a KeyboardInterrupt
+    # raised at a random point (inside a write, or inside rclpy) could leave the bag or
+    # the executor half-done, and the bag must be finished cleanly.
+    stopping: list[int] = []
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda signum, _frame: stopping.append(signum))
     executor = SingleThreadedExecutor(context=context)
     node = None
     try:
         node = node_factory(context)
         executor.add_node(node)
-        while context.ok() and not until(node):
+        while context.ok() and not stopping and not until(node):
             executor.spin_once(timeout_sec=0.05)
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except ExternalShutdownException:
         pass
     finally:
         if node is not None:
@@ -63,6 +67,8 @@ def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> objec
             node.destroy_node()
         executor.shutdown()
         rclpy.try_shutdown(context=context)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return node
 
 
@@ -77,6 +83,8 @@ def cmd_record(args: argparse.Namespace) -> int:
         overrides.append(Parameter("flush_period", value=float(args.flush_period)))
     if args.height_unit is not None:
         overrides.append(Parameter("height_unit", value=float(args.height_unit)))
+    if args.image_codec is not None:
+        overrides.append(Parameter("image_codec", value=args.image_codec))
     if args.topics:
         overrides.append(Parameter("topics", value=list(args.topics)))
     started = time.monotonic()
@@ -84,9 +92,13 @@ def cmd_record(args: argparse.Namespace) -> int:
     def until(_node) -> bool:
         return args.duration is not None and time.monotonic() - started >= args.duration
 
-    print(f"ant-bag: recording into {args.out} (Ctrl-C stops)", file=sys.stderr, flush=True)
+    def make(ctx) -> RecorderNode:
+        node = RecorderNode(context=ctx, parameter_overrides=overrides)
+        print(f"ant-bag: recording into {args.out} (Ctrl-C stops)", file=sys.stderr, flush=True)
+        return node
+
     node = _spin(
-        lambda ctx: RecorderNode(context=ctx, parameter_overrides=overrides),
+        make,
         args.domain,
         until,
         args.ros_args,
@@ -104,7 +116,7 @@ def cmd_play(args: argparse.Namespace) -> int:
     from rclpy.parameter import Parameter
 
     from excavation_bags.player_node import PlayerNode
-    from excavation_bags.storage import open_bag
+    from excavation_bags.reader import open_bag
 
     bag = open_bag(args.bag)
     for w in bag.warnings:
@@ -131,19 +143,29 @@ def cmd_play(args: argparse.Namespace) -> int:
     return 0
 
 
+def size_per_minute(bag) -> str:
+    """``"12.3 MB/min"`` of a bag (file size over its recorded time span), or ``"-"``."""
+    rate = bag.bytes_per_minute
+    return "-" if rate is None else f"{rate / 1e6:.2f} MB/min"
+
+
 def cmd_info(args: argparse.Namespace) -> int:
     """``ant-bag info``."""
-    from excavation_bags.storage import latched, open_bag
+    from excavation_bags.metadata import latched
+    from excavation_bags.reader import open_bag, topic_sizes
 
     bag = open_bag(args.bag)
+    sizes = topic_sizes(bag) if args.sizes else {}
     print(f"bag:       {bag.path}")
-    print(f"file:      {bag.mcap.name} ({bag.mcap.stat().st_size} bytes)")
+    print(f"file:      {bag.mcap.name} ({bag.size_bytes} bytes)")
     print(f"producer:  {bag.producer or 'unknown'}   ros_distro: {bag.ros_distro or 'unknown'}")
+    print(f"duration:  {bag.duration_s:.3f} s   size: {size_per_minute(bag)}")
     print(f"messages:  {bag.message_count}" + ("   TRUNCATED" if bag.truncated else ""))
     width = max((len(t) for t in bag.topics), default=5)
     for t in bag.topics.values():
         flag = "latched" if latched(t.qos) else ""
-        print(f"  {t.name:<{width}}  {t.msgtype:<45} {t.count:>7}  {flag}")
+        size = f"{sizes[t.name] / 1e6:>9.3f} MB  " if args.sizes else ""
+        print(f"  {t.name:<{width}}  {t.msgtype:<45} {t.count:>7}  {size}{flag}")
     for w in bag.warnings:
         print(f"warning: {w}")
     return 0
@@ -151,7 +173,8 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 def cmd_recover(args: argparse.Namespace) -> int:
     """``ant-bag recover``."""
-    from excavation_bags.storage import open_bag, recover_bag
+    from excavation_bags.reader import open_bag
+    from excavation_bags.recover import recover_bag
 
     bag = open_bag(args.bag)
     new = recover_bag(args.bag, args.out)
@@ -162,8 +185,8 @@ def cmd_recover(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """``ant-bag report``."""
+    from excavation_bags.reader import open_bag
     from excavation_bags.report import make_report
-    from excavation_bags.storage import open_bag
 
     bag = open_bag(args.bag)
     report = make_report(
@@ -193,6 +216,12 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--duration", type=float, default=None, metavar="S")
     r.add_argument("--flush-period", type=float, default=None, metavar="S", help="default 0.5")
     r.add_argument("--height-unit", type=float, default=None, metavar="M", help="default 0.05")
+    r.add_argument(
+        "--image-codec",
+        choices=("jpeg", "png", "none"),
+        default=None,
+        help="how raw camera frames are stored (default jpeg; png is lossless; none: raw)",
+    )
     r.add_argument("--domain", type=int, default=None)
     r.set_defaults(run=cmd_record)
 
@@ -209,6 +238,7 @@ def parser() -> argparse.ArgumentParser:
 
     i = sub.add_parser("info", help="topics, counts and QoS of a bag")
     i.add_argument("bag", metavar="DIR")
+    i.add_argument("--sizes", action="store_true", help="message bytes per topic (reads all)")
     i.set_defaults(run=cmd_info)
 
     rc = sub.add_parser("recover", help="write a complete copy of a truncated bag")

@@ -20,27 +20,65 @@ Two ways to pace the replay:
   inputs this way into fresh controllers reproduces their recorded behaviours
   (``tests/test_bag_play.py``).
 
-Parameters: ``bag`` (directory), ``topics`` (names or globs; default all), ``rate`` (1.0),
-``loop`` (false), ``lockstep`` (false), ``wait_for`` (topics), ``lockstep_timeout`` (10.0 s;
-a reply lost and re-sent by the middleware can take a few seconds),
-``startup_period`` (1.0 s: in lockstep mode, time given to the subscribers after every
-``wait_for`` topic has a publisher), ``delay`` (0.5 s: with recorded timing, time given to
-subscribers to connect before the first message).
+Camera frames recorded as ``<topic>/compressed`` (``sensor_msgs/CompressedImage``, see
+:mod:`excavation_bags.recorder_node`) are played as recorded and, with ``decode_images``
+(default), also decoded with OpenCV and published as ``<topic>`` (``sensor_msgs/Image``,
+bgr8 or mono8) when the bag has no such raw topic, so a node that takes raw frames (the
+localizer) can be fed from the bag. ``topics`` may name either.
+
+The parameters are :class:`PlayerParams` (``config/bag_player.yaml``).
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from rosbags.interfaces import QosReliability
+from sensor_msgs.msg import CompressedImage, Image
 
 from excavation_bags.errors import BagError, MissingTopicError
+from excavation_bags.images import COMPRESSED_TYPE, compressed_array, fill_raw, raw_topic
+from excavation_bags.metadata import latched
+from excavation_bags.reader import Bag, open_bag
 from excavation_bags.recorder_node import message_class
-from excavation_bags.storage import Bag, TopicInfo, latched, open_bag, topic_selected
-from excavation_common.ros import diagnostics
+from excavation_bags.topics import TopicInfo, topic_selected
+from excavation_common.params import ParameterError, param
+from excavation_common.ros import declare_params, diagnostics
+
+
+@dataclass(frozen=True)
+class PlayerParams:
+    """Parameters of the bag player (mirrored in ``config/bag_player.yaml``)."""
+
+    bag: str = param("", "bag directory to play (usually the DIR argument)")
+    topics: tuple[str, ...] = param(("",), 'names or globs to play; [""] = every topic')
+    rate: float = param(1.0, "playback speed factor (recorded timing)", low=0.01, high=1000.0)
+    loop: bool = param(False, "start over at the end", read_only=False)
+    lockstep: bool = param(False, "tick by tick, waiting for the replies on wait_for")
+    wait_for: tuple[str, ...] = param(
+        ("",), 'reply topics of a lockstep tick; [""] = every */behaviour topic not played'
+    )
+    lockstep_timeout: float = param(
+        10.0,
+        "s to wait for the replies of one lockstep tick",
+        low=0.01,
+        high=3600.0,
+        read_only=False,
+    )
+    startup_period: float = param(
+        1.0, "s given to subscribers before the first lockstep tick", low=0.0, high=600.0
+    )
+    delay: float = param(
+        0.5, "s before the first message with recorded timing", low=0.0, high=600.0
+    )
+    decode_images: bool = param(
+        True, "also publish <topic> (Image) decoded from a recorded <topic>/compressed"
+    )
 
 
 def playback_qos(info: TopicInfo) -> QoSProfile:
@@ -77,30 +115,34 @@ class PlayerNode(Node):
 
     def __init__(self, bag: Bag | None = None, **kwargs) -> None:
         super().__init__(kwargs.pop("node_name", "bag_player"), **kwargs)
-        p = self.declare_parameter
-        path = str(p("bag", "").value)
-        patterns = [t for t in p("topics", [""]).value if t]
-        self.rate = float(p("rate", 1.0).value)
-        self.loop = bool(p("loop", False).value)
-        self.lockstep = bool(p("lockstep", False).value)
-        wait_for = [t for t in p("wait_for", [""]).value if t]
-        self.lockstep_timeout = float(p("lockstep_timeout", 10.0).value)
-        self.startup_period = float(p("startup_period", 1.0).value)
-        self.delay = float(p("delay", 0.5).value)
-        self.bag = bag if bag is not None else open_bag(path)
-        if not self.rate > 0:
-            raise BagError(self.bag.path, "rate", self.rate, "must be > 0")
+        self.params = declare_params(self, PlayerParams, on_change=self._on_params)
+        patterns = [t for t in self.params.topics if t]
+        if bag is None and not self.params.bag:
+            raise ParameterError(
+                self.get_fully_qualified_name(), "bag", "", "required: the bag directory to play"
+            )
+        self.bag = bag if bag is not None else open_bag(self.params.bag)
         self.warnings = list(self.bag.warnings)
         self.publishers_ = {}
+        self.decoded = {}  # bag topic X/compressed -> publisher of X (decoded frames)
         for name, info in self.bag.topics.items():
-            if patterns and not topic_selected(name, patterns):
+            selected = not patterns or topic_selected(name, patterns)
+            raw = raw_topic(name) if info.msgtype == COMPRESSED_TYPE else None
+            if (
+                self.params.decode_images
+                and raw is not None
+                and raw not in self.bag.topics
+                and (selected or topic_selected(raw, patterns))
+            ):
+                self.decoded[name] = self.create_publisher(Image, raw, playback_qos(info))
+            if not selected:
                 continue
             cls = message_class(info.msgtype)
             if cls is None:
                 self.warnings.append(f"not playing {name}: unknown type {info.msgtype}")
                 continue
             self.publishers_[name] = self.create_publisher(cls, name, playback_qos(info))
-        if not self.publishers_:
+        if not self.publishers_ and not self.decoded:
             skipped = [w for w in self.warnings if w.startswith("not playing")]
             raise MissingTopicError(
                 self.bag.path,
@@ -110,7 +152,9 @@ class PlayerNode(Node):
             )
         for w in self.warnings:
             self.get_logger().warning(w)
-        wanted = set(self.publishers_)
+        self.decoded_frames = 0
+        self.frame_error = ""
+        wanted = set(self.publishers_) | set(self.decoded)
         if self.lockstep:
             wanted.add("/clock")
             if "/clock" not in self.bag.topics:
@@ -126,7 +170,7 @@ class PlayerNode(Node):
         self.replies: set[str] = set()
         self.reply_subs = []
         if self.lockstep:
-            self.wait_for = wait_for or [
+            self.wait_for = [t for t in self.params.wait_for if t] or [
                 t for t in self.bag.topics if t.endswith("/behaviour") and t not in self.publishers_
             ]
             if not self.wait_for:
@@ -156,14 +200,36 @@ class PlayerNode(Node):
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(1.0, self.publish_diagnostics)
 
+    @property
+    def rate(self) -> float:
+        """Playback speed factor."""
+        return self.params.rate
+
+    @property
+    def loop(self) -> bool:
+        """Start over at the end."""
+        return self.params.loop
+
+    @property
+    def lockstep(self) -> bool:
+        """Tick by tick (see the module docstring)."""
+        return self.params.lockstep
+
+    def _on_params(self, params: PlayerParams) -> None:
+        self.params = params  # loop and lockstep_timeout can change while playing
+
     def publish_diagnostics(self) -> None:
         """OK while playing or done; WARN naming what the bag holds that cannot be played."""
-        level = DiagnosticStatus.WARN if self.warnings else DiagnosticStatus.OK
+        problems = self.warnings + ([self.frame_error] if self.frame_error else [])
+        level = DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
         state = "finished" if self.finished else "playing"
-        message = f"{state} {self.bag.path}" + (
-            f"; {'; '.join(self.warnings)}" if self.warnings else ""
-        )
-        values = {"published": self.published, "of": len(self.messages), "loops": self.loops}
+        message = f"{state} {self.bag.path}" + (f"; {'; '.join(problems)}" if problems else "")
+        values = {
+            "published": self.published,
+            "of": len(self.messages),
+            "loops": self.loops,
+            "decoded_frames": self.decoded_frames,
+        }
         self.diag_pub.publish(diagnostics(self, level, message, values))
 
     def _publish(self, topic: str, raw: bytes) -> None:
@@ -171,6 +237,16 @@ class PlayerNode(Node):
         if pub is not None:
             pub.publish(raw)
             self.published += 1
+        decoded = self.decoded.get(topic)
+        if decoded is not None:
+            try:
+                msg = deserialize_message(raw, CompressedImage)
+                image = compressed_array(msg, topic)
+            except (BagError, ValueError, TypeError) as exc:
+                self.frame_error = f"a frame of {topic} does not decode: {exc}"
+                return
+            decoded.publish(fill_raw(image, Image(), msg.header))
+            self.decoded_frames += 1
 
     def step(self) -> None:
         """Publish what is due (runs every millisecond)."""
@@ -185,7 +261,7 @@ class PlayerNode(Node):
         now = time.monotonic()
         if self.created is None:
             self.created = now
-        if now - self.created < self.delay:
+        if now - self.created < self.params.delay:
             return
         if self.started is None:
             self.started = now
@@ -213,9 +289,9 @@ class PlayerNode(Node):
         """
         if not all(sub.get_publisher_count() > 0 for sub in self.reply_subs):
             return False
+        pubs = list(self.publishers_.values()) + list(self.decoded.values())
         return all(
-            pub.get_subscription_count() >= self.count_subscribers(topic)
-            for topic, pub in self.publishers_.items()
+            pub.get_subscription_count() >= self.count_subscribers(pub.topic) for pub in pubs
         )
 
     def _step_lockstep(self) -> None:
@@ -228,11 +304,11 @@ class PlayerNode(Node):
                 )
                 return
             self.ready_since = now
-        if now - self.ready_since < self.startup_period:
+        if now - self.ready_since < self.params.startup_period:
             return
         if self.waiting_since is not None:
             done = set(self.wait_for) <= self.replies
-            if not done and now - self.waiting_since < self.lockstep_timeout:
+            if not done and now - self.waiting_since < self.params.lockstep_timeout:
                 return
             if not done:
                 missing = sorted(set(self.wait_for) - self.replies)
@@ -254,6 +330,6 @@ class PlayerNode(Node):
         if self.tick == 1:
             # the group before the first /clock (latched maps) needs no reply, but the
             # subscribers get time to take it before the first tick's inputs arrive
-            self.settle_until = now + self.startup_period
+            self.settle_until = now + self.params.startup_period
         elif self.wait_for:
             self.waiting_since = now

@@ -11,7 +11,10 @@ output directory:
   (:mod:`excavation_sim.detectors`) counted over the trial, cumulative per frame;
 * ``field_metrics.png``: the field metrics of ``terrain_mapper.metrics`` between the first
   and the last height map, with the difference heat map;
-* ``summary.md`` and ``report.json``: the numbers, the bag's topics, and every warning.
+* ``camera.png`` (only for a bag with camera frames): five overhead camera frames over the
+  trial, decoded from ``/overhead/image_raw/compressed`` (or raw ``/overhead/image_raw``);
+* ``summary.md`` and ``report.json``: the numbers (with the bag's size per minute of
+  recording), the bag's topics, and every warning.
 
 A bag that lacks what a section needs still gets every other section; the summary says
 what was skipped and why. Nothing here raises for a bad bag: problems become lines of
@@ -31,7 +34,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from excavation_bags.storage import Bag  # noqa: E402
+from excavation_bags.reader import Bag  # noqa: E402
 from excavation_bags.trial_data import (  # noqa: E402
     FITNESS,
     GOAL,
@@ -278,6 +281,38 @@ def _num(v) -> str:
     return "n/a" if v is None else f"{v:.4f}"
 
 
+def camera_section(data: TrialData, report: Report) -> None:
+    """``camera.png``: a few camera frames over the trial (only when the bag has frames)."""
+    if data.camera_topic is None:
+        return
+    sizes = np.array(data.camera_bytes, dtype=np.float64)
+    times = np.array(data.camera_times, dtype=np.float64)
+    span = float(times[-1] - times[0]) if len(times) > 1 else 0.0
+    report.numbers["camera"] = {
+        "topic": data.camera_topic,
+        "frames": len(times),
+        "frames_per_s": (len(times) - 1) / span if span > 0 else None,
+        "mean_frame_bytes": float(sizes.mean()) if len(sizes) else None,
+    }
+    if not data.camera_frames:
+        report.skipped["camera"] = f"no frame of {data.camera_topic} decodes"
+        return
+    fig, axes = plt.subplots(
+        1, len(data.camera_frames), figsize=(3.2 * len(data.camera_frames), 2.4), dpi=100
+    )
+    axes = np.atleast_1d(axes)
+    t0 = times[0]
+    for ax, (index, stamp, image) in zip(axes, data.camera_frames, strict=True):
+        if image.ndim == 2:
+            ax.imshow(image, cmap="gray", vmin=0, vmax=255)
+        else:
+            ax.imshow(image[..., ::-1])
+        ax.set_title(f"frame {index} ({stamp - t0:.1f} s)", fontsize=8)
+        ax.axis("off")
+    fig.suptitle(f"Overhead camera ({data.camera_topic})", fontsize=9)
+    _save(fig, report, "camera.png")
+
+
 def _pct(v) -> str:
     return "n/a" if v is None else f"{100 * v:.1f} %"
 
@@ -294,6 +329,21 @@ def summary_markdown(bag: Bag, data: TrialData, report: Report) -> str:
         f"cell size: {data.cell_size if data.cell_size is not None else 'unknown'} m, "
         f"soil unit: {data.height_unit} m",
     ]
+    size = report.numbers["bag"]
+    per_minute = size["bytes_per_minute"]
+    lines.append(
+        f"- size: {size['bytes'] / 1e6:.2f} MB over {size['duration_s']:.1f} s of recording"
+        + (f" ({per_minute / 1e6:.2f} MB per minute)" if per_minute is not None else "")
+    )
+    cam = report.numbers.get("camera")
+    if cam:
+        rate = cam["frames_per_s"]
+        mean = cam["mean_frame_bytes"]
+        lines.append(
+            f"- camera: {cam['frames']} frames on `{cam['topic']}`"
+            + (f", {rate:.1f} per s of header stamps" if rate else "")
+            + (f", {mean / 1e3:.1f} kB per frame" if mean else "")
+        )
     fit = report.numbers.get("fitness")
     if fit:
         lines.append(
@@ -353,6 +403,11 @@ def make_report(
     report.out.mkdir(parents=True, exist_ok=True)
     data = read_trial(bag, height_unit)
     report.warnings = list(bag.warnings) + data.problems
+    report.numbers["bag"] = {
+        "bytes": bag.size_bytes,
+        "duration_s": bag.duration_s,
+        "bytes_per_minute": bag.bytes_per_minute,
+    }
     if not data.topics.get(MAP_INFO):
         report.warnings.append("the bag has no /worksite/map_info: robot poses are unknown")
     plot_fitness(data, report)
@@ -363,6 +418,7 @@ def make_report(
         report.skipped["animation"] = "not asked for (--no-gif)"
     plot_detectors(data, report)
     field_metrics_section(data, report)
+    camera_section(data, report)
     report.files.append("summary.md")
     report.files.append("report.json")
     write_text_atomic(report.out / "summary.md", summary_markdown(bag, data, report))

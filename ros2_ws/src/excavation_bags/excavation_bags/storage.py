@@ -50,6 +50,7 @@ from excavation_bags.errors import (
     UnknownTypeError,
 )
 from excavation_common.files import write_text_atomic
+from excavation_common.loaders import load_yaml
 
 PRODUCER = "ant-bag"
 """``custom_data.producer`` of bags this project records."""
@@ -416,7 +417,8 @@ def _read_metadata(path: Path) -> dict | None:
     if not meta.is_file():
         return None
     try:
-        data = yaml.safe_load(meta.read_text(encoding="utf-8"))
+        # Bounded (4 MiB), no duplicate keys or aliases: see excavation_common.loaders.
+        data = load_yaml(meta, BagFormatError, max_bytes=4 << 20)
         info = data["rosbag2_bagfile_information"]
         if not isinstance(info, dict):
             raise TypeError("not a mapping")

@@ -13,7 +13,10 @@ which way a Random Turn went.
 Heights and goals travel in metres; soil units are ``height_unit`` metres
 (``custom_data.height_unit`` of the bag, 0.05 by default, as the controller node assumes).
 A message that does not decode is skipped and listed in :attr:`TrialData.problems`; a
-missing topic leaves its arrays empty. Pure module: no ``rclpy``.
+missing topic leaves its arrays empty. Camera frames (``/overhead/image_raw/compressed``
+as the recorder stores them, or raw ``/overhead/image_raw`` of older bags) are counted, and
+a few evenly spaced ones are decoded with OpenCV (:mod:`excavation_bags.images`) into
+:attr:`TrialData.camera_frames` for the report. Pure module: no ``rclpy``.
 """
 
 from __future__ import annotations
@@ -23,9 +26,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ant_controller.layout import BIT_CLEAR, BIT_SET, N_SENSORS
+from ant_controller.layout import N_SENSORS
+from ant_controller.memory import next_memory
 from ant_controller.sensing import is_tilted_down, sensor_vector
-from excavation_bags.storage import Bag
+from excavation_bags.images import COMPRESSED_TYPE, IMAGE_TYPE, frame_array
+from excavation_bags.reader import Bag
 from excavation_common.constants import BladeGeometry
 from excavation_common.errors import FieldError
 from excavation_common.messages import (
@@ -40,7 +45,15 @@ GOAL = "/blueprint/goal"
 ZONES = "/blueprint/zones"
 MAP_INFO = "/worksite/map_info"
 FITNESS = "/worksite/fitness"
+CAMERA_TOPICS = {
+    "/overhead/image_raw/compressed": COMPRESSED_TYPE,
+    "/overhead/image_raw": IMAGE_TYPE,
+}
+"""Camera topics the report reads, preferred first, with their types."""
+CAMERA_FRAMES = 5
+"""Camera frames decoded for the report (evenly spaced over the trial)."""
 EXPECTED_TYPES = {
+    **CAMERA_TOPICS,
     HEIGHTS: "sensor_msgs/msg/Image",
     GOAL: "sensor_msgs/msg/Image",
     ZONES: "sensor_msgs/msg/Image",
@@ -90,6 +103,10 @@ class TrialData:
             unknown.
         fitness: Recorded ``/worksite/fitness`` per frame (NaN where none).
         decisions: Every decision in bag order.
+        camera_topic: The camera topic read (``None`` when the bag has none).
+        camera_times: Stamp (s) of every camera frame.
+        camera_frames: ``(index, stamp, BGR or mono array)`` of a few frames, decoded.
+        camera_bytes: Stored image bytes of every camera frame (compressed or raw).
         topics: Topic -> message count.
         problems: Messages that could not be used, and topics with unexpected types.
     """
@@ -104,6 +121,10 @@ class TrialData:
     poses: list[np.ndarray] = field(default_factory=list)
     fitness: list[float] = field(default_factory=list)
     decisions: list[Decision] = field(default_factory=list)
+    camera_topic: str | None = None
+    camera_times: list[float] = field(default_factory=list)
+    camera_frames: list[tuple[int, float, np.ndarray]] = field(default_factory=list)
+    camera_bytes: list[int] = field(default_factory=list)
     topics: dict[str, int] = field(default_factory=dict)
     problems: list[str] = field(default_factory=list)
 
@@ -194,10 +215,14 @@ def read_trial(bag: Bag, height_unit: float | None = None) -> TrialData:
             blades = np.array([-1 if b is None else b[0] for b in blade], dtype=np.int64)
             data.poses.append(np.concatenate([poses, blades[:, None]], axis=1).copy())
 
+    camera = next((t for t in CAMERA_TOPICS if data.topics.get(t) and t not in skip), None)
+    data.camera_topic = camera
+    count = data.topics.get(camera, 0)
+    picks = {round(j * (count - 1) / max(CAMERA_FRAMES - 1, 1)) for j in range(CAMERA_FRAMES)}
     wanted = [t for t in bag.topics if t not in skip]
     for topic, _ts, raw in bag.messages(wanted):
         m = _ROBOT_TOPIC.match(topic)
-        if not (m or topic in (HEIGHTS, GOAL, ZONES, MAP_INFO, FITNESS)):
+        if not (m or topic in (HEIGHTS, GOAL, ZONES, MAP_INFO, FITNESS, camera)):
             continue
         try:
             msg = bag.decode(topic, raw)
@@ -205,7 +230,15 @@ def read_trial(bag: Bag, height_unit: float | None = None) -> TrialData:
             problem(str(exc))
             continue
         try:
-            if topic == MAP_INFO:
+            if topic == camera:
+                index = len(data.camera_times)
+                stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+                data.camera_times.append(stamp)
+                data.camera_bytes.append(len(msg.data))
+                if index in picks:
+                    image = frame_array(msg, CAMERA_TOPICS[topic], topic)
+                    data.camera_frames.append((index, stamp, image))
+            elif topic == MAP_INFO:
                 data.cell_size = float(msg.resolution) if msg.resolution > 0 else None
                 for k, pmsg in pending_poses:
                     poses[k] = pose_to_grid(pmsg, data.cell_size, f"/robot_{k}/pose")
@@ -241,10 +274,7 @@ def read_trial(bag: Bag, height_unit: float | None = None) -> TrialData:
                     data.decisions.append(
                         Decision(len(data.heights) - 1, k, mask, codes, int(poses[k, 2]))
                     )
-                    if mask >> BIT_SET & 1:
-                        memory[k] = 1
-                    if mask >> BIT_CLEAR & 1:
-                        memory[k] = 0
+                    memory[k] = int(next_memory(memory[k], mask))
         except FieldError as exc:
             problem(str(exc))
     end_frame()

@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from excavation_common.limits import MAX_ROBOTS, int_in
+
 
 @dataclass
 class TrialResult:
@@ -371,25 +373,46 @@ def _stop(procs: dict) -> None:
             proc.wait()
 
 
+MAX_TRIAL_STEPS = 100_000
+"""Most ticks of one trial (ant-trial's limits; docs/reliability.md lists them all)."""
+MAX_TRIAL_SCENARIO = 100_000
+MAX_COMMAND_TIMEOUT = 3600.0
+MAX_DOMAIN = 232
+
+
+def _timeout(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0 < value <= MAX_COMMAND_TIMEOUT:  # also refuses NaN
+        raise argparse.ArgumentTypeError(
+            f"{value} s is outside (0, {MAX_COMMAND_TIMEOUT:g}] (the limit)"
+        )
+    return value
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ant-trial``."""
     p = argparse.ArgumentParser(prog="ant-trial", description=__doc__.split("\n\n")[0])
     who = p.add_mutually_exclusive_group(required=True)
     who.add_argument("--genome", metavar="FILE")
     who.add_argument("--hand-coded", action="store_true")
-    p.add_argument("--robots", type=int, default=4)
+    p.add_argument("--robots", type=int_in(1, MAX_ROBOTS), default=4)
     p.add_argument("--blueprint", default="default")
-    p.add_argument("--steps", type=int, default=300)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--scenario", type=int, default=0, help="scenario index of --seed")
+    p.add_argument("--steps", type=int_in(1, MAX_TRIAL_STEPS), default=300)
+    p.add_argument("--seed", type=int_in(0, 2**63 - 1), default=0)
+    p.add_argument(
+        "--scenario", type=int_in(0, MAX_TRIAL_SCENARIO), default=0, help="scenario index of --seed"
+    )
     p.add_argument(
         "--command-timeout",
-        type=float,
+        type=_timeout,
         default=None,
         help="s the simulator waits per tick (default 2; 30 with --perception full, whose "
         "camera and laser rendering takes a loaded machine seconds per tick)",
     )
-    p.add_argument("--domain", type=int, default=None)
+    p.add_argument("--domain", type=int_in(0, MAX_DOMAIN), default=None)
     p.add_argument(
         "--no-blade-driver",
         action="store_true",

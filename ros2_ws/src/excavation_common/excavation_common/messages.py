@@ -28,6 +28,7 @@ from sensor_msgs.msg import Image, JointState
 from excavation_common.constants import MAX_LOAD, BladeGeometry
 from excavation_common.errors import FieldError
 from excavation_common.frames import heading_to_yaw, robot_anchor, robot_center, yaw_to_heading
+from excavation_common.limits import MAX_GRID_CELLS, MAX_GRID_SIDE
 
 _ENCODINGS = {"32FC1": (np.float32, 4), "mono8": (np.uint8, 1)}
 
@@ -73,6 +74,13 @@ def image_to_grid(
             "data",
             f"{len(msg.data)} bytes",
             f"expected height x step = {msg.height * msg.step}",
+        )
+    if max(msg.height, msg.width) > MAX_GRID_SIDE or msg.height * msg.width > MAX_GRID_CELLS:
+        raise MessageError(
+            topic,
+            "height x width",
+            (msg.height, msg.width),
+            f"exceeds the grid limits ({MAX_GRID_SIDE} a side, {MAX_GRID_CELLS} cells)",
         )
     if shape is not None and (msg.height, msg.width) != tuple(shape):
         raise MessageError(

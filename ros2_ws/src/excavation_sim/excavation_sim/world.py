@@ -24,13 +24,12 @@ run whole episodes without Python in the loop:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
 from ant_controller.layout import (
-    BIT_CLEAR,
-    BIT_SET,
     BLADE_ABOVE,
     BLADE_ABOVE_CMD,
     BLADE_BELOW,
@@ -47,6 +46,7 @@ from ant_controller.layout import (
     TURN_LEFT,
     TURN_RIGHT,
 )
+from ant_controller.memory import next_memory
 from ant_controller.sensing import (
     FORWARD,
     MAX_LOAD,
@@ -268,10 +268,7 @@ def apply_behaviours(heights, robots, active, k, mask, rng, params):
         robots[k, BLADE] = BLADE_LEVEL
     if (mask >> BLADE_HOME_CMD) & 1:
         robots[k, BLADE] = BLADE_HOME
-    if (mask >> BIT_SET) & 1:
-        robots[k, MEMORY] = 1
-    if (mask >> BIT_CLEAR) & 1:
-        robots[k, MEMORY] = 0
+    robots[k, MEMORY] = next_memory(robots[k, MEMORY], mask)
     robots[k, STUCK] = stuck
 
 
@@ -397,6 +394,18 @@ def scenario_start(
     return robots, active, int(seed_state(int(rng.integers(0, 2**63)))[0])
 
 
+class WorldArrays(NamedTuple):
+    """One world's arrays as the episode kernels take them (fields by name; see World)."""
+
+    heights: np.ndarray
+    zones: np.ndarray
+    goal: np.ndarray
+    robots: np.ndarray
+    active: np.ndarray
+    rng: np.ndarray
+    params: np.ndarray
+
+
 @dataclass
 class World:
     """A worksite ready to step: arrays plus the blueprint they are measured against.
@@ -472,6 +481,12 @@ class World:
     def n_robots(self) -> int:
         """Number of robots."""
         return self.robots.shape[0]
+
+    def arrays(self) -> WorldArrays:
+        """The arrays themselves (not copies) for a kernel that steps this world in place."""
+        return WorldArrays(
+            self.heights, self.zones, self.goal, self.robots, self.active, self.rng, self.params
+        )
 
     def sense(self) -> np.ndarray:
         """Sensor vectors of all robots from the current snapshot, ``int64 [n, 14]``."""

@@ -22,8 +22,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
+from excavation_common.limits import MAX_ROBOTS
+from excavation_common.loaders import load_yaml
 from overhead_localizer.errors import LocalizerConfigError
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
@@ -71,10 +72,7 @@ def load_beacons(path: str | Path) -> Beacons:
     """
     path = Path(path)
     where = str(path)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise LocalizerConfigError(where, "file", None, f"cannot be read: {exc}") from None
+    doc = load_yaml(path, LocalizerConfigError)  # size, nesting, duplicate keys
     if not isinstance(doc, dict):
         raise LocalizerConfigError(where, "<root>", type(doc).__name__, "expected a mapping")
     colours = {}
@@ -91,6 +89,10 @@ def load_beacons(path: str | Path) -> Beacons:
     entries = doc.get("robots")
     if not isinstance(entries, list) or not entries:
         raise LocalizerConfigError(where, "robots", entries, "expected a list of {front, rear}")
+    if len(entries) > MAX_ROBOTS:
+        raise LocalizerConfigError(
+            where, "robots", f"{len(entries)} robots", f"exceeds the limit of {MAX_ROBOTS}"
+        )
     for k, entry in enumerate(entries):
         if not (isinstance(entry, dict) and {"front", "rear"} <= set(entry)):
             raise LocalizerConfigError(where, f"robots[{k}]", entry, "expected {front, rear}")

@@ -22,11 +22,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 import numpy as np
-import yaml
 
+from excavation_common.loaders import load_yaml
 from overhead_localizer.camera_model import calibrate, save_model
 from overhead_localizer.errors import LocalizerConfigError
 
@@ -37,10 +36,7 @@ def load_marks(path: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
     Raises:
         LocalizerConfigError: Missing file, missing or malformed field.
     """
-    try:
-        doc = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise LocalizerConfigError(path, "file", None, f"cannot be read: {exc}") from None
+    doc = load_yaml(path, LocalizerConfigError)  # size, nesting, duplicate keys
     if not isinstance(doc, dict):
         raise LocalizerConfigError(path, "<root>", type(doc).__name__, "expected a mapping")
     size = []

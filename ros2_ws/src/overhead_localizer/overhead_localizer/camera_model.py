@@ -24,6 +24,8 @@ import numpy as np
 import yaml
 
 from excavation_common.files import write_text_atomic
+from excavation_common.limits import MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE
+from excavation_common.loaders import load_yaml
 from overhead_localizer.errors import LocalizerConfigError
 
 FORMAT = "overhead-camera/1"
@@ -201,14 +203,11 @@ def load_model(path: str | Path) -> CameraModel:
         LocalizerConfigError: Missing file, wrong format, a missing or malformed field.
     """
     where = str(path)
-    try:
-        doc = yaml.safe_load(Path(path).read_text())
-    except FileNotFoundError:
+    if not Path(path).exists():
         raise LocalizerConfigError(
             where, "file", None, "does not exist (run `calibrate` to make one)"
-        ) from None
-    except (OSError, yaml.YAMLError) as exc:
-        raise LocalizerConfigError(where, "file", None, f"cannot be read: {exc}") from None
+        )
+    doc = load_yaml(path, LocalizerConfigError)  # size, nesting, duplicate keys
     if not isinstance(doc, dict):
         raise LocalizerConfigError(where, "<root>", type(doc).__name__, "expected a mapping")
     if doc.get("format") != FORMAT:
@@ -218,7 +217,18 @@ def load_model(path: str | Path) -> CameraModel:
         value = doc.get(key)
         if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
             raise LocalizerConfigError(where, key, value, "expected a positive integer")
+        if value > MAX_IMAGE_SIDE:
+            raise LocalizerConfigError(
+                where, key, value, f"exceeds the limit of {MAX_IMAGE_SIDE} pixels"
+            )
         size.append(value)
+    if size[0] * size[1] > MAX_IMAGE_PIXELS:
+        raise LocalizerConfigError(
+            where,
+            "image_width x image_height",
+            size,
+            f"has more than the limit of {MAX_IMAGE_PIXELS} pixels",
+        )
     rms = doc.get("rms_px", 0.0)
     if isinstance(rms, bool) or not isinstance(rms, (int, float)) or not rms >= 0:
         raise LocalizerConfigError(where, "rms_px", rms, "expected a number >= 0")

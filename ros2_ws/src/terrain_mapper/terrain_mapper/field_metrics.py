@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from excavation_common.limits import MAX_GRID_CELLS, MAX_GRID_SIDE
 from terrain_mapper.errors import MapperError
 from terrain_mapper.metrics import DIG, DUMP, FieldMetrics, difference, field_metrics
 
@@ -35,6 +36,7 @@ def load_map(path: str, shape: tuple[int, int] | None = None) -> np.ndarray:
     p = Path(path)
     if not p.is_file():
         raise MapperError(path, "file", None, "does not exist")
+    _check_map_size(path, p)
     try:
         if p.suffix == ".npy":
             grid = np.load(p, allow_pickle=False)
@@ -49,6 +51,40 @@ def load_map(path: str, shape: tuple[int, int] | None = None) -> np.ndarray:
     if shape is not None and grid.shape != tuple(shape):
         raise MapperError(path, "shape", grid.shape, f"the blueprint is {shape[0]} x {shape[1]}")
     return grid.astype(np.float64)
+
+
+MAX_MAP_BYTES = 64 << 20
+"""Largest height-map file (64 MiB: a 1024 x 1024 float64 map is 8 MiB, as CSV about 20)."""
+
+
+def _check_map_size(label: str, p: Path) -> None:
+    """Refuse a too large map file before anything is read into memory.
+
+    The file must hold at most ``MAX_MAP_BYTES``; an ``.npy`` header must describe a 2-D
+    grid within the worksite limits (``MAX_GRID_SIDE``, ``MAX_GRID_CELLS``).
+    """
+    size = p.stat().st_size
+    if size > MAX_MAP_BYTES:
+        raise MapperError(
+            label, "file", f"{size} bytes", f"is larger than the limit of {MAX_MAP_BYTES} bytes"
+        )
+    if p.suffix != ".npy":
+        return
+    try:
+        with p.open("rb") as f:
+            fmt = np.lib.format
+            version = fmt.read_magic(f)
+            read = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+            shape, _, _ = read(f)
+    except (ValueError, OSError, SyntaxError) as exc:
+        raise MapperError(label, "header", None, f"is not a .npy header: {exc}") from None
+    if len(shape) != 2 or shape[0] * shape[1] > MAX_GRID_CELLS or max(shape) > MAX_GRID_SIDE:
+        raise MapperError(
+            label,
+            "shape",
+            list(shape),
+            f"expected a 2-D grid of at most {MAX_GRID_SIDE} a side and {MAX_GRID_CELLS} cells",
+        )
 
 
 def draw_difference(

@@ -1,0 +1,284 @@
+"""The one episode kernel: sensing, a decision program and the world step in numba (4.3).
+
+Every controller the project evaluates is a *decision program*: a record of plain arrays
+that maps a sensor vector to a behaviour bit mask.
+
+* :class:`ant_controller.tissue.TissueRecord`: an ANT tissue (with or without coarse
+  coding), :func:`ant_controller.tissue.decide_into`;
+* :class:`ant_controller.hand_coded.HandCodedRules`: the appendix's hand-coded controller,
+  :func:`ant_controller.hand_coded.hand_coded_decide`;
+* :class:`ant_evolution.baselines.network.NetworkRecord`: a fixed-topology or NEAT network,
+  :func:`ant_evolution.baselines.network.program_decide_into`.
+
+:func:`decide_program` and :func:`program_scratch` dispatch on the record's type when
+numba compiles the kernel (``numba.extending.overload``), so each kind gets its own
+machine code with no run-time branch; in plain Python (``NUMBA_DISABLE_JIT=1``, the
+benchmark's reference) the same names dispatch with ``isinstance``. A program's answer
+depends on the sensor vector alone, so the kernel keeps a direct-mapped cache of earlier
+answers per program (:func:`decide_cached`; the hand-coded rules are cheaper than a
+lookup and skip it).
+
+:func:`run_episode` steps one world (:class:`excavation_sim.world.WorldArrays`) and
+:func:`run_scenarios` scores one program on every scenario of a set
+(:class:`ScenarioArrays`); both run the same per-step loop, one timestep being
+
+1. every robot senses the same snapshot (:func:`excavation_sim.world.sense_all`);
+2. each active robot's program decides its behaviour mask;
+3. robots act in index order (:func:`excavation_sim.world.apply_all`).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Protocol
+
+import numba as nb
+import numpy as np
+from numba.extending import overload
+
+from ant_controller.hand_coded import HandCodedRules, hand_coded_decide
+from ant_controller.layout import N_SENSORS, SENSOR_STATES
+from ant_controller.tissue import TissueRecord, decide_into, new_scratch
+from ant_evolution.baselines.network import NetworkRecord, program_decide_into, program_scratch
+from excavation_sim.world import WorldArrays, apply_all, fitness, sense_all
+
+
+class DecisionProgram(Protocol):
+    """What the evaluator scores: an ANT or hand-coded ``Controller``, a ``NetworkProgram``."""
+
+    @property
+    def robots(self) -> int | None:
+        """The N gene (robots to use), or None for each scenario's own count."""
+
+    def record(self) -> TissueRecord | HandCodedRules | NetworkRecord:
+        """The program as the kernels take it."""
+
+
+class ScenarioArrays(NamedTuple):
+    """The starting states of ``S`` scenarios on one blueprint, stacked for the kernel.
+
+    Attributes:
+        heights: ``int32 [S, rows, cols]`` starting terrain.
+        zones: ``uint8 [rows, cols]`` blueprint zones.
+        goal: ``int32 [rows, cols]`` goal heights.
+        robots: ``int64 [S, N_max, 6]`` robot states.
+        active: ``bool [S, N_max]`` robots taking part.
+        rng: ``uint64 [S]`` random-turn generator states.
+        params: Packed world parameters.
+    """
+
+    heights: np.ndarray
+    zones: np.ndarray
+    goal: np.ndarray
+    robots: np.ndarray
+    active: np.ndarray
+    rng: np.ndarray
+    params: np.ndarray
+
+
+# --- decision programs ---------------------------------------------------------------------
+
+
+def _kind(program_type) -> type | None:
+    """The record class of a numba type (None for anything that is not a record)."""
+    return getattr(program_type, "instance_class", None)
+
+
+def decide_program(codes, program, scratch):
+    """Behaviour mask of ``program`` for one sensor vector (``scratch``: its work buffers)."""
+    if isinstance(program, TissueRecord):
+        return decide_into(codes, program, scratch)
+    if isinstance(program, NetworkRecord):
+        return program_decide_into(codes, program, scratch)
+    if isinstance(program, HandCodedRules):
+        return hand_coded_decide(codes)
+    raise TypeError(f"not a decision program: {type(program).__name__}")
+
+
+def program_scratch_for(program):
+    """Work buffers of one decision of ``program`` (allocated once per evaluation)."""
+    if isinstance(program, TissueRecord):
+        return new_scratch(program)
+    if isinstance(program, NetworkRecord):
+        return program_scratch(program)
+    if isinstance(program, HandCodedRules):
+        return np.zeros(0)
+    raise TypeError(f"not a decision program: {type(program).__name__}")
+
+
+@overload(decide_program, inline="always")
+def _decide_program(codes, program, scratch):
+    kind = _kind(program)
+    if kind is TissueRecord:
+        return lambda codes, program, scratch: decide_into(codes, program, scratch)
+    if kind is NetworkRecord:
+        return lambda codes, program, scratch: program_decide_into(codes, program, scratch)
+    if kind is HandCodedRules:
+        return lambda codes, program, scratch: hand_coded_decide(codes)
+    return None
+
+
+@overload(program_scratch_for)
+def _program_scratch_for(program):
+    kind = _kind(program)
+    if kind is TissueRecord:
+        return lambda program: new_scratch(program)
+    if kind is NetworkRecord:
+        return lambda program: program_scratch(program)
+    if kind is HandCodedRules:
+        return lambda program: np.zeros(0)
+    return None
+
+
+# --- the decision cache --------------------------------------------------------------------
+
+CACHE_BITS = 16
+"""A decision cache holds ``2 ** CACHE_BITS`` entries (direct-mapped)."""
+
+_RADIX = np.cumprod(np.concatenate(([1], SENSOR_STATES[:-1]))).astype(np.int64)
+
+
+def new_cache() -> tuple[np.ndarray, np.ndarray]:
+    """An empty decision cache: ``(keys, masks)``, keys -1 = empty slot."""
+    size = 1 << CACHE_BITS
+    return np.full(size, -1, dtype=np.int64), np.zeros(size, dtype=np.int64)
+
+
+@nb.njit(cache=True, inline="always")
+def sensor_key(codes):
+    """A unique integer for a sensor vector (mixed radix over the sensor state counts)."""
+    key = 0
+    for i in range(codes.shape[0]):
+        key += codes[i] * _RADIX[i]
+    return key
+
+
+def decide_cached(codes, program, scratch, cache_keys, cache_masks):
+    """:func:`decide_program` through a direct-mapped cache of earlier answers.
+
+    A program's answer depends on the sensor vector alone, so a hit returns exactly what
+    :func:`decide_program` would. Use one cache per program (:func:`new_cache`).
+    """
+    if isinstance(program, HandCodedRules):
+        return hand_coded_decide(codes)
+    return _lookup(codes, program, scratch, cache_keys, cache_masks)
+
+
+@nb.njit(cache=True, inline="always")
+def _lookup(codes, program, scratch, cache_keys, cache_masks):
+    key = sensor_key(codes)
+    slot = (np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(64 - CACHE_BITS)
+    if cache_keys[slot] == key:
+        return cache_masks[slot]
+    mask = decide_program(codes, program, scratch)
+    cache_keys[slot] = key
+    cache_masks[slot] = mask
+    return mask
+
+
+@overload(decide_cached, inline="always")
+def _decide_cached(codes, program, scratch, cache_keys, cache_masks):
+    kind = _kind(program)
+    if kind is HandCodedRules:
+        return lambda codes, program, scratch, cache_keys, cache_masks: hand_coded_decide(codes)
+    if kind is TissueRecord or kind is NetworkRecord:
+        return lambda codes, program, scratch, cache_keys, cache_masks: _lookup(
+            codes, program, scratch, cache_keys, cache_masks
+        )
+    return None
+
+
+# --- the episode kernel ----------------------------------------------------------------------
+
+
+class Workspace(NamedTuple):
+    """Everything one evaluation writes besides the world (allocated once, reused)."""
+
+    scratch: object
+    cache_keys: np.ndarray
+    cache_masks: np.ndarray
+    codes: np.ndarray
+    masks: np.ndarray
+
+
+@nb.njit(cache=True)
+def new_workspace(program, n_robots):
+    """A :class:`Workspace` for ``program`` and ``n_robots`` robots (an empty cache)."""
+    return Workspace(
+        program_scratch_for(program),
+        np.full(1 << CACHE_BITS, -1, dtype=np.int64),
+        np.zeros(1 << CACHE_BITS, dtype=np.int64),
+        np.zeros((n_robots, N_SENSORS), dtype=np.int64),
+        np.zeros(n_robots, dtype=np.int64),
+    )
+
+
+@nb.njit(cache=True, _nrt=False, error_model="numpy")
+def _run_steps(world, steps, program, work, trace):
+    """The per-step loop, compiled without numba's reference counting (``_nrt=False``).
+
+    It allocates nothing; with reference counting on, every call that passes arrays costs
+    tens of nanoseconds in reference-count traffic even when its branch is not taken. The
+    numpy error model drops Python's division checks (every division here is guarded).
+    Both measured in docs/benchmarks.md. ``trace[t]`` gets the fitness after step t (an
+    empty ``trace``: none).
+    """
+    heights = world.heights
+    zones = world.zones
+    goal = world.goal
+    robots = world.robots
+    active = world.active
+    codes = work.codes
+    masks = work.masks
+    n = robots.shape[0]
+    for t in range(steps):
+        sense_all(heights, zones, goal, robots, active, codes)
+        for k in range(n):
+            if not active[k]:
+                masks[k] = 0
+            else:
+                masks[k] = decide_cached(
+                    codes[k], program, work.scratch, work.cache_keys, work.cache_masks
+                )
+        apply_all(heights, robots, active, masks, world.rng, world.params)
+        if trace.shape[0] > t:
+            trace[t] = fitness(heights, zones, goal)
+
+
+@nb.njit(cache=True)
+def run_episode(world, steps, program, trace):
+    """Step ``world`` (a :class:`WorldArrays`) in place ``steps`` times under ``program``.
+
+    ``trace[t]`` gets the fitness after step t; ``trace`` may be empty (length 0).
+    """
+    _run_steps(world, steps, program, new_workspace(program, world.robots.shape[0]), trace)
+
+
+@nb.njit(cache=True)
+def run_scenarios(start, steps, program, n_robots, scores):
+    """Score one program on every scenario of ``start``; ``scores[s]`` gets the final fitness.
+
+    ``n_robots`` > 0 switches off robots ``n_robots ..`` in every scenario (the N gene);
+    0 keeps each scenario's own robot count. One decision cache serves all scenarios.
+    """
+    n = start.robots.shape[1]
+    work = new_workspace(program, n)
+    world = WorldArrays(
+        np.empty_like(start.heights[0]),
+        start.zones,
+        start.goal,
+        np.empty_like(start.robots[0]),
+        np.empty_like(start.active[0]),
+        np.empty(1, dtype=np.uint64),
+        start.params,
+    )
+    no_trace = np.zeros(0)
+    for s in range(start.heights.shape[0]):
+        world.heights[:] = start.heights[s]
+        world.robots[:] = start.robots[s]
+        world.active[:] = start.active[s]
+        if n_robots > 0:
+            for k in range(n):
+                world.active[k] = k < n_robots
+        world.rng[0] = start.rng[s]
+        _run_steps(world, steps, program, work, no_trace)
+        scores[s] = fitness(world.heights, world.zones, world.goal)

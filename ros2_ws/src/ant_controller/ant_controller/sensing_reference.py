@@ -1,0 +1,193 @@
+"""Plain-Python reference of the sensor vector (paper, Table 1), written for reading.
+
+:func:`sense_reference` computes what :func:`ant_controller.sensing.sense` computes, the
+slow way: robot geometry from the heading tables (``FORWARD``, ``FRONT_LEFT``,
+``RIGHT_STEP``) instead of the kernels' branch-free arithmetic, Python integers and
+lists instead of numba scalars, one rule per sensor in Table 1 order. The tests hold the
+numba kernel to it on random states (``tests/test_world_reference.py``), as
+:func:`ant_controller.tissue.decide_reference` does for the network.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from ant_controller.layout import (
+    AHEAD,
+    B1,
+    BEHIND,
+    BLADE_ABOVE,
+    BLADE_BELOW,
+    BLADE_HOME,
+    D1,
+    E1,
+    E_ABOVE,
+    E_BELOW,
+    E_LEVEL,
+    H1,
+    L1,
+    LEFT,
+    M1,
+    N_SENSORS,
+    R1,
+    RIGHT,
+    S1,
+    U1,
+    Z1,
+    Z_ABOVE,
+    Z_BELOW,
+    Z_DONT_CARE,
+    Z_DUMP,
+    Z_LEVEL,
+)
+from ant_controller.sensing import (
+    FORWARD,
+    FRONT_LEFT,
+    MAX_LOAD,
+    RIGHT_STEP,
+    SENSE_RANGE,
+    ZONE_DIG,
+    ZONE_DUMP,
+)
+
+Cell = tuple[int, int]
+
+
+def front_wheel_cell(pose: Sequence[int], i: int) -> Cell:
+    """Cell under front wheel ``i`` (0 left, 1 right) of a robot at ``(row, col, heading)``."""
+    row, col, h = (int(v) for v in pose[:3])
+    return (
+        row + int(FRONT_LEFT[h, 0]) + i * int(RIGHT_STEP[h, 0]),
+        col + int(FRONT_LEFT[h, 1]) + i * int(RIGHT_STEP[h, 1]),
+    )
+
+
+def rear_wheel_cell(pose: Sequence[int], i: int) -> Cell:
+    """Cell under rear wheel ``i``: one step behind the front wheel."""
+    r, c = front_wheel_cell(pose, i)
+    h = int(pose[2])
+    return r - int(FORWARD[h, 0]), c - int(FORWARD[h, 1])
+
+
+def front_row_cell(pose: Sequence[int], j: int) -> Cell:
+    """Cell ``j = -1 .. 2`` of the row ahead (0, 1: the blade cells Z2, Z3)."""
+    r, c = front_wheel_cell(pose, j)
+    h = int(pose[2])
+    return r + int(FORWARD[h, 0]), c + int(FORWARD[h, 1])
+
+
+def on_grid(heights, cell: Cell) -> bool:
+    """The cell lies on the grid."""
+    return 0 <= cell[0] < heights.shape[0] and 0 <= cell[1] < heights.shape[1]
+
+
+def under_other_robot(poses, active, k: int, cell: Cell) -> bool:
+    """An active robot other than k covers the cell with its 2 x 2 footprint."""
+    for j in range(len(poses)):
+        if j != k and active[j]:
+            if 0 <= cell[0] - int(poses[j][0]) <= 1 and 0 <= cell[1] - int(poses[j][1]) <= 1:
+                return True
+    return False
+
+
+def blade_height_offset(blade: int) -> int:
+    """``b_h``: -1 below, +1 above, 0 level (and home)."""
+    return {BLADE_BELOW: -1, BLADE_ABOVE: 1}.get(int(blade), 0)
+
+
+def blade_volume_reference(heights, pose: Sequence[int], blade: int) -> int:
+    """``V_blade``: soil above the cutting level in the on-grid blade cells (home: 0)."""
+    if blade == BLADE_HOME:
+        return 0
+    volume = 0
+    for i in range(2):
+        b = front_row_cell(pose, i)
+        if on_grid(heights, b):
+            w = front_wheel_cell(pose, i)
+            volume += max(0, int(heights[b]) - int(heights[w]) - blade_height_offset(blade))
+    return volume
+
+
+def tilted_down_reference(heights, pose: Sequence[int]) -> bool:
+    """R1: the front wheels stand lower than the rear wheels, summed over both sides."""
+    front = sum(int(heights[front_wheel_cell(pose, i)]) for i in range(2))
+    rear = sum(int(heights[rear_wheel_cell(pose, i)]) for i in range(2))
+    return front < rear
+
+
+def sense_reference(
+    heights,
+    zones,
+    goal,
+    poses,
+    active,
+    k: int,
+    blade: int,
+    load_volume: int,
+    stuck: bool,
+    tilted: bool,
+    memory: bool,
+) -> list[int]:
+    """Robot k's 14 sensor codes, one Table 1 rule after another (see the module docstring)."""
+    pose = poses[k]
+    out = [0] * N_SENSORS
+    # Z1..Z4: the row of four cells ahead, against the blueprint.
+    for j in range(4):
+        cell = front_row_cell(pose, j - 1)
+        if not on_grid(heights, cell):
+            out[Z1 + j] = Z_DONT_CARE
+        elif zones[cell] == ZONE_DUMP:
+            out[Z1 + j] = Z_DUMP
+        elif zones[cell] != ZONE_DIG:
+            out[Z1 + j] = Z_DONT_CARE
+        elif heights[cell] > goal[cell]:
+            out[Z1 + j] = Z_ABOVE
+        elif heights[cell] < goal[cell]:
+            out[Z1 + j] = Z_BELOW
+        else:
+            out[Z1 + j] = Z_LEVEL
+    # E1, E2: each blade cell against the front wheel behind it; S1: something in the way.
+    obstacle = False
+    for i in range(2):
+        b = front_row_cell(pose, i)
+        if not on_grid(heights, b):
+            out[E1 + i] = E_LEVEL
+            obstacle = True
+            continue
+        obstacle = obstacle or under_other_robot(poses, active, k, b)
+        d = int(heights[b]) - int(heights[front_wheel_cell(pose, i)])
+        out[E1 + i] = E_ABOVE if d > 0 else E_BELOW if d < 0 else E_LEVEL
+    out[B1] = int(blade)
+    # L1: 0 for no load, else the sixth of the push capacity it reaches, at most 4.
+    out[L1] = 0 if load_volume <= 0 else min(4, -(-4 * int(load_volume) // MAX_LOAD))
+    out[S1] = int(obstacle)
+    # D1, H1: the nearest other active robot (Chebyshev gap between footprints, ties to
+    # the lowest index) and its bearing from this robot's heading.
+    nearest, gap = -1, SENSE_RANGE
+    best: int | None = None
+    for j in range(len(poses)):
+        if j == k or not active[j]:
+            continue
+        g = max(
+            0, max(abs(int(poses[j][0]) - int(pose[0])), abs(int(poses[j][1]) - int(pose[1]))) - 2
+        )
+        if best is None or g < best:
+            best, nearest = g, j
+    if nearest >= 0:
+        gap = best
+    out[D1] = min(gap, SENSE_RANGE)
+    out[H1] = AHEAD
+    if nearest >= 0:
+        h = int(pose[2])
+        dr = int(poses[nearest][0]) - int(pose[0])
+        dc = int(poses[nearest][1]) - int(pose[1])
+        ahead = dr * int(FORWARD[h, 0]) + dc * int(FORWARD[h, 1])
+        right = dr * int(RIGHT_STEP[h, 0]) + dc * int(RIGHT_STEP[h, 1])
+        if abs(ahead) >= abs(right):
+            out[H1] = AHEAD if ahead > 0 else BEHIND
+        else:
+            out[H1] = RIGHT if right > 0 else LEFT
+    out[R1] = int(bool(tilted))
+    out[U1] = int(bool(stuck))
+    out[M1] = int(bool(memory))
+    return out

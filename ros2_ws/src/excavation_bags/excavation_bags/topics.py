@@ -1,0 +1,112 @@
+"""What a bag's topics are: the suite's topic names, message types and their definitions.
+
+Message definitions come from ROS 2 Jazzy's common_interfaces as the ``rosbags`` type store
+holds them (:func:`typestore`); only those types are recorded. A bag from elsewhere may
+carry other types with their definitions, which :func:`ensure_type` registers for
+decoding. Pure module: no ``rclpy``.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from rosbags.interfaces import Qos
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+SUITE_TOPICS: tuple[str, ...] = (
+    "/clock",
+    "/overhead/image_raw",
+    "/overhead/image_raw/compressed",
+    "/overhead/camera_info",
+    "/worksite/scan",
+    "/worksite/height_map",
+    "/worksite/map_info",
+    "/worksite/fitness",
+    "/worksite/markers",
+    "/blueprint/goal",
+    "/blueprint/zones",
+    "/robot_*/pose",
+    "/robot_*/behaviour",
+    "/robot_*/stuck",
+    "/robot_*/imu",
+    "/robot_*/blade/joint_states",
+    "/robot_*/blade/commands",
+    "/robot_*/blade/servo_command",
+    "/robot_*/blade/servo_state",
+    "/diagnostics",
+)
+"""The node suite's topics (DESIGN.md, docs/interfaces.md); ``*`` matches a robot index.
+
+``/overhead/image_raw`` is recorded as ``/overhead/image_raw/compressed`` (see
+:mod:`excavation_bags.recorder_node`)."""
+
+_TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+
+
+def typestore():
+    """The rosbags type store with ROS 2 Jazzy's message definitions (common_interfaces)."""
+    return _TYPESTORE
+
+
+def known_type(msgtype: str) -> bool:
+    """True when ``msgtype`` (``pkg/msg/Name``) has a definition in the type store."""
+    return msgtype in _TYPESTORE.types
+
+
+def message_definition(msgtype: str) -> tuple[str, str]:
+    """``(schema encoding, definition text)`` of a known type, as rosbag2 stores it in MCAP.
+
+    The text is the ``ros2msg`` form: the type's fields, then each nested type after a
+    line of ``=`` (what ``ros2 bag record`` writes as the channel's schema).
+    """
+    text, _ = _TYPESTORE.generate_msgdef(msgtype, ros_version=2)
+    encoding = "ros2idl" if text.startswith("=" * 80 + "\nIDL: ") else "ros2msg"
+    return encoding, text
+
+
+def type_hash(msgtype: str) -> str:
+    """The type's RIHS01 hash (``type_description_hash`` in metadata.yaml)."""
+    return _TYPESTORE.hash_rihs01(msgtype)
+
+
+def topic_selected(topic: str, patterns: Sequence[str]) -> bool:
+    """True when ``topic`` matches one of ``patterns`` (names or ``fnmatch`` globs)."""
+    return any(fnmatch.fnmatchcase(topic, p) for p in patterns)
+
+
+@dataclass
+class TopicInfo:
+    """One topic of a bag.
+
+    Attributes:
+        name: Topic name.
+        msgtype: ROS type (``sensor_msgs/msg/Image``).
+        count: Messages read back (or listed in the metadata).
+        qos: Offered QoS profiles.
+        msgdef: Message definition stored in the bag (``ros2msg`` text), if any.
+    """
+
+    name: str
+    msgtype: str
+    count: int
+    qos: list[Qos] = field(default_factory=list)
+    msgdef: str = ""
+
+
+def ensure_type(info: TopicInfo) -> bool:
+    """Make ``info.msgtype`` decodable: known, or registered from the bag's definition.
+
+    Returns:
+        False when the type is unknown and the bag has no definition that parses.
+    """
+    if known_type(info.msgtype):
+        return True
+    if info.msgdef:
+        try:
+            _TYPESTORE.register(get_types_from_msg(info.msgdef, info.msgtype))
+            return True
+        except Exception:  # noqa: BLE001 - any parse failure means: unknown type
+            return False
+    return False
