@@ -38,7 +38,7 @@ BROKEN = {
     "laser_outside": "laser.mount = [9.0, 2.0, 4.0]: is outside the 4.0 x 4.0 m worksite",
     "derived_override": "overrides.controller.height_unit = 0.1: set by the site file's "
     "worksite.soil_unit",
-    "duplicate_key": "network = None: repeated key (line 17)",
+    "duplicate_key": "network = 'line 17 column 1': is given twice (first at line 16 column 1)",
 }
 
 
@@ -147,6 +147,6 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
 
 
 def test_repeated_keys_are_refused_anywhere():
-    with pytest.raises(sitefile.SiteError, match=r"a = None: repeated key \(line 3\)"):
+    with pytest.raises(sitefile.SiteError, match=r"a = 'line 3 column 3': is given twice"):
         sitefile.safe_load_unique("x:\n  a: 1\n  a: 2\n", "t.yaml")
     assert sitefile.safe_load_unique("x: {a: 1, b: 2}", "t.yaml") == {"x": {"a": 1, "b": 2}}

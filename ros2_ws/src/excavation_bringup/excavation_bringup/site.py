@@ -27,6 +27,7 @@ from typing import Any
 import yaml
 
 from excavation_common.errors import FieldError
+from excavation_common.loaders import parse_yaml, read_text_bounded
 
 FORMAT = "ant-site/1"
 
@@ -70,45 +71,12 @@ class SiteError(FieldError):
     """A site file that cannot be used: ``file: field = value: reason``."""
 
 
-class _DuplicateKey(Exception):
-    def __init__(self, key: object, line: int) -> None:
-        super().__init__(key, line)
-        self.key, self.line = key, line
-
-
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """PyYAML's safe loader refusing a mapping that repeats a key (PyYAML keeps the last).
-
-    Local until ``excavation_common.files`` has the shared loader (branch ``limits``).
-    """
-
-
-def _unique_mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: bool = False):
-    seen = set()
-    for key_node, _ in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        if key in seen:
-            raise _DuplicateKey(key, key_node.start_mark.line + 1)
-        seen.add(key)
-    return yaml.SafeLoader.construct_mapping(loader, node, deep)
-
-
-_UniqueKeyLoader.add_constructor(
-    yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
-    lambda loader, node: dict(_unique_mapping(loader, node, deep=True)),
-)
-
-
 def safe_load_unique(text: str, path: str) -> Any:
-    """YAML ``text`` parsed safely; a repeated key or a syntax error is a :class:`SiteError`."""
-    try:
-        return yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader subclass
-    except _DuplicateKey as exc:
-        raise SiteError(path, str(exc.key), None, f"repeated key (line {exc.line})") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark is not None else "<yaml>"
-        raise SiteError(path, where, None, f"is not valid YAML: {exc}") from None
+    """YAML ``text`` parsed safely (``excavation_common.loaders.parse_yaml``).
+
+    A repeated key, an alias or a syntax error is a :class:`SiteError`.
+    """
+    return parse_yaml(text, path, SiteError)
 
 
 # --- the model --------------------------------------------------------------------------------
@@ -742,11 +710,9 @@ def check_site(path: str | Path, sim: bool = False) -> tuple[Site | None, list[S
     """Read ``path`` and return the site with every error found (empty: usable)."""
     path = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        return None, [SiteError(path, "<file>", path, "does not exist")]
-    except (OSError, UnicodeDecodeError) as exc:
-        return None, [SiteError(path, "<file>", path, f"cannot be read: {exc}")]
+        text = read_text_bounded(path, error=SiteError)
+    except SiteError as exc:
+        return None, [exc]
     site, errors = parse_site(text, path)
     if site is not None:
         errors += consistency(site, sim)
