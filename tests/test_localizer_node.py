@@ -80,8 +80,8 @@ def test_good_frame_gives_poses_with_covariance(ros, frame):
         assert abs(pose.pose.pose.position.y - view.y) < 0.04
         cov = np.array(pose.pose.covariance).reshape(6, 6)
         assert 0 < cov[0, 0] < 0.01 and 0 < cov[5, 5] < 0.05 and cov[2, 2] == 1e6
-    assert ros.spin_until(lambda: "localizer: robot_1" in probe.status)
-    assert probe.status["localizer: robot_1"].level == DiagnosticStatus.OK
+    assert ros.spin_until(lambda: "/localizer: robot_1" in probe.status)
+    assert probe.status["/localizer: robot_1"].level == DiagnosticStatus.OK
 
 
 @pytest.mark.parametrize(
@@ -106,7 +106,7 @@ def test_bad_frames_are_reported_and_give_no_pose(ros, frame, bad, match):
     probe.send(msg, 3)
 
     def reported():
-        s = probe.status.get("localizer: camera")
+        s = probe.status.get("/localizer")
         return s is not None and s.level == DiagnosticStatus.ERROR and match in s.message
 
     assert ros.spin_until(reported)
@@ -153,10 +153,10 @@ def test_two_robots_with_the_same_colours(ros, frame, tmp_path):
     probe.send(frame_to_message(frame, Image()), 2)
 
     def reported():
-        s = probe.status.get("localizer: robot_1")
+        s = probe.status.get("/localizer: robot_1")
         return s is not None and s.level == DiagnosticStatus.ERROR
 
     assert ros.spin_until(reported)
-    assert "shares LED colours" in probe.status["localizer: robot_0"].message
+    assert "shares LED colours" in probe.status["/localizer: robot_0"].message
     ros.spin_until(lambda: False, 0.3)
     assert not any(probe.poses.values())

@@ -83,7 +83,7 @@ class Rig:
 
     def on_diag(self, msg):
         for s in msg.status:
-            if s.name == "mapper":
+            if s.name == "/mapper":
                 self.status = s
 
     def mount(self, t_ns, tilt):

@@ -55,10 +55,10 @@ def test_config_file_sets_every_parameter(ros, kind, path, tmp_path):
 @pytest.mark.parametrize(
     ("kind", "name", "value", "match"),
     [
-        ("localizer", "min_value", 300, r"min_value .*out of range\. Min: 0, Max: 255, value: 300"),
-        ("localizer", "robots", 0, r"robots .*out of range\. Min: 1"),
-        ("mapper", "tilt_offset", 0.9, r"tilt_offset .*out of range"),
-        ("mapper", "sweep_scans", 1, r"sweep_scans .*out of range\. Min: 2"),
+        ("localizer", "min_value", 300, "min_value = 300: must be <= 255"),
+        ("localizer", "robots", 0, "robots = 0: must be >= 1"),
+        ("mapper", "tilt_offset", 0.9, "tilt_offset = 0.9: must be <= 0.5"),
+        ("mapper", "sweep_scans", 1, "sweep_scans = 1: must be >= 2"),
     ],
 )
 def test_bad_values_at_start_are_refused(ros, kind, name, value, match):

@@ -102,7 +102,7 @@ def simulator(site: sitefile.Site, run_dir: Path, ticks: int) -> NodeSpec:
         "sim",
         "excavation_sim.sim_node",
         sitefile.sim_params(site, ticks, str(run_dir / "result.json")),
-        ("sim: lockstep",),
+        ("/sim", "sim: *"),
         restart=False,
         final=True,
     )
@@ -161,7 +161,7 @@ def node_table(
             "server",
             "blueprint_server.server_node",
             sitefile.server_params(site),
-            ("blueprint_server: blueprint",),
+            ("/blueprint_server", "blueprint_server: *"),
         )
     )
     if sim:
@@ -174,7 +174,7 @@ def node_table(
                 **sitefile.localizer_params(site, calibration, str(beacons), reliable=sim),
                 **({"annotated_period": 0.5} if view else {}),
             },
-            ("localizer: camera",),
+            ("/localizer", "localizer: *"),
         )
     )
     table.append(
@@ -182,7 +182,7 @@ def node_table(
             "mapper",
             "terrain_mapper.mapper_node",
             sitefile.mapper_params(site, reliable=sim),
-            ("mapper",),
+            ("/mapper", "mapper"),
         )
     )
     for k, robot in enumerate(site.robots):

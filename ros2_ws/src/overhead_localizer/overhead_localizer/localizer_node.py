@@ -10,10 +10,11 @@ a robot sets the plane of its LEDs). Publishes for every robot k < ``robots`` it
 ``/robot_k/pose`` (PoseWithCovarianceStamped in ``map``, stamped with the frame's stamp,
 covariance from the detection); with ``annotated_period`` > 0,
 ``/overhead/image_annotated`` (CompressedImage jpeg: detected LEDs and poses drawn); and,
-every ``diagnostics_period``, ``/diagnostics``: one status per robot (OK seen, WARN
-coasting / lost / ambiguous, ERROR when two robots share LED colours) and one for the camera
-(ERROR on a frame of the wrong encoding or size, a bad CameraInfo, or colourless mono8
-frames). Bad input never stops the node and never produces a pose.
+every ``diagnostics_period``, ``/diagnostics``: the camera's status, named after the node
+(``/localizer``; ERROR on a frame of the wrong encoding or size, a bad CameraInfo, or
+colourless mono8 frames), and one per robot (``/localizer: robot_k``; OK seen, WARN
+coasting / lost / ambiguous, ERROR when two robots share LED colours). Bad input never
+stops the node and never produces a pose.
 
 The node refuses to start (one line on stderr, exit code 2) without ``calibration``, or
 with a calibration or LED table file it cannot use: it never falls back to another camera.
@@ -39,7 +40,7 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from excavation_common.errors import FieldError
 from excavation_common.messages import MessageError, image_to_grid
 from excavation_common.params import ParameterError
-from excavation_common.ros import LATCHED, LATEST_FRAME, declare_params, spin_node
+from excavation_common.ros import LATCHED, LATEST_FRAME, declare_params, diagnostics, spin_node
 from overhead_localizer.annotate import annotate
 from overhead_localizer.beacons import CONFIG_DIR, load_beacons
 from overhead_localizer.camera_info import with_camera_info
@@ -221,24 +222,24 @@ class LocalizerNode(Node):
                 )
                 self.annotated_pub.publish(out)
 
-    def statuses(self) -> list[DiagnosticStatus]:
-        """Camera status plus one per robot."""
-        camera = DiagnosticStatus(name="localizer: camera", hardware_id="overhead_camera")
+    def camera_status(self) -> tuple[bytes, str]:
+        """The camera's level and message."""
         if self.camera_error or self.image_error:
-            camera.level = DiagnosticStatus.ERROR
-            camera.message = self.camera_error or self.image_error
-        elif self.encoding in COLOURLESS:
-            camera.level = DiagnosticStatus.ERROR
-            camera.message = (
+            return DiagnosticStatus.ERROR, self.camera_error or self.image_error
+        if self.encoding in COLOURLESS:
+            return DiagnosticStatus.ERROR, (
                 f"{self.encoding} frames carry no colour: the LED pairs cannot be told apart "
                 "(set the camera to a colour or Bayer encoding)"
             )
-        else:
-            camera.level = DiagnosticStatus.OK
-            camera.message = f"{self.frames} frames"
-        out = [camera]
+        return DiagnosticStatus.OK, f"{self.frames} frames"
+
+    def robot_statuses(self) -> list[DiagnosticStatus]:
+        """One status per robot, named ``<node>: robot_k``."""
+        out = []
         for k in range(self.n):
-            s = DiagnosticStatus(name=f"localizer: robot_{k}", hardware_id=f"robot_{k}")
+            s = DiagnosticStatus(
+                name=f"{self.get_fully_qualified_name()}: robot_{k}", hardware_id=f"robot_{k}"
+            )
             if k < len(self.estimates):
                 e = self.estimates[k]
                 s.level = {
@@ -260,9 +261,11 @@ class LocalizerNode(Node):
         return out
 
     def publish_diagnostics(self) -> None:
-        """Publish the statuses now."""
-        msg = DiagnosticArray(status=self.statuses())
-        msg.header.stamp = self.get_clock().now().to_msg()
+        """The camera's status (named after the node) and one per robot."""
+        level, message = self.camera_status()
+        values = {"frames": self.frames, "encoding": self.encoding or "none yet"}
+        msg = diagnostics(self, level, message, values, hardware_id="overhead_camera")
+        msg.status += self.robot_statuses()
         self.diag_pub.publish(msg)
 
 

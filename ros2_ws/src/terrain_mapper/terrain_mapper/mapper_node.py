@@ -23,7 +23,7 @@ its scans was lost), so the count never drifts out of step. A sweep is fused onc
 robot's pose is at least as new as the sweep's first scan (so the masks are where the
 robots were), or ``pose_wait`` seconds after its last scan with the poses it has. A scan
 with no valid return, a malformed scan or mount state, or a sweep that measured no cell is
-reported on ``/diagnostics`` (``mapper``, WARN or ERROR) and publishes nothing; the node
+reported on ``/diagnostics`` (status ``/mapper``, WARN or ERROR) and publishes nothing; the node
 keeps running.
 
 Parameters: :class:`terrain_mapper.params.MapperNodeParams` (topics, sweeps, mount
@@ -39,7 +39,7 @@ import math
 import sys
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
@@ -47,7 +47,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, JointState, LaserScan
 
 from excavation_common.messages import grid_to_image, map_info
-from excavation_common.ros import LATCHED, SENSOR_DATA, declare_params, spin_node
+from excavation_common.ros import LATCHED, SENSOR_DATA, declare_params, diagnostics, spin_node
 from terrain_mapper.errors import MapperError
 from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, yaw_of
 from terrain_mapper.mapper import MapperParams, TerrainMapper, scan_ranges_check
@@ -309,27 +309,19 @@ class MapperNode(Node):
         self.published += 1
 
     def publish_diagnostics(self) -> None:
-        """``mapper``: OK with sweep figures, or the worst recorded problem."""
-        status = DiagnosticStatus(name="mapper", hardware_id="overhead_laser")
+        """The node's status: OK with sweep figures, or the worst recorded problem."""
         if self.problems:
-            status.level = max(level for level, _ in self.problems.values())
-            status.message = "; ".join(text for _, text in self.problems.values())
+            level = max(level for level, _ in self.problems.values())
+            message = "; ".join(text for _, text in self.problems.values())
         else:
-            status.level = DiagnosticStatus.OK
-            status.message = f"{self.published} maps published"
+            level, message = DiagnosticStatus.OK, f"{self.published} maps published"
+        values = {}
         if self.last_stats is not None:
-            s = self.last_stats
-            status.values = [
-                KeyValue(key=name, value=str(getattr(s, name)))
-                for name in ("points", "invalid", "masked", "measured")
-            ]
-        status.values += [
-            KeyValue(key="short_sweeps", value=str(self.short_sweeps)),
-            KeyValue(key="unbracketed_scans", value=str(self.unbracketed)),
-        ]
-        msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self.diag_pub.publish(msg)
+            values = {
+                n: getattr(self.last_stats, n) for n in ("points", "invalid", "masked", "measured")
+            }
+        values.update(short_sweeps=self.short_sweeps, unbracketed_scans=self.unbracketed)
+        self.diag_pub.publish(diagnostics(self, level, message, values, "overhead_laser"))
 
 
 def main(args: list[str] | None = None) -> int:
