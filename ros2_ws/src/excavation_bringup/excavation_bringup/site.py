@@ -146,12 +146,17 @@ class Network:
 
 @dataclass(frozen=True)
 class SimSettings:
-    """What ``ant-dome up --sim`` simulates: scenario seed and index, ticks, tick timeout."""
+    """What ``ant-dome up --sim`` simulates: scenario seed and index, ticks, tick timeouts.
+
+    ``first_command_timeout`` is tick 0's: every node's first frame, sweep and decision
+    (numba kernels compiling) can take a loaded machine well over a minute.
+    """
 
     seed: int = 0
     scenario: int = 0
     ticks: int = 300
     command_timeout: float = 30.0
+    first_command_timeout: float = 180.0
 
 
 @dataclass(frozen=True)
@@ -359,13 +364,15 @@ def _network(r: _Reader, doc: dict) -> Network:
 
 
 def _sim(r: _Reader, doc: dict) -> SimSettings:
-    s = r.section(doc, "sim", {"seed", "scenario", "ticks", "command_timeout"}, required=False)
+    keys = {"seed", "scenario", "ticks", "command_timeout", "first_command_timeout"}
+    s = r.section(doc, "sim", keys, required=False)
     d = SimSettings()
     return SimSettings(
         r.number(s, "sim", "seed", d.seed, 0, 2**31 - 1, integer=True),
         r.number(s, "sim", "scenario", d.scenario, 0, 2**31 - 1, integer=True),
         r.number(s, "sim", "ticks", d.ticks, 1, 10**7, integer=True),
         r.number(s, "sim", "command_timeout", d.command_timeout, positive=True),
+        r.number(s, "sim", "first_command_timeout", d.first_command_timeout, positive=True),
     )
 
 
@@ -753,6 +760,7 @@ def sim_params(site: Site, ticks: int, result_file: str) -> dict[str, Any]:
         "seed": s.seed,
         "scenario": s.scenario,
         "command_timeout": float(s.command_timeout),
+        "first_command_timeout": float(s.first_command_timeout),
         "blade_driver": True,
         "truth_prefix": "/truth",
         "result_file": str(result_file),
