@@ -53,3 +53,11 @@ def ros():
         node.destroy_node()
     executor.shutdown()
     rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def ros_env() -> dict[str, str]:
+    """Environment for a node started as a subprocess: loopback, a domain of its own."""
+    return dict(
+        os.environ, ROS_DOMAIN_ID=str(next_domain()), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"
+    )

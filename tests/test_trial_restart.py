@@ -56,7 +56,7 @@ def test_killed_controller_idles_then_rejoins(ros, drivers):
     watcher.create_subscription(
         DiagnosticArray,
         "/diagnostics",
-        lambda m: reports.extend(s.message for s in m.status if s.name == "sim: lockstep"),
+        lambda m: reports.extend(s.message for s in m.status if s.name == "/sim"),
         10,
     )
     controller(ros, 0)

@@ -26,6 +26,7 @@ setup(
         "tqdm",
         "rosbags",
         "mcap",
+        "terrain_mapper",
     ],
     zip_safe=True,
     maintainer="ANT excavation maintainers",

@@ -15,7 +15,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*")),
     ],
-    install_requires=["numpy", "pyyaml", "matplotlib"],
+    install_requires=["numpy", "pyyaml", "matplotlib", "blueprint_server", "excavation_common"],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
     maintainer_email="maintainers@ant-excavation.org",

@@ -21,9 +21,10 @@ Parameters: ``blueprint`` (file, ``default``, ``default:D`` or ``landing-pad``; 
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
 from sensor_msgs.msg import Image
@@ -32,7 +33,8 @@ from std_srvs.srv import Trigger
 from blueprint_server.blueprint import DIG, Blueprint, resolve_blueprint
 from blueprint_server.errors import BlueprintError
 from excavation_common.messages import grid_to_image, map_info
-from excavation_common.ros import LATCHED, spin_node
+from excavation_common.params import param
+from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
 
 
 def blueprint_messages(bp: Blueprint, stamp=None) -> tuple[Image, Image, MapMetaData]:
@@ -46,13 +48,24 @@ def blueprint_messages(bp: Blueprint, stamp=None) -> tuple[Image, Image, MapMeta
     )
 
 
+@dataclass(frozen=True)
+class ServerParams:
+    """Parameters of the blueprint server (``config/server.yaml``)."""
+
+    blueprint: str = param(
+        "default",
+        "default, default:D, landing-pad or a blueprint file; set it, then call ~/reload",
+        read_only=False,
+    )
+    diagnostics_period: float = param(1.0, "s between status reports", low=0.01, high=3600.0)
+
+
 class BlueprintServer(Node):
     """Loads a blueprint and publishes it latched; reloads on request."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__("blueprint_server", **kwargs)
-        self.declare_parameter("blueprint", "default")
-        self.declare_parameter("diagnostics_period", 1.0)
+        self.params = declare_params(self, ServerParams, on_change=self.on_params)
         self.goal_pub = self.create_publisher(Image, "blueprint/goal", LATCHED)
         self.zones_pub = self.create_publisher(Image, "blueprint/zones", LATCHED)
         self.info_pub = self.create_publisher(MapMetaData, "worksite/map_info", LATCHED)
@@ -61,12 +74,15 @@ class BlueprintServer(Node):
         self.blueprint: Blueprint | None = None
         self.error: str | None = None
         self.load()
-        period = float(self.get_parameter("diagnostics_period").value)
-        self.create_timer(period, self.publish_diagnostics)
+        self.create_timer(self.params.diagnostics_period, self.publish_diagnostics)
+
+    def on_params(self, params: ServerParams) -> None:
+        """A new ``blueprint`` value is taken by the next ``~/reload``."""
+        self.params = params
 
     def load(self) -> bool:
         """(Re)load the blueprint parameter; publish on success, keep the old one on error."""
-        spec = str(self.get_parameter("blueprint").value)
+        spec = self.params.blueprint
         try:
             bp = resolve_blueprint(spec)
         except BlueprintError as exc:
@@ -95,22 +111,19 @@ class BlueprintServer(Node):
 
     def publish_diagnostics(self) -> None:
         """One status: OK with the blueprint, or ERROR with the last load error."""
-        status = DiagnosticStatus(name=f"{self.get_name()}: blueprint", hardware_id="worksite")
-        if self.error is None and self.blueprint is not None:
-            status.level = DiagnosticStatus.OK
-            status.message = f"publishing {self.blueprint.name}"
-        else:
-            status.level = DiagnosticStatus.ERROR
-            status.message = self.error or "no blueprint"
+        values = {}
         if self.blueprint is not None:
-            status.values = [
-                KeyValue(key="blueprint", value=self.blueprint.name),
-                KeyValue(key="cells", value=f"{self.blueprint.shape[0]}x{self.blueprint.shape[1]}"),
-                KeyValue(key="dig_cells", value=str(self.blueprint.dig_cells)),
-            ]
-        msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self.diag_pub.publish(msg)
+            rows, cols = self.blueprint.shape
+            values = {
+                "blueprint": self.blueprint.name,
+                "cells": f"{rows}x{cols}",
+                "dig_cells": self.blueprint.dig_cells,
+            }
+        if self.error is None and self.blueprint is not None:
+            level, message = DiagnosticStatus.OK, f"publishing {self.blueprint.name}"
+        else:
+            level, message = DiagnosticStatus.ERROR, self.error or "no blueprint"
+        self.diag_pub.publish(diagnostics(self, level, message, values, "worksite"))
 
 
 def main(args: list[str] | None = None) -> int:

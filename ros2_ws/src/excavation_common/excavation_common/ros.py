@@ -8,6 +8,7 @@ frozen parameter dataclass declared with descriptors and kept valid at runtime) 
 
 from __future__ import annotations
 
+import re
 import sys
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -98,6 +99,32 @@ def _descriptor(name: str, default: Any, spec) -> ParameterDescriptor:
     return d
 
 
+def _range_error(node: str, name: str, spec, text: str) -> ParameterError:
+    """Rclpy's out-of-range refusal as one of ours (``node: name = value: must be ...``)."""
+    match = re.search(r"value \((.*?)\)", text)
+    shown: object = match.group(1) if match else ""
+    try:
+        value = float(shown)
+        shown = int(value) if value.is_integer() else value
+    except (TypeError, ValueError):
+        value = None
+    if value is not None and spec.low is not None and value < spec.low:
+        return ParameterError(node, name, shown, f"must be >= {spec.low}")
+    if value is not None and spec.high is not None and value > spec.high:
+        return ParameterError(node, name, shown, f"must be <= {spec.high}")
+    return ParameterError(node, name, shown, "out of range")
+
+
+def _type_error(node: str, name: str, text: str) -> ParameterError:
+    """Rclpy's wrong-type refusal as one of ours (``... = '10': expected DOUBLE ...``)."""
+    match = re.search(r"to '(.*?)' of type '(\w+)', expecting type '(\w+)'", text)
+    if match is None:
+        return ParameterError(node, name, "", text)
+    value, got, want = match.groups()
+    hint = f" (write {value}.0)" if want == "DOUBLE" and got == "INTEGER" else ""
+    return ParameterError(node, name, value, f"expected {want}, got {got}{hint}")
+
+
 def declare_params(
     node: Node,
     cls: type[P],
@@ -125,9 +152,10 @@ def declare_params(
             initial = list(default) if default else _ARRAY_TYPES[str]
         try:
             value = node.declare_parameter(prefix + f_name, initial, descriptor).value
-        except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
-            reason = str(exc).split(": " + prefix + f_name)[0]
-            raise ParameterError(name_of_node, prefix + f_name, "", reason) from None
+        except InvalidParameterValueException as exc:
+            raise _range_error(name_of_node, prefix + f_name, spec, str(exc)) from None
+        except InvalidParameterTypeException as exc:
+            raise _type_error(name_of_node, prefix + f_name, str(exc)) from None
         except ParameterUninitializedException:
             value = ()
         values[f_name] = tuple(value) if isinstance(value, list | tuple) else value

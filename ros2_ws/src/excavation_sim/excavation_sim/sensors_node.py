@@ -30,6 +30,7 @@ its centre (:meth:`CameraParams.for_site`, :meth:`LaserParams.for_site`); camera
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
@@ -41,7 +42,8 @@ from sensor_msgs.msg import Image, JointState, LaserScan
 
 from excavation_common.frames import robot_anchor
 from excavation_common.messages import MessageError, image_to_grid
-from excavation_common.ros import LATCHED, diagnostics, spin_node
+from excavation_common.params import param
+from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
 from excavation_sim.camera import CameraParams, OverheadCamera, RobotView, default_beacons
 from excavation_sim.laser import LaserParams, OverheadLaser, surface_with_robots
 from overhead_localizer.images import frame_to_message
@@ -68,45 +70,73 @@ def _add(stamp: TimeMsg, seconds: float) -> TimeMsg:
     return TimeMsg(sec=total // 1_000_000_000, nanosec=total % 1_000_000_000)
 
 
+@dataclass(frozen=True)
+class SensorsParams:
+    """Parameters of the synthetic camera and laser (``config/sensors.yaml`` of the trial)."""
+
+    robots: int = param(4, "team size", low=1, high=64)
+    seed: int = param(0, "noise seed", low=0, high=2**63 - 1)
+    truth_prefix: str = param("/truth", "prefix of the simulator's true poses and heights")
+    cell_size: float = param(0.25, "m per grid cell", low=1e-3, high=100.0)
+    rows: int = param(16, "grid rows", low=2, high=4096)
+    cols: int = param(16, "grid columns", low=2, high=4096)
+    width: int = param(1280, "camera image width, px", low=16, high=8192)
+    height: int = param(720, "camera image height, px", low=16, high=8192)
+    light: float = param(0.25, "ambient light level", low=0.0, high=1.0)
+    noise: float = param(3.0, "pixel noise (std, grey levels)", low=0.0, high=255.0)
+    glare: float = param(1.5, "glare strength", low=0.0, high=100.0)
+    dropout: float = param(0.0, "share of frames lost", low=0.0, high=1.0)
+    k1: float = param(-0.08, "radial lens distortion", low=-1.0, high=1.0)
+    occlude: str = param(
+        "", "LEDs hidden from the camera: K:front,K:rear (settable at runtime)", read_only=False
+    )
+    range_noise: float = param(0.008, "laser range noise (std, m)", low=0.0, high=10.0)
+    laser_dropout: float = param(0.01, "share of laser beams lost", low=0.0, high=1.0)
+    sweep_scans: int = param(64, "scans per laser sweep", low=1, high=100_000)
+    scan_period: float = param(0.01, "s of sim time between scans", low=1e-6, high=60.0)
+    reliable: bool = param(False, "reliable QoS for frames and scans (bags, tests)")
+    queue: int = param(200, "queue depth with reliable QoS", low=1, high=100_000)
+
+    def check(self) -> None:
+        """``occlude`` must parse."""
+        parse_occlude(self.occlude)
+
+
 class SensorsNode(Node):
     """Renders camera frames and laser sweeps from the simulator's truth."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__("sensors", **kwargs)
-        p = self.declare_parameter
-        self.n = int(p("robots", 4).value)
-        self.rng = np.random.default_rng(int(p("seed", 0).value))
-        prefix = str(p("truth_prefix", "/truth").value).rstrip("/")
-        self.cell_size = float(p("cell_size", 0.25).value)
-        self.rows = int(p("rows", 16).value)
-        self.cols = int(p("cols", 16).value)
+        self.params = p = declare_params(self, SensorsParams, on_change=self.on_params)
+        self.n = p.robots
+        self.rng = np.random.default_rng(p.seed)
+        prefix = p.truth_prefix.rstrip("/")
+        self.cell_size = p.cell_size
+        self.rows = p.rows
+        self.cols = p.cols
         self.camera_params = CameraParams.for_site(
             self.cols * self.cell_size,
             self.rows * self.cell_size,
-            width=int(p("width", 1280).value),
-            height=int(p("height", 720).value),
-            light=float(p("light", 0.25).value),
-            noise=float(p("noise", 3.0).value),
-            glare=float(p("glare", 1.5).value),
-            dropout=float(p("dropout", 0.0).value),
-            k1=float(p("k1", -0.08).value),
+            width=p.width,
+            height=p.height,
+            light=p.light,
+            noise=p.noise,
+            glare=p.glare,
+            dropout=p.dropout,
+            k1=p.k1,
         )
-        try:
-            self.hidden = parse_occlude(str(p("occlude", "").value))
-        except ValueError as exc:
-            self.get_logger().error(f"{exc}: no LED is occluded")
-            self.hidden = frozenset()
+        self.hidden = parse_occlude(p.occlude)
         self.laser_params = LaserParams.for_site(
             self.rows,
             self.cols,
             self.cell_size,
-            range_noise=float(p("range_noise", 0.008).value),
-            dropout=float(p("laser_dropout", 0.01).value),
-            sweep_scans=int(p("sweep_scans", 64).value),
+            range_noise=p.range_noise,
+            dropout=p.laser_dropout,
+            sweep_scans=p.sweep_scans,
         )
-        self.scan_period = float(p("scan_period", 0.01).value)
-        reliable = bool(p("reliable", False).value)
-        queue = int(p("queue", 200).value)
+        self.scan_period = p.scan_period
+        reliable = p.reliable
+        queue = p.queue
         qos = (
             QoSProfile(depth=queue, reliability=ReliabilityPolicy.RELIABLE)
             if reliable
@@ -135,6 +165,11 @@ class SensorsNode(Node):
         self.create_subscription(Image, f"{prefix}/worksite/height_map", self.on_heights, LATCHED)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(1.0, self.publish_diagnostics)
+
+    def on_params(self, params: SensorsParams) -> None:
+        """Runtime changes: only ``occlude`` (hide or show LEDs) is not read-only."""
+        self.params = params
+        self.hidden = parse_occlude(params.occlude)
 
     def publish_diagnostics(self) -> None:
         """OK while frames and sweeps go out; WARN with the last skipped input."""

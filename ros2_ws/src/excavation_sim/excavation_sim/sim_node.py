@@ -42,7 +42,7 @@ import sys
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -61,7 +61,8 @@ from blueprint_server.blueprint import resolve_blueprint
 from excavation_common.constants import BladeGeometry
 from excavation_common.files import write_text_atomic
 from excavation_common.messages import blade_joint, grid_to_image, pose_message
-from excavation_common.ros import LATCHED, spin_node
+from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
+from excavation_sim.lockstep import Action, SimParams, TickClock, TickInputs
 from excavation_sim.world import (
     BLADE,
     COL,
@@ -89,39 +90,25 @@ def scenario_world(blueprint_spec: str, robots: int, seed: int, index: int = 0):
 
 
 class SimNode(Node):
-    """Lockstep simulator node."""
+    """Lockstep simulator node: thin plumbing around :class:`~excavation_sim.lockstep.TickClock`."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__("sim", **kwargs)
-        p = self.declare_parameter
-        self.n = int(p("robots", 4).value)
-        self.steps = int(p("steps", 300).value)
-        self.dt = float(p("dt", 1.0).value)
-        self.timeout = float(p("command_timeout", 1.0).value)
-        self.first_timeout = float(p("first_command_timeout", 30.0).value)
-        self.startup_period = float(p("startup_period", 0.5).value)
-        self.blade_driver = bool(p("blade_driver", False).value)
-        self.result_file = str(p("result_file", "").value)
-        self.truth_prefix = str(p("truth_prefix", "").value).rstrip("/")
-        self.blueprint, self.world = scenario_world(
-            str(p("blueprint", "default").value),
-            self.n,
-            int(p("seed", 0).value),
-            int(p("scenario", 0).value),
-        )
+        self.params = declare_params(self, SimParams)
+        p = self.params
+        self.n = p.robots
+        self.steps = p.steps
+        self.dt = p.dt
+        self.blade_driver = p.blade_driver
+        self.result_file = p.result_file
+        self.truth_prefix = p.truth_prefix.rstrip("/")
+        self.blueprint, self.world = scenario_world(p.blueprint, p.robots, p.seed, p.scenario)
+        self.clock = TickClock.from_params(p)
         self.geometry = BladeGeometry()
-        self.tick = 0
-        self.finished = False
-        self.commands: dict[int, int] = {}
-        self.servo_commands: dict[int, float] = {}
         self.missed_servo: dict[int, int] = {k: 0 for k in range(self.n)}
-        self.answered_once: set[int] = set()
         self.missed: dict[int, int] = {k: 0 for k in range(self.n)}
         self.fitness_trace = [self.world.fitness()]
         self.applied: list[list[int]] = []
-        self.wait_started = None
-        self.last_publish = None
-        self.ready_since = None
 
         self.pose_pubs, self.joint_pubs, self.stuck_pubs, self.imu_pubs = [], [], [], []
         self.inputs = []  # command subscriptions: behaviour (and blade set-point) per robot
@@ -158,7 +145,20 @@ class SimNode(Node):
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(0.001, self.step)
-        self.create_timer(float(p("diagnostics_period", 1.0).value), self.report_state)
+        self.create_timer(p.diagnostics_period, self.report_state)
+
+    @property
+    def tick(self) -> int:
+        """The current tick."""
+        return self.clock.tick
+
+    @property
+    def finished(self) -> bool:
+        """Every tick has been simulated."""
+        return self.clock.finished
+
+    def _seconds(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
 
     def _stamp(self) -> TimeMsg:
         seconds = self.tick * self.dt
@@ -191,8 +191,7 @@ class SimNode(Node):
             )
         self.fitness_pub.publish(Float32(data=float(w.fitness())))
         self.markers_pub.publish(self.markers(stamp))
-        self.last_publish = self.get_clock().now()
-        self.wait_started = self.last_publish
+        self.clock.published(self._seconds())
 
     def markers(self, stamp) -> MarkerArray:
         """One cube per robot (for RViz or Foxglove)."""
@@ -242,62 +241,40 @@ class SimNode(Node):
     def on_servo_command(self, k: int, msg: JointState) -> None:
         """A blade driver's set-point for the current tick (stamped with it; others dropped)."""
         stamp = self._stamp()
-        if self.finished or (msg.header.stamp.sec, msg.header.stamp.nanosec) != (
-            stamp.sec,
-            stamp.nanosec,
-        ):
+        if (msg.header.stamp.sec, msg.header.stamp.nanosec) != (stamp.sec, stamp.nanosec):
             return
         if "blade" in msg.name and len(msg.position) > msg.name.index("blade"):
             value = float(msg.position[list(msg.name).index("blade")])
             if math.isfinite(value):
-                self.servo_commands.setdefault(k, value)
+                self.clock.on_setpoint(k, value)
 
     def on_command(self, k: int, msg: UInt16) -> None:
         """A robot's behaviour mask for the current tick (the first one counts)."""
-        if not self.finished and k not in self.commands:
-            self.commands[k] = int(msg.data) & 0xFFF
-            self.answered_once.add(k)
+        self.clock.on_command(k, msg.data)
 
     def step(self) -> None:
-        """The lockstep state machine (runs every millisecond)."""
+        """Ask the tick clock what to do (runs every millisecond)."""
         if self.finished:
             return
-        now = self.get_clock().now()
-        if self.last_publish is None:
-            if not self.controllers_present():
-                self.ready_since = None
-                return
-            if self.ready_since is None:
-                self.ready_since = now
-            if (now - self.ready_since).nanoseconds * 1e-9 >= self.startup_period:
-                self.publish_state()
+        present = not self.clock.started and self.controllers_present()
+        action = self.clock.poll(self._seconds(), present)
+        if action is Action.PUBLISH_FIRST:
+            self.publish_state()
             return
-        waited = (now - self.wait_started).nanoseconds * 1e-9
-        waiting = len(self.commands) < self.n
-        if self.blade_driver:
-            waiting = waiting or len(self.servo_commands) < self.n
-        timeout = self.first_timeout if self.tick == 0 else self.timeout
-        if waiting and waited < max(timeout, self.timeout):
+        if action is not Action.APPLY:
             return
-        masks = np.array([self.commands.get(k, 0) for k in range(self.n)], dtype=np.int64)
-        for k in range(self.n):
-            if k not in self.commands:
-                self.missed[k] += 1
-        if len(self.commands) < self.n:
-            self.report(
-                f"tick {self.tick}: no command from robots "
-                f"{sorted(set(range(self.n)) - set(self.commands))}; they idle"
-            )
-        self.commands.clear()
-        self.applied.append([int(m) for m in masks])
+        tick = self.tick
+        inputs = self.clock.take()
+        for k in inputs.missing:
+            self.missed[k] += 1
+        if inputs.missing:
+            self.report(f"tick {tick}: no command from robots {inputs.missing}; they idle")
+        self.applied.append([int(m) for m in inputs.masks])
         if self.blade_driver:
-            self.step_with_drivers(masks)
+            self.step_with_drivers(inputs, tick)
         else:
-            self.world.step(masks)
+            self.world.step(inputs.masks)
         self.fitness_trace.append(self.world.fitness())
-        self.tick += 1
-        if self.tick >= self.steps:
-            self.finished = True
         self.publish_state()
         if self.finished:
             self.report(f"finished {self.steps} ticks, fitness {self.world.fitness():.4f}")
@@ -319,56 +296,45 @@ class SimNode(Node):
         """Write :meth:`result` as JSON, atomically (``ant-trial --processes`` reads it)."""
         write_text_atomic(path, json.dumps(self.result()))
 
-    def step_with_drivers(self, masks: np.ndarray) -> None:
+    def step_with_drivers(self, inputs: TickInputs, tick: int) -> None:
         """Apply the words without their blade bits, then each driver's set-point.
 
         Blade behaviours come after every move in Table 2 order, so setting the blade after
         the step is the same as the words' own blade bits when a driver follows them. A
         driver that sent nothing for this tick leaves its blade where it was.
         """
-        self.world.step(masks & ~BLADE_BITS)
-        silent = []
-        for k in range(self.n):
-            if k in self.servo_commands:
-                self.world.robots[k, BLADE] = self.geometry.nearest(self.servo_commands[k])
-            else:
-                self.missed_servo[k] += 1
-                silent.append(k)
-        self.servo_commands.clear()
-        if silent:
-            self.report(f"tick {self.tick}: no blade set-point from robots {silent}; blade held")
+        self.world.step(inputs.masks & ~BLADE_BITS)
+        for k, value in inputs.setpoints.items():
+            self.world.robots[k, BLADE] = self.geometry.nearest(value)
+        for k in inputs.missing_setpoints:
+            self.missed_servo[k] += 1
+        if inputs.missing_setpoints:
+            self.report(
+                f"tick {tick}: no blade set-point from robots {inputs.missing_setpoints}; "
+                "blade held"
+            )
 
     def report_state(self) -> None:
         """The periodic status: waiting for the team, stepping, or finished."""
         if self.finished:
             self.report(f"finished {self.steps} ticks, fitness {self.world.fitness():.4f}")
-        elif self.last_publish is None:
+        elif not self.clock.started:
             self.report("waiting for every robot's controller to join")
         else:
             self.report(f"stepping: tick {self.tick} of {self.steps}")
 
     def report(self, message: str, level=DiagnosticStatus.OK) -> None:
-        """One diagnostics status for the simulator."""
+        """One diagnostics status for the simulator (WARN once a robot has missed a tick)."""
         missed = sum(self.missed.values())
-        status = DiagnosticStatus(
-            name="sim: lockstep",
-            hardware_id="excavation_sim",
-            level=DiagnosticStatus.WARN if missed and level == DiagnosticStatus.OK else level,
-            message=message,
-            values=[
-                KeyValue(key="tick", value=str(self.tick)),
-                KeyValue(key="fitness", value=f"{self.world.fitness():.6f}"),
-            ]
-            + [KeyValue(key=f"robot_{k}_missed", value=str(v)) for k, v in self.missed.items()]
-            + [
-                KeyValue(key=f"robot_{k}_missed_blade_setpoints", value=str(v))
-                for k, v in self.missed_servo.items()
-                if self.blade_driver
-            ],
-        )
-        msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self._stamp()
-        self.diag_pub.publish(msg)
+        values = {"tick": self.tick, "fitness": f"{self.world.fitness():.6f}"}
+        values.update({f"robot_{k}_missed": v for k, v in self.missed.items()})
+        if self.blade_driver:
+            values.update(
+                {f"robot_{k}_missed_blade_setpoints": v for k, v in self.missed_servo.items()}
+            )
+        if missed and level == DiagnosticStatus.OK:
+            level = DiagnosticStatus.WARN
+        self.diag_pub.publish(diagnostics(self, level, message, values, "excavation_sim"))
 
 
 def main(args: list[str] | None = None) -> int:
