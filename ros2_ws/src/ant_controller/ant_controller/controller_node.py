@@ -77,6 +77,7 @@ class ControllerNode(Node):
         self.errors: dict[str, str] = {}
         self.last_reason: str | None = "starting"
         self.last_mask = 0
+        self.pending_poses: dict[int, tuple[str, PoseWithCovarianceStamped]] = {}
 
         self.behaviour_pub = self.create_publisher(UInt16, "behaviour", 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -118,13 +119,18 @@ class ControllerNode(Node):
             self.tick(lockstep_decision=True)
 
     def on_info(self, msg: MapMetaData) -> None:
-        """Cell size of the worksite."""
+        """Cell size of the worksite (poses that came before it are used now)."""
         self.gate.cell_size = float(msg.resolution) if msg.resolution > 0 else None
+        if self.gate.cell_size is not None:
+            pending, self.pending_poses = self.pending_poses, {}
+            for j, (topic, pose) in pending.items():
+                self.on_pose(j, topic, pose)
         self._changed()
 
     def on_pose(self, j: int, topic: str, msg: PoseWithCovarianceStamped) -> None:
-        """A robot's pose, snapped to the grid."""
+        """A robot's pose, snapped to the grid (kept until the cell size is known)."""
         if self.gate.cell_size is None:
+            self.pending_poses[j] = (topic, msg)
             return
         pose = self._decode(topic, lambda: pose_to_grid(msg, self.gate.cell_size, topic))
         if pose is not None:

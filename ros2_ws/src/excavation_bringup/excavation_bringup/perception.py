@@ -29,7 +29,7 @@ trial's single executor a few milliseconds; one such sweep still measures every 
 under a robot to 0.05 soil unit RMSE (docs/perception.md)."""
 
 
-def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
+def perception_nodes(context, robots: int, seed: int, blueprint, occlude: str = "") -> list:
     """Sensors, localizer and mapper nodes for a lockstep trial on ``context``.
 
     Args:
@@ -37,6 +37,7 @@ def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
         robots: Number of robots.
         seed: Seed of the sensors' noise and of the calibration marks.
         blueprint: The trial's :class:`blueprint_server.blueprint.Blueprint`.
+        occlude: LEDs hidden from the camera (the sensors node's ``occlude``).
     """
     from rclpy.parameter import Parameter
 
@@ -81,6 +82,7 @@ def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
             Parameter("rows", value=rows),
             Parameter("cols", value=cols),
             Parameter("reliable", value=True),
+            Parameter("occlude", value=occlude),
         ],
     )
     mapper = MapperNode(
