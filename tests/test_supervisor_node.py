@@ -147,3 +147,30 @@ def test_bad_parameter_is_one_line_and_exit_2(capsys):
     assert main(["supervisor", "--ros-args", "-p", "robots:=0"]) == 2
     err = capsys.readouterr().err
     assert "robots" in err and len(err.strip().splitlines()) == 1
+
+
+def test_operator_drive_and_blade_overrides_stream_at_10_hz(ros):
+    from geometry_msgs.msg import TwistStamped
+    from std_msgs.msg import Float64MultiArray
+
+    node = ros.add(Node("robot", context=ros.context))
+    twists, blades = [], []
+    node.create_subscription(TwistStamped, "/robot_1/drive/override", twists.append, 50)
+    node.create_subscription(Float64MultiArray, "/robot_1/blade/commands", blades.append, 50)
+    results = {}
+
+    def run():
+        results["drive"] = operator(ros.domain, "drive", "1", "0.2", "-0.5", "--for", "1.0")
+        results["blade"] = operator(ros.domain, "blade", "1", "0.04", "--for", "0.5")
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    ros.spin_until(lambda: not thread.is_alive(), timeout=120)
+    thread.join()
+    ros.spin_until(lambda: False, timeout=0.3)
+    assert results["drive"].returncode == 0, results["drive"].stderr
+    assert 9 <= len(twists) <= 13  # 10 Hz for 1 s, then one zero twist
+    assert twists[0].header.frame_id == "robot_1/base_link"
+    assert (twists[0].twist.linear.x, twists[0].twist.angular.z) == (0.2, -0.5)
+    assert (twists[-1].twist.linear.x, twists[-1].twist.angular.z) == (0.0, 0.0)
+    assert results["blade"].returncode == 0 and blades and list(blades[-1].data) == [0.04]
