@@ -18,6 +18,7 @@ import time
 import numpy as np
 import pytest
 from conftest import next_domain
+from test_supervisor_node import operator
 from test_trial import offline
 
 from excavation_bringup.trial import LOST_GRACE, LOST_TIMEOUT, run_trial
@@ -193,17 +194,6 @@ def test_estop_at_tick_10_then_pause_resume_ends_as_an_uninterrupted_trial():
     assert sum(result.missed.values()) == 0
     assert np.array_equal(result.heights, heights) and result.fitness == fitness
     assert result.holds >= 3  # e-stop, reset (disarmed), pause
-
-
-def operator(domain, *args, timeout="10"):
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
-    return subprocess.run(
-        [sys.executable, "-m", "team_supervisor.operator", "--timeout", timeout, *args],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
 
 
 def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial():
