@@ -95,7 +95,9 @@ class Watcher:
     def operator(self, domain: int, *args: str):
         """``ant-operator ARGS`` as a separate process, spinning meanwhile (no queue overflows)."""
         done = {}
-        thread = threading.Thread(target=lambda: done.setdefault("r", operator(domain, *args)))
+        thread = threading.Thread(
+            target=lambda: done.setdefault("r", operator(domain, *args, timeout="30"))
+        )  # a loaded machine can take seconds to discover the services
         thread.start()
         assert self.spin_until(lambda: not thread.is_alive(), timeout=120)
         thread.join()
