@@ -33,8 +33,10 @@ Backends (parameter ``backend``):
   stamped with the tick it is for). Time is the simulator's: watchdog and override
   timeouts count simulated seconds, so a lockstep trial is deterministic however slow the
   machine is. Each tick gets one set-point: at once when the watchdog or an override is in
-  charge, otherwise when the controller's word for that tick arrives. While the gate is
-  closed the driver sends home with ``frame_id`` :data:`~excavation_common.safety.HELD`
+  charge, otherwise when the controller's word for that tick arrives. An operator set-point
+  counts from the first tick whose set-point is computed after it arrives (for
+  ``override_timeout`` of sim time), so every tick of a streamed override gets it. While the
+  gate is closed the driver sends home with ``frame_id`` :data:`~excavation_common.safety.HELD`
   instead and leaves its core untouched; when the gate opens it sends the tick's own
   set-point, so a paused lockstep trial ends as an unpaused one does.
 """
@@ -123,6 +125,7 @@ class BladeDriverNode(LifecycleNode):
         self.tick_stamp: TimeMsg | None = None
         self.word_tick: tuple[int, int] | None = None
         self.open_setpoint: tuple[tuple[int, int], float] | None = None
+        self.pending_override: float | None = None
         self.last_sent: tuple[tuple[int, int], str] | None = None
         self.commands = 0
         self._reported_source = ""
@@ -275,7 +278,13 @@ class BladeDriverNode(LifecycleNode):
                 raise DriverConfigError(
                     topic, "data", list(msg.data), f"needs one value per joint {joints}"
                 )
-            self.core.override(float(msg.data[joints.index(JOINT)]), self._now())
+            value = float(msg.data[joints.index(JOINT)])
+            if self.params.backend == "sim":
+                if not math.isfinite(value):
+                    raise DriverConfigError(topic, "data[0]", value, "must be finite")
+                self.pending_override = value  # taken by the next set-point computed
+            else:
+                self.core.override(value, self._now())
         except (DriverConfigError, ValueError) as exc:
             self.errors[topic] = str(exc)
             self.get_logger().warning(str(exc), throttle_duration_sec=5.0)
@@ -313,6 +322,9 @@ class BladeDriverNode(LifecycleNode):
             value, kind = self.params.home, HELD
         else:
             if self.open_setpoint is None or self.open_setpoint[0] != tick:
+                if self.pending_override is not None:
+                    self.core.override(self.pending_override, self._now())
+                    self.pending_override = None
                 if self.word_tick != tick and not self.core.needs_no_controller(self._now()):
                     return  # wait for the controller's word of this tick
                 self.open_setpoint = (tick, self.core.update(self._now(), self.force))
