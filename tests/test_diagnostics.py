@@ -26,6 +26,10 @@ def _node(kind, context, tmp_path):
         from blade_driver.driver_node import BladeDriverNode
 
         return BladeDriverNode(context=context)
+    if kind == "supervisor":
+        from team_supervisor.supervisor_node import SupervisorNode
+
+        return SupervisorNode(context=context)
     if kind == "sensors":
         from excavation_sim.sensors_node import SensorsNode
 
@@ -59,6 +63,7 @@ def _node(kind, context, tmp_path):
         "server",
         "sim",
         "driver",
+        "supervisor",
         "sensors",
         "localizer",
         "mapper",

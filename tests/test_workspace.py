@@ -18,6 +18,7 @@ PACKAGES = {
     "overhead_localizer": ["localizer", "calibrate"],
     "terrain_mapper": ["mapper", "field-metrics", "calibrate_mount"],
     "blade_driver": ["driver", "fake_board"],
+    "team_supervisor": ["supervisor", "ant-operator"],
     "excavation_bags": ["ant-bag"],
     "excavation_bringup": ["ant-trial", "ant-dome", "ant-view"],
 }

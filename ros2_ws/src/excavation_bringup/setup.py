@@ -23,6 +23,7 @@ setup(
         "overhead_localizer",
         "terrain_mapper",
         "blade_driver",
+        "team_supervisor",
         "excavation_bags",
         "numpy",
         "pyyaml",

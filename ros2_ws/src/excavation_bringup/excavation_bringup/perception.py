@@ -51,7 +51,7 @@ def simulated_calibration(blueprint, seed: int):
     return calibrate(pixels, points, (params.width, params.height))
 
 
-def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
+def perception_nodes(context, robots: int, seed: int, blueprint, occlude: str = "") -> list:
     """Sensors, localizer and mapper nodes for a lockstep trial on ``context``.
 
     Args:
@@ -59,6 +59,7 @@ def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
         robots: Number of robots.
         seed: Seed of the sensors' noise and of the calibration marks.
         blueprint: The trial's :class:`blueprint_server.blueprint.Blueprint`.
+        occlude: LEDs hidden from the camera (the sensors node's ``occlude``).
     """
     from rclpy.parameter import Parameter
 
@@ -94,6 +95,7 @@ def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
             Parameter("rows", value=rows),
             Parameter("cols", value=cols),
             Parameter("reliable", value=True),
+            Parameter("occlude", value=occlude),
         ],
     )
     mapper = MapperNode(

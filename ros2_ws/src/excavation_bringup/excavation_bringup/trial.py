@@ -1,13 +1,18 @@
 """``ant-trial``: one excavation trial through the ROS nodes.
 
-Starts the blueprint server, the lockstep simulator, and per robot a controller and a blade
-driver (``--no-blade-driver`` leaves the drivers out; the simulator then publishes the
-blade's joint state itself). By default the nodes are composed on one executor in one
-process (the way ``executors/composed.py`` of ros2/examples composes nodes; this
-environment has no launch); ``--processes`` starts each node as its own process, as
-separate ``ros2 run`` commands would, and collects the result from the simulator's
-``result_file``. Either way it runs ``--steps`` ticks, prints the fitness and stops every
-node. The result equals ``ant-eval --scenarios 1`` with the same seed (``tests/test_trial.py``).
+Starts the team supervisor, the blueprint server, the lockstep simulator, and per robot a
+controller and a blade driver (``--no-blade-driver`` leaves the drivers out; the simulator
+then publishes the blade's joint state itself). The supervisor is armed at start
+(``--supervisor internal``, the default), or the trial waits for an operator to run one and
+arm it (``--supervisor external``: ``ant-operator arm``); either way ``ant-operator`` can
+pause, e-stop, disable robots and override blades while the trial runs, and a paused trial
+resumes and ends as an unpaused one does (docs/operator.md). By default the nodes are
+composed on one executor in one process (the way ``executors/composed.py`` of ros2/examples
+composes nodes; this environment has no launch); ``--processes`` starts each node as its own
+process, as separate ``ros2 run`` commands would, and collects the result from the
+simulator's ``result_file``. Either way it runs ``--steps`` ticks, prints the fitness and
+stops every node. The result equals ``ant-eval --scenarios 1`` with the same seed
+(``tests/test_trial.py``).
 
 Examples::
 
@@ -46,6 +51,7 @@ class TrialResult:
     missed: dict[int, int]
     seconds: float
     commands: list[list[int]]
+    holds: int = 0
 
 
 @dataclass(frozen=True)
@@ -64,6 +70,24 @@ class TrialSpec:
     blade_driver: bool
     record: str | None
     perception: str
+    supervisor: str = "internal"
+    occlude: str = ""
+
+
+LOST_TIMEOUT = 1.5
+"""Seconds of pose stamps (1.5 ticks) after which the trial's supervisor stops a silent robot:
+more than one tick, since the poses of one tick arrive one after another."""
+LOST_GRACE = 2.0
+"""Further seconds (2 ticks) before a lost robot is disabled for the rest of the trial."""
+
+
+def _supervisor_params(robots: int, armed: bool) -> dict:
+    return {
+        "robots": robots,
+        "lost_timeout": LOST_TIMEOUT,
+        "lost_grace": LOST_GRACE,
+        "arm_at_start": armed,
+    }
 
 
 def _controller_args(controller_spec: str) -> list[str]:
@@ -84,6 +108,8 @@ def run_trial(
     record: str | None = None,
     perception: str = "truth",
     scenario: int = 0,
+    supervisor: str = "internal",
+    occlude: str = "",
 ) -> TrialResult:
     """Run a trial through the nodes and return its result.
 
@@ -105,6 +131,11 @@ def run_trial(
             see the simulator through its synthetic camera and laser
             (:mod:`excavation_bringup.perception`; composed mode only).
         scenario: Scenario index of ``seed`` (``ScenarioSet.create(..., seed)``'s i-th).
+        supervisor: ``"internal"``: the trial starts the team supervisor and arms it;
+            ``"external"``: an operator's supervisor (``ros2 run team_supervisor
+            supervisor``) must be running, and nothing moves until it is armed.
+        occlude: The sensors node's ``occlude`` (``"2:front,2:rear"`` hides robot 2 from
+            the camera; ``perception="full"`` only).
 
     Raises:
         TimeoutError: When the trial does not finish in time.
@@ -127,6 +158,10 @@ def run_trial(
         raise ValueError(f"perception = {perception!r}: expected 'truth' or 'full'")
     if perception == "full" and processes:
         raise ValueError("perception: full runs in the composed mode (without processes)")
+    if supervisor not in ("internal", "external"):
+        raise ValueError(f"supervisor = {supervisor!r}: expected 'internal' or 'external'")
+    if occlude and perception != "full":
+        raise ValueError("occlude: hides a robot from the camera, so needs perception 'full'")
     spec = TrialSpec(
         controller_spec,
         robots,
@@ -140,6 +175,8 @@ def run_trial(
         blade_driver,
         record,
         perception,
+        supervisor,
+        occlude,
     )
     return _run_processes(spec) if processes else _run_composed(ctl, spec)
 
@@ -162,6 +199,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
     from blade_driver.driver_node import BladeDriverNode
     from blueprint_server.server_node import BlueprintServer
     from excavation_sim.sim_node import SimNode
+    from team_supervisor.supervisor_node import SupervisorNode
 
     context = Context()
     rclpy.init(context=context, domain_id=domain)
@@ -186,6 +224,14 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
                 ],
             )
             nodes.append(recorder)
+        if spec.supervisor == "internal":
+            values = _supervisor_params(robots, armed=True)
+            nodes.append(
+                SupervisorNode(
+                    context=context,
+                    parameter_overrides=[Parameter(k, value=v) for k, v in values.items()],
+                )
+            )
         nodes.append(
             BlueprintServer(
                 context=context, parameter_overrides=[Parameter("blueprint", value=blueprint)]
@@ -208,7 +254,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
         if perception == "full":
             from excavation_bringup.perception import perception_nodes
 
-            nodes += perception_nodes(context, robots, seed, sim.blueprint)
+            nodes += perception_nodes(context, robots, seed, sim.blueprint, spec.occlude)
         height_unit = sim.blueprint.height_unit
         for k in range(robots):
             nodes.append(
@@ -246,6 +292,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
             dict(sim.missed),
             time.monotonic() - started,
             list(sim.applied),
+            sim.holds,
         )
     finally:
         if recorder is not None:
@@ -278,7 +325,13 @@ def _run_processes(spec: TrialSpec) -> TrialResult:
         def node(name: str, module: str, *args: str) -> list[str]:
             return [sys.executable, "-m", module, *args, "--ros-args", "-r", f"__node:={name}"]
 
-        commands = {
+        commands = {}
+        if spec.supervisor == "internal":
+            commands["supervisor"] = node("supervisor", "team_supervisor.supervisor_node")
+            for k, v in _supervisor_params(robots, armed=True).items():
+                value = str(v).lower() if isinstance(v, bool) else repr(v)
+                commands["supervisor"] += ["-p", f"{k}:={value}"]
+        commands |= {
             "server": node("server", "blueprint_server.server_node")
             + ["-p", f"blueprint:={blueprint}"],
             "sim": node("sim", "excavation_sim.sim_node")
@@ -335,7 +388,10 @@ def _run_processes(spec: TrialSpec) -> TrialResult:
             sim = procs["sim"][0]
             while sim.poll() is None:
                 if time.monotonic() - started > timeout:
-                    raise TimeoutError(f"trial did not finish within {timeout} s")
+                    logs = "\n".join(
+                        f"--- {name}:\n{_tail(log, 8)}" for name, (_, log) in procs.items()
+                    )
+                    raise TimeoutError(f"trial did not finish within {timeout} s\n{logs}")
                 for name, (proc, log) in procs.items():
                     if proc.poll() is not None and proc.returncode != 0:
                         raise RuntimeError(f"{name} exited with {proc.returncode}:\n{_tail(log)}")
@@ -352,6 +408,7 @@ def _run_processes(spec: TrialSpec) -> TrialResult:
         {int(k): v for k, v in data["missed"].items()},
         time.monotonic() - started,
         data["commands"],
+        data.get("holds", 0),
     )
 
 
@@ -426,6 +483,19 @@ def main(argv: list[str] | None = None) -> int:
         default="truth",
         help="full: controllers see the sim only through the camera+localizer, laser+mapper",
     )
+    p.add_argument(
+        "--supervisor",
+        choices=("internal", "external"),
+        default="internal",
+        help="internal: start the team supervisor armed; external: wait for an operator's "
+        "(ant-operator arm)",
+    )
+    p.add_argument(
+        "--occlude",
+        default="",
+        metavar="K:front,K:rear",
+        help="hide LEDs from the camera (--perception full), e.g. 2:front,2:rear",
+    )
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     from excavation_common.errors import FieldError
@@ -443,6 +513,8 @@ def main(argv: list[str] | None = None) -> int:
             record=args.record,
             perception=args.perception,
             scenario=args.scenario,
+            supervisor=args.supervisor,
+            occlude=args.occlude,
             command_timeout=args.command_timeout or (30.0 if args.perception == "full" else 2.0),
         )
     except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
@@ -451,7 +523,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(
             json.dumps(
-                {"fitness": result.fitness, "missed": result.missed, "seconds": result.seconds}
+                {
+                    "fitness": result.fitness,
+                    "missed": result.missed,
+                    "seconds": result.seconds,
+                    "holds": result.holds,
+                }
             )
         )
     else:
