@@ -76,6 +76,7 @@ class ControllerNode(Node):
         )
         self.core = ControllerCore(controller)
         self.poses: dict[int, tuple[Time, tuple[int, int, int]]] = {}
+        self.early_poses: dict[int, tuple[str, PoseWithCovarianceStamped]] = {}
         self.heights: tuple[Time, np.ndarray] | None = None
         self.joint: tuple[Time, tuple[int, int]] | None = None
         self.stuck: tuple[Time, bool] | None = None
@@ -127,14 +128,23 @@ class ControllerNode(Node):
             self.try_lockstep()
 
     def on_info(self, msg: MapMetaData) -> None:
-        """Cell size of the worksite."""
+        """Cell size of the worksite; poses that came before it are decoded now.
+
+        The latched map info can reach a freshly started controller after the simulator's
+        first poses (separate processes): dropping those would miss tick 0.
+        """
         self.cell_size = float(msg.resolution) if msg.resolution > 0 else None
+        if self.cell_size is not None:
+            early, self.early_poses = self.early_poses, {}
+            for j, (topic, pose) in early.items():
+                self.on_pose(j, topic, pose)
         if self.lockstep:
             self.try_lockstep()
 
     def on_pose(self, j: int, topic: str, msg: PoseWithCovarianceStamped) -> None:
         """A robot's pose, snapped to the grid."""
-        if self.cell_size is None:
+        if self.cell_size is None:  # decoded when /worksite/map_info gives the cell size
+            self.early_poses[j] = (topic, msg)
             return
         pose = self._decode(topic, lambda: pose_to_grid(msg, self.cell_size, topic))
         if pose is not None:
