@@ -34,6 +34,7 @@ setup(
     entry_points={
         "console_scripts": [
             "ant-trial = excavation_bringup.trial:main",
+            "ant-soak = excavation_bringup.soak:main",
         ],
     },
 )

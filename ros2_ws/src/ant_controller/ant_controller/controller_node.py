@@ -245,7 +245,9 @@ class ControllerNode(Node):
         """Lockstep mode: decide once per simulator tick, when every input of that tick is in.
 
         A tick's inputs are the poses, height map and joint state stamped with the same
-        time, newer than the last tick decided, plus a stuck flag received since then.
+        time, newer than the last tick decided, plus a stuck flag received since then. A
+        complete set older than the last tick decided means the simulator's clock went
+        back (it was restarted): the controller decides on it, as in a new trial.
         """
         keys = [f"pose{j}" for j in range(self.n_robots)] + ["heights", "joint"]
         stamps = {self.stamps.get(k) for k in keys}
@@ -253,7 +255,15 @@ class ControllerNode(Node):
             return
         (stamp,) = stamps
         if self.decided_stamp is not None and stamp <= self.decided_stamp:
-            return
+            if stamp == self.decided_stamp:
+                return
+            # Every input went back in time together: the simulator restarted (or its clock
+            # jumped back). That is a new trial: start it with a clear memory bit.
+            self.get_logger().warning(
+                f"tick inputs went back in time ({self.decided_stamp} -> {stamp}): "
+                "a new trial, memory cleared"
+            )
+            self.core.memory = 0
         if self.missing_input() is not None:
             return  # not ready (e.g. no blueprint yet): decided when the blueprint arrives
         self.decided_stamp = stamp
