@@ -52,13 +52,16 @@ class Watcher:
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
+        from rclpy.signals import SignalHandlerOptions
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import Image
 
         from excavation_common.ros import LATCHED
 
         self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain)
+        rclpy.init(
+            context=self.context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO
+        )
         self.node = Node("fault_watcher", context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
@@ -141,7 +144,7 @@ class FaultTrial:
         seed: int = 3,
         controller: str = "hand-coded",
         blueprint: str = "default:1",
-        command_timeout: float = 3.0,
+        command_timeout: float = 5.0,
         blade_driver: bool = True,
         perception: str = "truth",
         record: str | None = None,

@@ -95,9 +95,7 @@ def violations(growth: list[Growth], max_growth: float, max_slope: float) -> lis
         if g.growth_mb > max_growth:
             out.append(f"{g.name}: grew {g.growth_mb:.1f} MB after warm-up (bound {max_growth})")
         if g.slope_mb_per_1000 > max_slope:
-            out.append(
-                f"{g.name}: {g.slope_mb_per_1000:.2f} MB per 1000 ticks (bound {max_slope})"
-            )
+            out.append(f"{g.name}: {g.slope_mb_per_1000:.2f} MB per 1000 ticks (bound {max_slope})")
     return out
 
 
@@ -109,11 +107,17 @@ class _ClockWatcher:
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
+        from rclpy.signals import SignalHandlerOptions
         from rosgraph_msgs.msg import Clock
 
         self.tick = -1
         self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain)
+        # Ctrl-C must reach the soak's loop (which stops the nodes), not only rclpy.
+        rclpy.init(
+            context=self.context,
+            domain_id=domain,
+            signal_handler_options=SignalHandlerOptions.NO,
+        )
         self.node = Node("soak_clock", context=self.context)
         self.node.create_subscription(Clock, "/clock", self._on_clock, 10)
         self.executor = SingleThreadedExecutor(context=self.context)
@@ -144,6 +148,9 @@ class _ClockWatcher:
 def run_soak(spec: TrialSpec, interval: float, workdir: str | Path, progress=None) -> dict:
     """Run the trial of ``spec`` as processes, sampling memory; the samples and the result.
 
+    Ctrl-C stops the soak early: the nodes are stopped and the samples so far returned,
+    with ``"result": None``.
+
     Returns:
         ``{"samples": [{"tick", "seconds", "rss": {node: MB}}], "result": sim result,
         "seconds": wall time}``.
@@ -151,6 +158,7 @@ def run_soak(spec: TrialSpec, interval: float, workdir: str | Path, progress=Non
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     watcher = _ClockWatcher(spec.domain)
     samples = []
+    result = None
     started = time.monotonic()
     try:
         with TrialProcesses(spec, workdir) as trial:
@@ -170,9 +178,11 @@ def run_soak(spec: TrialSpec, interval: float, workdir: str | Path, progress=Non
                     samples.append(sample)
                     if progress is not None:
                         progress(sample)
-                    next_sample += interval
+                    next_sample = max(next_sample + interval, time.monotonic())
                 time.sleep(0.1)
             result = trial.wait(spec.timeout, started)
+    except KeyboardInterrupt:
+        print("ant-soak: interrupted; the samples so far follow", file=sys.stderr)
     finally:
         watcher.close()
     return {"samples": samples, "result": result, "seconds": time.monotonic() - started}
@@ -266,15 +276,18 @@ def main(argv: list[str] | None = None) -> int:
     except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
         print(f"ant-soak: error: {exc}", file=sys.stderr)
         return 2
-    missed = sum(soak["result"]["missed"].values())
-    ticks_per_s = args.steps / soak["seconds"]
+    ticks = soak["samples"][-1]["tick"] if soak["result"] is None else args.steps
+    result = soak["result"] or {"missed": None, "fitness": None}
+    missed = sum(result["missed"].values()) if result["missed"] is not None else 0
     problems = violations(growth, args.max_growth, args.max_slope)
     if missed:
-        problems.append(f"{missed} missed ticks: {soak['result']['missed']}")
+        problems.append(f"{missed} missed ticks: {result['missed']}")
+    if soak["result"] is None:
+        problems.append(f"interrupted at tick {ticks} of {args.steps}")
     print(
-        f"ant-soak: {args.steps} ticks, {args.robots} robots, perception {args.perception}: "
-        f"{soak['seconds']:.0f} s ({ticks_per_s:.2f} ticks/s), missed ticks {missed}, "
-        f"fitness {soak['result']['fitness']:.4f}"
+        f"ant-soak: {ticks} ticks, {args.robots} robots, perception {args.perception}: "
+        f"{soak['seconds']:.0f} s ({ticks / soak['seconds']:.2f} ticks/s), "
+        f"missed ticks {result['missed']}, fitness {result['fitness']}"
     )
     print(f"{'process':<16} {'start MB':>9} {'end MB':>8} {'peak MB':>8} {'MB/1000 ticks':>14}")
     for g in growth:
@@ -285,19 +298,20 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         summary = {
             "steps": args.steps,
+            "ticks": ticks,
             "robots": args.robots,
             "perception": args.perception,
             "seconds": soak["seconds"],
             "warmup": warmup,
-            "missed": soak["result"]["missed"],
-            "fitness": soak["result"]["fitness"],
+            "missed": result["missed"],
+            "fitness": result["fitness"],
             "growth": [{**g.__dict__, "growth_mb": g.growth_mb} for g in growth],
             "samples": soak["samples"],
             "problems": problems,
         }
         Path(args.json).write_text(json.dumps(summary, indent=1))
     if args.plot:
-        title = f"ant-soak: {args.robots} robots, {args.steps} ticks, perception {args.perception}"
+        title = f"ant-soak: {args.robots} robots, {ticks} ticks, perception {args.perception}"
         plot_memory(soak["samples"], args.plot, title, warmup)
     for line in problems:
         print(f"ant-soak: FAIL: {line}", file=sys.stderr)
