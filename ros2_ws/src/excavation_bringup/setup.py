@@ -25,6 +25,7 @@ setup(
         "blade_driver",
         "excavation_bags",
         "numpy",
+        "matplotlib",
     ],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
