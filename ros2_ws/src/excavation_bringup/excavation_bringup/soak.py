@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
 import tempfile
 import threading
@@ -148,14 +149,19 @@ class _ClockWatcher:
 def run_soak(spec: TrialSpec, interval: float, workdir: str | Path, progress=None) -> dict:
     """Run the trial of ``spec`` as processes, sampling memory; the samples and the result.
 
-    Ctrl-C stops the soak early: the nodes are stopped and the samples so far returned,
-    with ``"result": None``.
+    Ctrl-C (or SIGTERM) stops the soak early: the nodes are stopped and the samples so far
+    returned, with ``"result": None``.
 
     Returns:
         ``{"samples": [{"tick", "seconds", "rss": {node: MB}}], "result": sim result,
         "seconds": wall time}``.
     """
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+    def stop(_signum, _frame):
+        raise KeyboardInterrupt  # SIGTERM (and SIGINT, even where a shell ignored it)
+
+    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGTERM, signal.SIGINT)}
     watcher = _ClockWatcher(spec.domain)
     samples = []
     result = None
@@ -185,6 +191,8 @@ def run_soak(spec: TrialSpec, interval: float, workdir: str | Path, progress=Non
         print("ant-soak: interrupted; the samples so far follow", file=sys.stderr)
     finally:
         watcher.close()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return {"samples": samples, "result": result, "seconds": time.monotonic() - started}
 
 
