@@ -13,7 +13,7 @@ DEMO_OUT ?= demo_out
 # as root), which also proves that nothing in it talks to the outside.
 NETNS := $(shell unshare -n true 2>/dev/null && echo "unshare -n")
 
-.PHONY: setup lint test demo bench clean
+.PHONY: setup lint test demo bench soak clean
 
 $(STAMP): requirements.txt $(addsuffix /setup.py,$(filter ros2_ws/%,$(PACKAGES))) evolution/pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -53,6 +53,12 @@ demo: setup
 bench: setup
 	$(BIN)/ant-bench --write docs/benchmarks.md
 	$(BIN)/ant-perception-bench --write docs/benchmarks.md --doc docs/perception.md
+
+# The soak (docs/benchmarks.md, "Soak"; not part of make test): 4 robots, 10,000 ticks, full
+# perception, every node its own process; fails on memory growth or a missed tick.
+SOAK_STEPS ?= 10000
+soak: setup
+	ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST nice -n 10 $(BIN)/ant-soak --robots 4 --steps $(SOAK_STEPS) --perception full --json soak.json --plot docs/figures/soak_memory.png
 
 clean:
 	rm -rf $(VENV) ros2_ws/build ros2_ws/install ros2_ws/log $(DEMO_OUT)

@@ -28,6 +28,7 @@ setup(
         "numpy",
         "pyyaml",
         "foxglove-sdk",
+        "matplotlib",
     ],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
@@ -39,6 +40,7 @@ setup(
             "ant-trial = excavation_bringup.trial:main",
             "ant-dome = excavation_bringup.dome:main",
             "ant-view = excavation_bringup.view:main",
+            "ant-soak = excavation_bringup.soak:main",
         ],
     },
 )

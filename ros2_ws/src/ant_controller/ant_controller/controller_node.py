@@ -116,6 +116,11 @@ class ControllerNode(Node):
     def _changed(self) -> None:
         """An input changed: in lockstep mode, decide if a whole tick is in."""
         if self.lockstep and self.gate.lockstep_ready(self._now()):
+            if self.gate.went_back:
+                # Every input went back in time together: the simulator restarted (or its
+                # clock jumped back). That is a new trial: start it with a clear memory bit.
+                self.get_logger().warning("tick inputs went back in time: a new trial, M1 cleared")
+                self.core.memory = 0
             self.tick(lockstep_decision=True)
 
     def on_info(self, msg: MapMetaData) -> None:

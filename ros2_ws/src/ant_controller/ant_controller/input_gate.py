@@ -91,6 +91,7 @@ class InputGate:
     stamps: dict[str, Stamp] = field(default_factory=dict)
     fresh_stuck: int = 0
     decided_stamp: Stamp | None = None
+    went_back: bool = False
 
     @classmethod
     def from_params(cls, p: ControllerParams) -> InputGate:
@@ -181,17 +182,22 @@ class InputGate:
 
         A tick's inputs are the poses of every enabled robot, the height map and the joint
         state stamped with the same time, newer than the last tick decided, plus a stuck
-        flag received since then.
+        flag received since then. A complete set OLDER than the last tick decided means
+        the simulator's clock went back (it was restarted): that is decided too, as the first
+        tick of a new trial, and :attr:`went_back` says so (the node clears M1).
         """
+        self.went_back = False
         keys = [f"pose{j}" for j in range(self.robots) if self.is_enabled(j)]
         stamps = {self.stamps.get(k) for k in keys + ["heights", "joint"]}
         if len(stamps) != 1 or None in stamps or self.fresh_stuck == 0:
             return False
         (stamp,) = stamps
-        if self.decided_stamp is not None and stamp <= self.decided_stamp:
+        if self.decided_stamp is not None and stamp == self.decided_stamp:
             return False
+        went_back = self.decided_stamp is not None and stamp < self.decided_stamp
         if self.missing(now) is not None:
             return False  # not ready (e.g. no blueprint yet): decided when it arrives
+        self.went_back = went_back
         self.decided_stamp = stamp
         self.fresh_stuck = 0
         return True

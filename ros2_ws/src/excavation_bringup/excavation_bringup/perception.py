@@ -51,6 +51,64 @@ def simulated_calibration(blueprint, seed: int):
     return calibrate(pixels, points, (params.width, params.height))
 
 
+def perception_parameters(
+    robots: int, seed: int, blueprint, calibration: str, occlude: str = ""
+) -> dict:
+    """Parameters of the sensors, localizer and mapper of a lockstep trial.
+
+    Calibrates the camera (as :func:`perception_nodes` does) and writes the model to
+    ``calibration``, which the localizer's parameters name. Both trial modes use this:
+    composed nodes get the values as parameter overrides, processes as ``-p`` arguments.
+
+    Args:
+        robots: Number of robots.
+        seed: Seed of the sensors' noise and of the calibration marks.
+        blueprint: The trial's :class:`blueprint_server.blueprint.Blueprint`.
+        calibration: Path of the camera model file to write.
+        occlude: LEDs hidden from the camera (the sensors node's ``occlude``).
+
+    Returns:
+        ``{"sensors": {...}, "localizer": {...}, "mapper": {...}}``: name -> value.
+    """
+    from excavation_sim.laser import LaserParams
+    from overhead_localizer.camera_model import save_model
+
+    rows, cols = blueprint.shape
+    cell = float(blueprint.cell_size)
+    save_model(simulated_calibration(blueprint, seed), calibration)
+    laser = LaserParams.for_site(rows, cols, cell, sweep_scans=TRIAL_SWEEP_SCANS)
+    return {
+        "sensors": {
+            "robots": robots,
+            "seed": seed,
+            "truth_prefix": SIM_TRUTH_PREFIX,
+            "sweep_scans": laser.sweep_scans,
+            "cell_size": cell,
+            "rows": rows,
+            "cols": cols,
+            "reliable": True,
+            "occlude": occlude,
+        },
+        "localizer": {"robots": robots, "calibration": calibration, "reliable": True},
+        "mapper": {
+            "robots": robots,
+            "rows": rows,
+            "cols": cols,
+            "cell_size": cell,
+            "mount_x": float(laser.mount[0]),
+            "mount_y": float(laser.mount[1]),
+            "mount_z": float(laser.mount[2]),
+            "sweep_scans": laser.sweep_scans,
+            "prior_known": True,
+            "prior_height": 0.0,
+            "robot_height": float(laser.robot_height),
+            "publish_map_info": False,
+            "pose_wait": 2.0,
+            "reliable": True,
+        },
+    }
+
+
 def perception_nodes(context, robots: int, seed: int, blueprint, occlude: str = "") -> list:
     """Sensors, localizer and mapper nodes for a lockstep trial on ``context``.
 
@@ -64,56 +122,21 @@ def perception_nodes(context, robots: int, seed: int, blueprint, occlude: str = 
     from rclpy.parameter import Parameter
 
     from excavation_sim.sensors_node import SensorsNode
-    from overhead_localizer.camera_model import save_model
     from overhead_localizer.localizer_node import LocalizerNode
     from terrain_mapper.mapper_node import MapperNode
 
-    rows, cols = blueprint.shape
-    model = simulated_calibration(blueprint, seed)
+    def overrides(values: dict) -> list:
+        return [Parameter(k, value=v) for k, v in values.items()]
+
     fd, calibration = tempfile.mkstemp(prefix="ant-trial-camera-", suffix=".yaml")
     os.close(fd)
     try:
-        save_model(model, calibration)
+        values = perception_parameters(robots, seed, blueprint, calibration, occlude)
         localizer = LocalizerNode(
-            context=context,
-            parameter_overrides=[
-                Parameter("robots", value=robots),
-                Parameter("calibration", value=calibration),
-                Parameter("reliable", value=True),
-            ],
+            context=context, parameter_overrides=overrides(values["localizer"])
         )  # loads the calibration now
     finally:
         os.unlink(calibration)
-    sensors = SensorsNode(
-        context=context,
-        parameter_overrides=[
-            Parameter("robots", value=robots),
-            Parameter("seed", value=seed),
-            Parameter("truth_prefix", value=SIM_TRUTH_PREFIX),
-            Parameter("sweep_scans", value=TRIAL_SWEEP_SCANS),
-            Parameter("cell_size", value=float(blueprint.cell_size)),
-            Parameter("rows", value=rows),
-            Parameter("cols", value=cols),
-            Parameter("reliable", value=True),
-            Parameter("occlude", value=occlude),
-        ],
-    )
-    mapper = MapperNode(
-        context=context,
-        parameter_overrides=[
-            Parameter("robots", value=robots),
-            Parameter("rows", value=rows),
-            Parameter("cols", value=cols),
-            Parameter("cell_size", value=float(blueprint.cell_size)),
-            Parameter("mount_x", value=float(sensors.laser_params.mount[0])),
-            Parameter("mount_y", value=float(sensors.laser_params.mount[1])),
-            Parameter("mount_z", value=float(sensors.laser_params.mount[2])),
-            Parameter("sweep_scans", value=sensors.laser_params.sweep_scans),
-            Parameter("prior_known", value=True),
-            Parameter("prior_height", value=0.0),
-            Parameter("robot_height", value=float(sensors.laser_params.robot_height)),
-            Parameter("pose_wait", value=2.0),
-            Parameter("reliable", value=True),
-        ],
-    )
+    sensors = SensorsNode(context=context, parameter_overrides=overrides(values["sensors"]))
+    mapper = MapperNode(context=context, parameter_overrides=overrides(values["mapper"]))
     return [sensors, localizer, mapper]

@@ -125,11 +125,11 @@ def run_trial(
         blade_driver: One ``blade_driver`` node per robot between controller and simulator.
         processes: Each node in its own process instead of one composed process.
         record: Bag directory to record every suite topic into (``ant-bag record``'s
-            recorder node on the same executor; composed mode only).
+            recorder node on the same executor, or its own process).
         perception: ``"truth"``: controllers read the simulator's poses and heights;
             ``"full"``: they read the overhead localizer's and the terrain mapper's, which
             see the simulator through its synthetic camera and laser
-            (:mod:`excavation_bringup.perception`; composed mode only).
+            (:mod:`excavation_bringup.perception`).
         scenario: Scenario index of ``seed`` (``ScenarioSet.create(..., seed)``'s i-th).
         supervisor: ``"internal"``: the trial starts the team supervisor and arms it;
             ``"external"``: an operator's supervisor (``ros2 run team_supervisor
@@ -152,12 +152,8 @@ def run_trial(
     )
     if domain is None:
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
-    if record and processes:
-        raise ValueError("record: the recorder runs in the composed mode (without processes)")
     if perception not in ("truth", "full"):
         raise ValueError(f"perception = {perception!r}: expected 'truth' or 'full'")
-    if perception == "full" and processes:
-        raise ValueError("perception: full runs in the composed mode (without processes)")
     if supervisor not in ("internal", "external"):
         raise ValueError(f"supervisor = {supervisor!r}: expected 'internal' or 'external'")
     if occlude and perception != "full":
@@ -304,103 +300,201 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
         rclpy.try_shutdown(context=context)
 
 
-def _run_processes(spec: TrialSpec) -> TrialResult:
-    """Every node in its own process, as separate ``ros2 run`` commands would start them."""
-    controller_spec, robots, steps, seed = spec.controller, spec.robots, spec.steps, spec.seed
-    blueprint, domain, timeout, blade_driver = (
-        spec.blueprint,
-        spec.domain,
-        spec.timeout,
-        spec.blade_driver,
-    )
-    command_timeout, scenario = spec.command_timeout, spec.scenario
+def _ros_value(value) -> str:
+    """``value`` as a ``-p name:=value`` argument (parsed as YAML by rcl)."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def process_commands(spec: TrialSpec, workdir: Path) -> dict[str, list[str]]:
+    """Each node's command line for ``spec``, in start order (name -> argv).
+
+    What separate ``ros2 run`` commands would start: the recorder first (``record``), the
+    team supervisor (armed; none when the operator runs their own), the blueprint server,
+    the simulator (writing ``workdir/result.json`` at the end), with ``perception="full"``
+    the sensors, localizer (its camera calibration written to ``workdir/camera.yaml`` now)
+    and mapper, then per robot a controller and a blade driver.
+    """
     from blueprint_server.blueprint import resolve_blueprint
 
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
-    height_unit = resolve_blueprint(blueprint).height_unit
+    bp = resolve_blueprint(spec.blueprint)
+    height_unit = bp.height_unit
+    full = spec.perception == "full"
+
+    def node(name: str, module: str, *args: str, ns: str = "", **params) -> list[str]:
+        cmd = [sys.executable, "-m", module, *args, "--ros-args", "-r", f"__node:={name}"]
+        if ns:
+            cmd += ["-r", f"__ns:={ns}"]
+        for key, value in params.items():
+            cmd += ["-p", f"{key}:={_ros_value(value)}"]
+        return cmd
+
+    commands: dict[str, list[str]] = {}
+    if spec.record:
+        commands["recorder"] = [
+            sys.executable,
+            "-m",
+            "excavation_bags.cli",
+            "record",
+            "--out",
+            str(spec.record),
+            "--height-unit",
+            repr(float(height_unit)),
+        ]
+    if spec.supervisor == "internal":
+        commands["supervisor"] = node(
+            "supervisor",
+            "team_supervisor.supervisor_node",
+            **_supervisor_params(spec.robots, armed=True),
+        )
+    commands["server"] = node("server", "blueprint_server.server_node", blueprint=spec.blueprint)
+    commands["sim"] = node(
+        "sim",
+        "excavation_sim.sim_node",
+        blueprint=spec.blueprint,
+        robots=spec.robots,
+        steps=spec.steps,
+        seed=spec.seed,
+        scenario=spec.scenario,
+        command_timeout=float(spec.command_timeout),
+        blade_driver=spec.blade_driver,
+        result_file=str(Path(workdir) / "result.json"),
+        **({"truth_prefix": "/truth"} if full else {}),
+    )
+    if full:
+        from excavation_bringup.perception import perception_parameters
+
+        values = perception_parameters(
+            spec.robots, spec.seed, bp, str(Path(workdir) / "camera.yaml"), spec.occlude
+        )
+        commands["sensors"] = node("sensors", "excavation_sim.sensors_node", **values["sensors"])
+        commands["localizer"] = node(
+            "localizer", "overhead_localizer.localizer_node", **values["localizer"]
+        )
+        commands["mapper"] = node("mapper", "terrain_mapper.mapper_node", **values["mapper"])
+    for k in range(spec.robots):
+        commands[f"controller_{k}"] = node(
+            "controller",
+            "ant_controller.controller_node",
+            *_controller_args(spec.controller),
+            ns=f"/robot_{k}",
+            robot_id=k,
+            robots=spec.robots,
+            height_unit=float(height_unit),
+            lockstep=True,
+        )
+        if spec.blade_driver:
+            commands[f"blade_driver_{k}"] = node(
+                "blade_driver", "blade_driver.driver_node", ns=f"/robot_{k}", backend="sim"
+            )
+    return commands
+
+
+class TrialProcesses:
+    """A trial's nodes as processes: start, watch, kill and restart them, read the result.
+
+    ``ant-trial --processes`` starts them all and waits for the simulator; the fault tests
+    (``tests/faults.py``) and ``ant-soak`` also kill and restart single nodes. Each node's
+    output goes to ``workdir/NAME.log`` (appended across restarts).
+
+    Args:
+        spec: The trial.
+        workdir: Folder for logs, the calibration and ``result.json``.
+        env: Environment of the nodes (default: this one); ``ROS_DOMAIN_ID`` is the spec's.
+    """
+
+    def __init__(self, spec: TrialSpec, workdir: str | Path, env: dict | None = None) -> None:
+        self.spec = spec
+        self.workdir = Path(workdir)
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.commands = process_commands(spec, self.workdir)
+        self.env = dict(env if env is not None else os.environ, ROS_DOMAIN_ID=str(spec.domain))
+        self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.result_file = self.workdir / "result.json"
+
+    def log(self, name: str) -> Path:
+        """The log file of node ``name``."""
+        return self.workdir / f"{name}.log"
+
+    def start(self, name: str | None = None, command: list[str] | None = None, **popen) -> None:
+        """Start node ``name`` (default: every node, in order), with ``command`` if given."""
+        if name is None:
+            for n in self.commands:
+                self.start(n)
+            return
+        cmd = command or self.commands[name]
+        with open(self.log(name), "ab") as out:
+            self.procs[name] = subprocess.Popen(
+                cmd, env=self.env, stdout=out, stderr=subprocess.STDOUT, **popen
+            )
+
+    def kill(self, name: str, sig: int = signal.SIGKILL) -> int:
+        """Send ``sig`` to node ``name``, wait for it and forget it; returns its exit code."""
+        proc = self.procs.pop(name)
+        if proc.poll() is None:
+            proc.send_signal(sig)
+        return proc.wait()
+
+    def check(self) -> None:
+        """Raise when a node exited by itself with an error.
+
+        Raises:
+            RuntimeError: Naming the node, its exit code and the end of its log.
+        """
+        for name, proc in self.procs.items():
+            if proc.poll() is not None and proc.returncode != 0:
+                log = _tail(self.log(name))
+                raise RuntimeError(f"{name} exited with {proc.returncode}:\n{log}")
+
+    @property
+    def finished(self) -> bool:
+        """The simulator ended (after its last tick, or by a failure)."""
+        sim = self.procs.get("sim")
+        return sim is not None and sim.poll() is not None
+
+    def wait(self, timeout: float, started: float | None = None) -> dict:
+        """Wait for the simulator to end and return its result (``result.json``).
+
+        Raises:
+            TimeoutError: Not finished within ``timeout`` seconds of ``started``.
+            RuntimeError: A node failed, or the simulator wrote no result.
+        """
+        started = time.monotonic() if started is None else started
+        while not self.finished:
+            if time.monotonic() - started > timeout:
+                raise TimeoutError(f"trial did not finish within {timeout} s")
+            self.check()
+            time.sleep(0.1)
+        sim = self.procs["sim"]
+        if sim.returncode != 0 or not self.result_file.exists():
+            raise RuntimeError(f"sim exited with {sim.returncode}:\n{_tail(self.log('sim'))}")
+        return json.loads(self.result_file.read_text())
+
+    def stop(self) -> None:
+        """Stop every node as Ctrl-C would; the recorder last, so that the bag is complete."""
+        recorder = {n: p for n, p in self.procs.items() if n == "recorder"}
+        _stop({n: p for n, p in self.procs.items() if n != "recorder"})
+        _stop(recorder)
+        self.procs.clear()
+
+    def __enter__(self) -> TrialProcesses:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
+def _run_processes(spec: TrialSpec) -> TrialResult:
+    """Every node in its own process, as separate ``ros2 run`` commands would start them."""
     started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="ant-trial-") as tmp:
-        result_file = Path(tmp) / "result.json"
-
-        def node(name: str, module: str, *args: str) -> list[str]:
-            return [sys.executable, "-m", module, *args, "--ros-args", "-r", f"__node:={name}"]
-
-        commands = {}
-        if spec.supervisor == "internal":
-            commands["supervisor"] = node("supervisor", "team_supervisor.supervisor_node")
-            for k, v in _supervisor_params(robots, armed=True).items():
-                value = str(v).lower() if isinstance(v, bool) else repr(v)
-                commands["supervisor"] += ["-p", f"{k}:={value}"]
-        commands |= {
-            "server": node("server", "blueprint_server.server_node")
-            + ["-p", f"blueprint:={blueprint}"],
-            "sim": node("sim", "excavation_sim.sim_node")
-            + [
-                "-p",
-                f"blueprint:={blueprint}",
-                "-p",
-                f"robots:={robots}",
-                "-p",
-                f"steps:={steps}",
-                "-p",
-                f"seed:={seed}",
-                "-p",
-                f"scenario:={scenario}",
-                "-p",
-                f"command_timeout:={float(command_timeout)!r}",
-                "-p",
-                f"blade_driver:={str(blade_driver).lower()}",
-                "-p",
-                f"result_file:={result_file}",
-            ],
-        }
-        for k in range(robots):
-            commands[f"controller_{k}"] = node(
-                "controller", "ant_controller.controller_node", *_controller_args(controller_spec)
-            ) + [
-                "-r",
-                f"__ns:=/robot_{k}",
-                "-p",
-                f"robot_id:={k}",
-                "-p",
-                f"robots:={robots}",
-                "-p",
-                f"height_unit:={float(height_unit)!r}",
-                "-p",
-                "lockstep:=true",
-            ]
-            if blade_driver:
-                commands[f"blade_driver_{k}"] = node("blade_driver", "blade_driver.driver_node") + [
-                    "-r",
-                    f"__ns:=/robot_{k}",
-                    "-p",
-                    "backend:=sim",
-                ]
-        procs: dict[str, tuple[subprocess.Popen, Path]] = {}
-        try:
-            for name, cmd in commands.items():
-                log = Path(tmp) / f"{name}.log"
-                with open(log, "wb") as out:
-                    procs[name] = (
-                        subprocess.Popen(cmd, env=env, stdout=out, stderr=subprocess.STDOUT),
-                        log,
-                    )
-            sim = procs["sim"][0]
-            while sim.poll() is None:
-                if time.monotonic() - started > timeout:
-                    logs = "\n".join(
-                        f"--- {name}:\n{_tail(log, 8)}" for name, (_, log) in procs.items()
-                    )
-                    raise TimeoutError(f"trial did not finish within {timeout} s\n{logs}")
-                for name, (proc, log) in procs.items():
-                    if proc.poll() is not None and proc.returncode != 0:
-                        raise RuntimeError(f"{name} exited with {proc.returncode}:\n{_tail(log)}")
-                time.sleep(0.1)
-            if sim.returncode != 0 or not result_file.exists():
-                raise RuntimeError(f"sim exited with {sim.returncode}:\n{_tail(procs['sim'][1])}")
-            data = json.loads(result_file.read_text())
-        finally:
-            _stop(procs)
+        with TrialProcesses(spec, tmp) as trial:
+            trial.start()
+            data = trial.wait(spec.timeout, started)
     return TrialResult(
         data["fitness"],
         data["trace"],
@@ -416,13 +510,13 @@ def _tail(log: Path, lines: int = 20) -> str:
     return "\n".join(log.read_text(errors="replace").splitlines()[-lines:])
 
 
-def _stop(procs: dict) -> None:
+def _stop(procs: dict[str, subprocess.Popen]) -> None:
     """SIGINT every node still running (as Ctrl-C would), then kill what is left."""
-    for proc, _ in procs.values():
+    for proc in procs.values():
         if proc.poll() is None:
             proc.send_signal(signal.SIGINT)
     deadline = time.monotonic() + 10.0
-    for proc, _ in procs.values():
+    for proc in procs.values():
         try:
             proc.wait(timeout=max(0.1, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
