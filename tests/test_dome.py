@@ -76,6 +76,7 @@ def test_dome_up_sim_runs_40_ticks_with_the_fitness_of_ant_trial(tmp_path):
     assert summary["fitness"] == truth.fitness
     logs = {p.stem for p in (tmp_path / "run" / "logs").glob("*.log")}
     assert logs == {
+        "supervisor",
         "server",
         "sensors",
         "localizer",
@@ -91,7 +92,7 @@ def test_dome_up_sim_runs_40_ticks_with_the_fitness_of_ant_trial(tmp_path):
         for line in events(tmp_path).splitlines()
         if " starting " in line
     ]
-    assert order[0] == "server" and order[-1] == "sim"
+    assert order[:2] == ["supervisor", "server"] and order[-1] == "sim"
 
 
 def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):

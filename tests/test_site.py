@@ -108,7 +108,8 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
     site = sitefile.load_site(path, sim=sim)
     table = node_table(site, tmp_path, sim=sim, record=str(tmp_path / "bag"), view=True)
     names = [s.name for s in table]
-    assert names[:2] == ["recorder", "server"]  # the recorder first: it sees every topic
+    # the recorder first (it sees every topic), then the team supervisor
+    assert names[:3] == ["recorder", "supervisor", "server"]
     assert names[-1] == "view" and (names[-2] == "sim") == sim
     by_name = {s.name: s for s in table}
     for spec in table:
@@ -132,6 +133,10 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
         assert set(by_name[f"blade_driver_{k}"].params) <= driver_keys
     assert set(by_name["server"].params) <= _config_keys("blueprint_server", "server.yaml")
     assert set(by_name["recorder"].params) <= _config_keys("excavation_bags", "bag_recorder.yaml")
+    supervisor = by_name["supervisor"].params
+    assert set(supervisor) <= _config_keys("team_supervisor", "supervisor.yaml")
+    assert supervisor["robots"] == site.n_robots
+    assert supervisor["arm_at_start"] is sim  # the dome starts disarmed: the operator arms
     # the one map_info publisher is the blueprint server
     assert by_name["mapper"].params["publish_map_info"] is False
     beacons = yaml.safe_load((tmp_path / "beacons.yaml").read_text())

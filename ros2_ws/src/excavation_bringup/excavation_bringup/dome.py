@@ -158,6 +158,14 @@ def node_table(
         )
     table.append(
         NodeSpec(
+            "supervisor",
+            "team_supervisor.supervisor_node",
+            sitefile.supervisor_params(site, sim),
+            ("/supervisor",),
+        )
+    )
+    table.append(
+        NodeSpec(
             "server",
             "blueprint_server.server_node",
             sitefile.server_params(site),

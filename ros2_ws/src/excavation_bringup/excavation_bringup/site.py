@@ -650,6 +650,7 @@ DERIVED = {
     },
     "blade_driver": {"backend": "robots[k].blade.backend", "port": "robots[k].blade.port"},
     "recorder": {"out": "--record", "height_unit": "worksite.soil_unit"},
+    "supervisor": {"robots": "robots", "arm_at_start": "--sim"},
 }
 """Per node, the parameters the site file sets (an override of one is an inconsistency)."""
 
@@ -678,6 +679,7 @@ def node_parameter_names(node: str) -> set[str]:
         "controller": ("ant_controller", "controller.yaml"),
         "blade_driver": ("blade_driver", "driver.yaml"),
         "recorder": ("excavation_bags", "bag_recorder.yaml"),
+        "supervisor": ("team_supervisor", "supervisor.yaml"),
     }[node]
     import importlib
 
@@ -862,6 +864,15 @@ def blade_driver_params(site: Site, k: int, sim: bool = False) -> dict[str, Any]
     if backend == "serial":
         params["port"] = robot.port
     return _merge(site, "blade_driver", params)
+
+
+def supervisor_params(site: Site, sim: bool = False) -> dict[str, Any]:
+    """The team supervisor: disarmed at start in the dome, armed at start with ``--sim``.
+
+    In the dome nothing moves until the operator runs ``ant-operator arm``; a ``--sim`` run
+    is unattended, so its supervisor arms the team itself.
+    """
+    return _merge(site, "supervisor", {"robots": site.n_robots, "arm_at_start": bool(sim)})
 
 
 def recorder_params(site: Site, out: str) -> dict[str, Any]:
