@@ -529,3 +529,75 @@ def test_sim_node_runs_a_profile():
     assert all(_inside(bp.zones, world.robots, [ZONE_DIG]))
     bp, world = scenario_world("default", 4, 0, 0)
     assert bp.shape == (16, 16) and np.array_equal(world.params, V1_RULES.as_array())
+
+
+def test_ant_evolve_profile_and_set_resolve(tmp_path):
+    from ant_evolution.cli_evolve import build_parser, resolve_config
+
+    args = build_parser().parse_args(
+        ["--out", str(tmp_path), "--profile", "paper", "--set", "elitism=1"]
+    )
+    config = resolve_config(args)
+    assert config.profile == "paper" and config.elitism == 1 and config.soil_fill
+    cfg = tmp_path / "run.yaml"
+    cfg.write_text("profile: v1\nsoil_fill: true\npopulation: 10\n")
+    args = build_parser().parse_args(["--out", str(tmp_path), "--config", str(cfg)])
+    config = resolve_config(args)
+    assert (config.profile, config.soil_fill, config.h1) == ("v1", True, "relative")
+    args = build_parser().parse_args(
+        ["--out", str(tmp_path), "--config", str(cfg), "--profile", "paper"]
+    )
+    config = resolve_config(args)  # the flag replaces the file's profile; its keys still apply
+    assert (config.profile, config.soil_fill, config.h1, config.population) == (
+        "paper",
+        True,
+        "absolute",
+        10,
+    )
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["--out", str(tmp_path), "--set", "soil_fil=true"])
+
+
+def test_ant_eval_and_sweep_take_a_profile(tmp_path, capsys):
+    from ant_evolution.cli_eval import main as ant_eval
+    from ant_evolution.sweep import main as ant_sweep
+
+    common = ["--hand-coded", "--scenarios", "3", "--steps", "40", "--json"]
+    assert ant_eval(common + ["--profile", "paper"]) == 0
+    paper = json.loads(capsys.readouterr().out)
+    assert ant_eval(common) == 0
+    v1 = json.loads(capsys.readouterr().out)
+    assert paper["profile"] == "paper" and "profile" not in v1
+    assert (
+        paper["blueprint"] == "default 12x12 (depth 1)" and v1["blueprint"] == "default (depth 1)"
+    )
+    assert paper["scores"] != v1["scores"]
+    assert ant_eval(common + ["--set", "hand_coded=bogus"]) == 2
+    out = tmp_path / "sweep"
+    argv = ["--hand-coded", "--robots", "2", "--depths", "1", "--scenarios", "2", "--steps", "20"]
+    assert ant_sweep(argv + ["--profile", "paper", "--out", str(out)]) == 0
+    assert "profile paper" in (out / "sweep.md").read_text()
+
+
+def test_load_and_climb_switches_each_act():
+    pile = dataclasses.replace(PAPER_RULES, throttle_load=30)
+    w = make_world([(2, 2, NORTH, BLADE_LEVEL)], pile)
+    w.heights[4, 2:4] = (13, 12)  # 25 units: over 24, within 30 with throttle-up
+    step_both(w, FORWARD | THROTTLE)
+    assert w.robots[0, STUCK] == 0
+    climber = dataclasses.replace(V1_RULES, normal_climb=2)
+    w = make_world([(2, 2, NORTH, BLADE_HOME)], climber)
+    w.heights[4, 2] = 2
+    step_both(w, FORWARD)  # no throttle-up: climbs only because normal_climb is 2
+    assert w.robots[0, STUCK] == 0
+
+
+def test_neat_strategy_writes_the_profiles_neat_config(tmp_path):
+    from ant_evolution.baselines.runs import NeatStrategy
+
+    NeatStrategy(EvolveConfig().with_profile("paper"), tmp_path)
+    text = (tmp_path / "neat.ini").read_text()
+    assert "modular_down" in text and "weight_mutate_rate      = 0.025" in text
+    NeatStrategy(EvolveConfig(), tmp_path)
+    text = (tmp_path / "neat.ini").read_text()
+    assert "activation_options      = sigmoid" in text and "weight_mutate_rate      = 0.8" in text
