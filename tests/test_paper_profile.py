@@ -231,6 +231,9 @@ def test_fitted_site_is_the_pit_plus_its_dump_band():
     assert (fitted.zones == ZONE_DIG).sum() == 64
     assert (fitted.zones == ZONE_DUMP).sum() == 144 - 64  # no don't-care cells left
     assert resolve_blueprint("default:3", fitted=True).shape == (12, 12)
+    # the spec the blueprint server takes to publish the paper profile's site
+    assert resolve_blueprint("fitted:3").name == default_blueprint(3, fitted=True).name
+    assert np.array_equal(resolve_blueprint("fitted", 2).goal, fitted.goal)
 
 
 # --- 7. H1 ------------------------------------------------------------------------------------

@@ -516,19 +516,21 @@ def resolve_blueprint(spec: str | None, depth: int = 1, fitted: bool = False) ->
 
     Args:
         spec: ``None`` or ``"default"`` (the default pit at ``depth``), ``"default:D"``
-            (goal depth ``D``), ``"landing-pad"``, or the path of a blueprint file.
-        depth: Goal depth of a plain ``"default"``.
+            (goal depth ``D``), ``"fitted"`` / ``"fitted:D"`` (the same pit on the grid of
+            the pit plus its dump band, the paper profile's site), ``"landing-pad"``, or
+            the path of a blueprint file.
+        depth: Goal depth of a plain ``"default"`` or ``"fitted"``.
         fitted: The default pit on a grid of the pit plus its dump band (see
             :func:`default_blueprint`); files and the landing pad keep their own grid.
 
     Raises:
         BlueprintError: A bad depth, or a file that is missing or malformed.
     """
-    if spec is None or spec == "default":
-        return default_blueprint(depth, fitted)
+    if spec is None or spec in ("default", "fitted"):
+        return default_blueprint(depth, fitted or spec == "fitted")
     if spec == "landing-pad":
         return landing_pad()
-    if spec.startswith("default:"):
+    if spec.startswith(("default:", "fitted:")):
         text = spec.partition(":")[2]
         if not text.isdigit() or int(text) < 1:
             raise BlueprintError(spec, "depth", text, "must be a positive integer")
@@ -536,5 +538,5 @@ def resolve_blueprint(spec: str | None, depth: int = 1, fitted: bool = False) ->
             raise BlueprintError(
                 spec, "depth", text, f"must lie in 1..{MAX_DEPTH_UNITS} soil units (the limit)"
             )
-        return default_blueprint(int(text), fitted)
+        return default_blueprint(int(text), fitted or spec.startswith("fitted:"))
     return load_blueprint(spec)
