@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ant_controller.readings import PROFILE_NAMES
 from excavation_common.params import param
 
 
@@ -24,6 +25,12 @@ class SimParams:
 
     blueprint: str = param(
         "default", "blueprint: default, default:D, landing-pad or a file", read_only=True
+    )
+    profile: str = param(
+        "v1",
+        "world readings of the paper: v1 or paper (excavation_sim.rules.WORLD_PROFILES)",
+        choices=PROFILE_NAMES,
+        read_only=True,
     )
     robots: int = param(4, "team size", low=1, high=64)
     steps: int = param(300, "ticks to simulate", low=1, high=10_000_000)

@@ -18,8 +18,10 @@ what lets a controller pair the unstamped ``stuck`` flag with its tick. After ``
 ticks the node publishes the final state and fitness and stops stepping (``finished``).
 
 Parameters: ``blueprint`` (``default``, ``default:D``, ``landing-pad`` or a file),
-``robots`` (4), ``steps`` (300), ``seed`` (0), ``scenario`` (0, the index within ``seed``),
-``dt`` (1.0 s of sim time per tick),
+``profile`` (``v1`` or ``paper``: the world's readings of the paper,
+:data:`excavation_sim.rules.WORLD_PROFILES`, as ``ant-eval --profile``), ``robots`` (4),
+``steps`` (300), ``seed`` (0), ``scenario`` (0, the index within ``seed``), ``dt`` (1.0 s
+of sim time per tick),
 ``command_timeout`` (1.0 s), ``first_command_timeout`` (30.0 s: tick 0 waits longer, while
 controllers load their compiled kernels), ``startup_period`` (0.5 s),
 ``diagnostics_period`` (1.0 s), ``blade_driver`` (false), ``result_file`` (JSON written at
@@ -66,7 +68,7 @@ from ant_controller.layout import (
 )
 from ant_controller.sensing import blade_volume, is_tilted_down
 from blueprint_server.blueprint import resolve_blueprint
-from excavation_common.constants import BladeGeometry
+from excavation_common.constants import MAX_LOAD, BladeGeometry
 from excavation_common.files import write_text_atomic
 from excavation_common.messages import blade_joint, grid_to_image, pose_message
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
@@ -78,11 +80,11 @@ from excavation_common.safety import (
     MotionGate,
 )
 from excavation_sim.lockstep import Action, SimParams, TickClock, TickInputs
+from excavation_sim.rules import V1_RULES, WORLD_PROFILES, WorldRules
 from excavation_sim.world import (
     BLADE,
     COL,
     HEADING,
-    MAX_LOAD,
     ROW,
     STUCK,
     World,
@@ -97,10 +99,15 @@ TILT_PITCH = 0.2
 """Pitch (rad, nose down) the simulated IMU reports when R1 holds."""
 
 
-def scenario_world(blueprint_spec: str, robots: int, seed: int, index: int = 0):
-    """Scenario ``index`` of ``seed`` (index 0: the world ``ant-eval --seed`` starts from)."""
-    bp = resolve_blueprint(blueprint_spec)
-    world = World.scenario(bp.zones, bp.goal, robots, seed, index)
+def scenario_world(
+    blueprint_spec: str, robots: int, seed: int, index: int = 0, rules: WorldRules = V1_RULES
+):
+    """Scenario ``index`` of ``seed`` (index 0: the world ``ant-eval --seed`` starts from).
+
+    ``rules``: the world's readings (``WORLD_PROFILES[profile]``), as ``ant-eval --profile``.
+    """
+    bp = resolve_blueprint(blueprint_spec, fitted=rules.fitted_site)
+    world = World.scenario(bp.zones, bp.goal, robots, seed, index, rules)
     return bp, world
 
 
@@ -117,7 +124,9 @@ class SimNode(Node):
         self.blade_driver = p.blade_driver
         self.result_file = p.result_file
         self.truth_prefix = p.truth_prefix.rstrip("/")
-        self.blueprint, self.world = scenario_world(p.blueprint, p.robots, p.seed, p.scenario)
+        self.blueprint, self.world = scenario_world(
+            p.blueprint, p.robots, p.seed, p.scenario, WORLD_PROFILES[p.profile]
+        )
         self.clock = TickClock.from_params(p)
         self.geometry = BladeGeometry()
         self.missed_servo: dict[int, int] = {k: 0 for k in range(self.n)}
