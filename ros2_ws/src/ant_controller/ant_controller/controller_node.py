@@ -44,9 +44,10 @@ from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import Bool, UInt16
 
-from ant_controller.controller import Controller, ControllerCore
+from ant_controller.controller import KIND_HAND_CODED, Controller, ControllerCore
 from ant_controller.errors import GenomeFormatError
 from ant_controller.input_gate import ControllerParams, InputGate
+from ant_controller.readings import controller_readings
 from excavation_common.constants import BladeGeometry
 from excavation_common.messages import (
     MessageError,
@@ -66,13 +67,21 @@ def _stamp(msg) -> tuple[int, int]:
 class ControllerNode(Node):
     """Thin ROS plumbing around :class:`InputGate` and :class:`ControllerCore`."""
 
-    def __init__(self, controller: Controller, **kwargs) -> None:
+    def __init__(self, controller: Controller | None = None, **kwargs) -> None:
+        """``controller``: a genome's controller; ``None`` = the hand-coded rules.
+
+        The hand-coded rules are built here because the ``profile`` parameter chooses
+        their reading (:mod:`ant_controller.readings`).
+        """
         super().__init__("controller", **kwargs)
         self.params = declare_params(self, ControllerParams)
         p = self.params
         self.robot_id, self.n_robots, self.lockstep = p.robot_id, p.robots, p.lockstep
         self.geometry = BladeGeometry(depth=p.blade_depth, home=p.blade_home, max_force=p.max_force)
-        self.core = ControllerCore(controller)
+        readings = controller_readings(p.profile, self.get_fully_qualified_name())
+        if controller is None or controller.kind == KIND_HAND_CODED:
+            controller = Controller.hand_coded(readings.hand_coded)
+        self.core = ControllerCore(controller, h1_frame=readings.h1_frame)
         self.gate = InputGate.from_params(p)
         self.errors: dict[str, str] = {}
         self.last_reason: str | None = "starting"
@@ -256,9 +265,7 @@ def main(args: list[str] | None = None) -> int:
     argv = sys.argv if args is None else args
     options = parse_args(remove_ros_args(argv)[1:])
     try:
-        controller = (
-            Controller.hand_coded() if options.hand_coded else Controller.from_file(options.genome)
-        )
+        controller = None if options.hand_coded else Controller.from_file(options.genome)
     except GenomeFormatError as exc:
         print(f"controller: error: {exc}", file=sys.stderr)
         return 2

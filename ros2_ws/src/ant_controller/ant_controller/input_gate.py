@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ant_controller.readings import PROFILE_NAMES
 from excavation_common.params import param
 
 UNKNOWN = np.iinfo(np.int32).min
@@ -46,6 +47,11 @@ class ControllerParams:
     blade_depth: float = param(0.02, "m, must match the blade driver", low=1e-6, high=10.0)
     blade_home: float = param(0.10, "m, must match the blade driver", low=1e-6, high=10.0)
     max_force: float = param(10.0, "N of a full blade", low=1e-6, high=1e6)
+    profile: str = param(
+        "v1",
+        "readings of the paper (H1 frame, hand-coded rules): v1 or paper, as the simulator's",
+        choices=PROFILE_NAMES,
+    )
 
     def check(self) -> None:
         """Rules across fields: the robot is one of the team; home above depth."""
