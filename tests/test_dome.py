@@ -98,7 +98,7 @@ def test_dome_up_sim_runs_40_ticks_with_the_fitness_of_ant_trial(tmp_path):
 def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
     proc = dome(tmp_path, ticks=150)
     try:
-        assert wait_for(lambda: "all 9 nodes are up" in events(tmp_path), 600)
+        assert wait_for(lambda: "all 10 nodes are up" in events(tmp_path), 600)
         time.sleep(2.0)  # a few ticks
         victim = state(tmp_path)["controller_1"]["pid"]
         os.kill(victim, signal.SIGKILL)
@@ -118,13 +118,13 @@ def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
 
 
 def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag(tmp_path):
-    from excavation_bags.storage import open_bag
+    from excavation_bags.reader import open_bag
 
     bag = tmp_path / "bag"
     port = _free_port()
     proc = dome(tmp_path, "--record", str(bag), "--view", "--view-port", str(port), ticks=300)
     try:
-        assert wait_for(lambda: "all 11 nodes are up" in events(tmp_path), 600)
+        assert wait_for(lambda: "all 12 nodes are up" in events(tmp_path), 600)
         time.sleep(5.0)
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=300)

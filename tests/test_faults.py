@@ -22,7 +22,7 @@ from faults import FaultTrial
 from test_trial import offline
 
 from excavation_bags.cli import main as bag_main
-from excavation_bags.storage import open_bag
+from excavation_bags.reader import open_bag
 from excavation_bringup.trial import run_trial
 
 SIM = "/sim"

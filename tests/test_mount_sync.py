@@ -214,7 +214,7 @@ def test_calibrate_mount_reads_a_bag(tmp_path, capsys):
     import yaml
     from rosbags.typesys import Stores, get_typestore
 
-    from excavation_bags.storage import BagWriter
+    from excavation_bags.writer import BagWriter
 
     store = get_typestore(Stores.ROS2_JAZZY)
     types = store.types
