@@ -18,6 +18,7 @@ PACKAGES = {
     "overhead_localizer": ["localizer", "calibrate"],
     "terrain_mapper": ["mapper", "field-metrics"],
     "blade_driver": ["driver", "fake_board"],
+    "drive_executor": ["executor"],
     "excavation_bags": ["ant-bag"],
     "excavation_bringup": ["ant-trial"],
 }
