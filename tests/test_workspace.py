@@ -14,7 +14,7 @@ PACKAGES = {
     "excavation_common": [],
     "ant_controller": ["genome_info", "controller"],
     "blueprint_server": ["blueprint_info", "server"],
-    "excavation_sim": ["sim", "sensors"],
+    "excavation_sim": ["sim", "sensors", "dynamics"],
     "overhead_localizer": ["localizer", "calibrate"],
     "terrain_mapper": ["mapper", "field-metrics"],
     "blade_driver": ["driver", "fake_board"],

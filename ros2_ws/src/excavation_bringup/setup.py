@@ -23,6 +23,7 @@ setup(
         "overhead_localizer",
         "terrain_mapper",
         "blade_driver",
+        "drive_executor",
         "excavation_bags",
         "numpy",
     ],

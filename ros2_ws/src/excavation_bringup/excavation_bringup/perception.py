@@ -29,14 +29,18 @@ trial's single executor a few milliseconds; one such sweep still measures every 
 under a robot to 0.05 soil unit RMSE (docs/perception.md)."""
 
 
-def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
-    """Sensors, localizer and mapper nodes for a lockstep trial on ``context``.
+def perception_nodes(
+    context, robots: int, seed: int, blueprint, truth_prefix: str = SIM_TRUTH_PREFIX
+) -> list:
+    """Sensors, localizer and mapper nodes for a trial on ``context``.
 
     Args:
         context: The rclpy context of the trial.
         robots: Number of robots.
         seed: Seed of the sensors' noise and of the calibration marks.
         blueprint: The trial's :class:`blueprint_server.blueprint.Blueprint`.
+        truth_prefix: Where the sensors read the truth they render (the continuous trial:
+            the ``dynamics`` node's snapshots, ``/snapshot``).
     """
     from rclpy.parameter import Parameter
 
@@ -75,7 +79,7 @@ def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
         parameter_overrides=[
             Parameter("robots", value=robots),
             Parameter("seed", value=seed),
-            Parameter("truth_prefix", value=SIM_TRUTH_PREFIX),
+            Parameter("truth_prefix", value=truth_prefix),
             Parameter("sweep_scans", value=TRIAL_SWEEP_SCANS),
             Parameter("cell_size", value=float(blueprint.cell_size)),
             Parameter("rows", value=rows),

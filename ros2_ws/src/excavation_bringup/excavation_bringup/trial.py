@@ -28,7 +28,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +36,12 @@ import numpy as np
 
 @dataclass
 class TrialResult:
-    """A trial's fitness, fitness per tick, final heights, missed and applied commands."""
+    """A trial's fitness, fitness per tick, final heights, missed and applied commands.
+
+    ``--drive continuous`` adds the wall time of every tick, the primitives the executors
+    aborted, the stuck events (robot-ticks with U1 set), the sim time and the robots the
+    team tick left out of a tick.
+    """
 
     fitness: float
     trace: list[float]
@@ -44,6 +49,11 @@ class TrialResult:
     missed: dict[int, int]
     seconds: float
     commands: list[list[int]]
+    tick_wall: list[float] = field(default_factory=list)
+    primitives_aborted: int = 0
+    stuck_events: int = 0
+    sim_seconds: float = 0.0
+    robots_late: int = 0
 
 
 @dataclass(frozen=True)
@@ -62,6 +72,7 @@ class TrialSpec:
     blade_driver: bool
     record: str | None
     perception: str
+    drive: str = "grid"
 
 
 def _controller_args(controller_spec: str) -> list[str]:
@@ -82,6 +93,8 @@ def run_trial(
     record: str | None = None,
     perception: str = "truth",
     scenario: int = 0,
+    drive: str = "grid",
+    exact: bool = False,
 ) -> TrialResult:
     """Run a trial through the nodes and return its result.
 
@@ -103,6 +116,10 @@ def run_trial(
             see the simulator through its synthetic camera and laser
             (:mod:`excavation_bringup.perception`; composed mode only).
         scenario: Scenario index of ``seed`` (``ScenarioSet.create(..., seed)``'s i-th).
+        drive: ``"grid"``: the lockstep simulator applies each word at once; ``"continuous"``:
+            drive executors, the team tick and the ``dynamics`` simulator
+            (:mod:`excavation_bringup.continuous_trial`; composed mode only).
+        exact: ``drive="continuous"`` without slip and noise (the parity setting).
 
     Raises:
         TimeoutError: When the trial does not finish in time.
@@ -125,6 +142,10 @@ def run_trial(
         raise ValueError(f"perception = {perception!r}: expected 'truth' or 'full'")
     if perception == "full" and processes:
         raise ValueError("perception: full runs in the composed mode (without processes)")
+    if drive not in ("grid", "continuous"):
+        raise ValueError(f"drive = {drive!r}: expected 'grid' or 'continuous'")
+    if drive == "continuous" and processes:
+        raise ValueError("drive: continuous runs in the composed mode (without processes)")
     spec = TrialSpec(
         controller_spec,
         robots,
@@ -138,7 +159,12 @@ def run_trial(
         blade_driver,
         record,
         perception,
+        drive,
     )
+    if drive == "continuous":
+        from excavation_bringup.continuous_trial import run_continuous
+
+        return run_continuous(ctl, spec, exact=exact)
     return _run_processes(spec) if processes else _run_composed(ctl, spec)
 
 
@@ -403,6 +429,15 @@ def main(argv: list[str] | None = None) -> int:
         default="truth",
         help="full: controllers see the sim only through the camera+localizer, laser+mapper",
     )
+    p.add_argument(
+        "--drive",
+        choices=("grid", "continuous"),
+        default="grid",
+        help="continuous: drive executors, team tick and the continuous-motion simulator",
+    )
+    p.add_argument(
+        "--no-slip", action="store_true", help="--drive continuous without slip and noise"
+    )
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     from excavation_common.errors import FieldError
@@ -421,14 +456,26 @@ def main(argv: list[str] | None = None) -> int:
             perception=args.perception,
             scenario=args.scenario,
             command_timeout=args.command_timeout or (30.0 if args.perception == "full" else 2.0),
+            drive=args.drive,
+            exact=args.no_slip,
         )
     except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
         print(f"ant-trial: error: {exc}", file=sys.stderr)
         return 2
+    extra = {}
+    if args.drive == "continuous":
+        extra = {
+            "wall_per_tick": result.tick_wall,
+            "primitives_aborted": result.primitives_aborted,
+            "stuck_events": result.stuck_events,
+            "sim_seconds": result.sim_seconds,
+            "robots_late": result.robots_late,
+        }
     if args.json:
         print(
             json.dumps(
                 {"fitness": result.fitness, "missed": result.missed, "seconds": result.seconds}
+                | extra
             )
         )
     else:
