@@ -20,7 +20,7 @@ PACKAGES = {
     "blade_driver": ["driver", "fake_board"],
     "drive_executor": ["executor"],
     "excavation_bags": ["ant-bag"],
-    "excavation_bringup": ["ant-trial"],
+    "excavation_bringup": ["ant-trial", "team_tick"],
 }
 
 

@@ -35,6 +35,7 @@ setup(
     entry_points={
         "console_scripts": [
             "ant-trial = excavation_bringup.trial:main",
+            "team_tick = excavation_bringup.team_tick_node:main",
         ],
     },
 )

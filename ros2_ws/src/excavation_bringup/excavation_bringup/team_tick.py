@@ -9,7 +9,8 @@ turns that back into ticks the controllers can run on unchanged, in their lockst
    or after the moment the last robot finished (``settle`` later), each blade at the
    setting its word asked for (or ``blade_wait`` has passed). It asks for one on
    ``/team/snapshot`` (the simulator answers; a dome's camera and laser run anyway) and asks
-   again every ``snapshot_retry`` seconds. The snapshot is republished stamped
+   again every ``snapshot_retry`` wall seconds (wall time: rendering a frame takes wall
+   time while a simulator's clock runs on). The snapshot is republished stamped
    ``t * tick_period`` with every robot's U1 (its executor aborted: stuck).
 2. **Words.** Every controller answers with one word (the first word after the snapshot
    counts; ``word_timeout`` / ``first_word_timeout`` wall seconds, then a silent robot
@@ -58,9 +59,9 @@ class TeamTickParams:
     steps: int = param(300, "ticks to run (0: run until stopped)", low=0)
     tick_period: float = param(1.0, "stamp spacing of the republished ticks, s", low=0.001)
     settle: float = param(0.1, "snapshot taken at least this long after motion ended, s", low=0.0)
-    snapshot_retry: float = param(1.0, "ask for a new snapshot after this long, s", low=0.01)
+    snapshot_retry: float = param(2.0, "wall s after which a new snapshot is asked for", low=0.01)
     snapshot_limit: float = param(
-        10.0, "give up waiting for a complete snapshot after this long, s", low=0.01
+        30.0, "wall s after which an incomplete snapshot is taken as it is", low=0.01
     )
     blade_wait: float = param(2.0, "longest wait for blades to reach their setting, s", low=0.0)
     motion_limit: float = param(
@@ -167,6 +168,7 @@ class TeamTick:
     _since: float = 0.0
     _asked: float = 0.0
     _after: float = 0.0
+    _after_wall: float = 0.0
     _wall: float = 0.0
     _expected: list[int | None] = field(default_factory=list)
     _waits: list[set[int]] = field(default_factory=list)
@@ -208,11 +210,11 @@ class TeamTick:
                 self._done.add(k)
                 self.stuck[k] = aborted
 
-    def start(self, now: float) -> list[tuple]:
+    def start(self, now: float, wall: float = 0.0) -> list[tuple]:
         """The team is present: ask for the snapshot of tick 0."""
         self.phase = Phase.SNAPSHOT
-        self._after = now
-        return self._request(now)
+        self._after, self._after_wall = now, wall
+        return self._request(wall)
 
     # --- the state machine ----------------------------------------------------------------------
 
@@ -226,8 +228,8 @@ class TeamTick:
             return self._step_motion(now, wall)
         return []
 
-    def _request(self, now: float) -> list[tuple]:
-        self._asked = now
+    def _request(self, wall: float) -> list[tuple]:
+        self._asked = wall
         return [("request", f"tick {self.tick}")]
 
     def snapshot_ready(self, now: float) -> str | None:
@@ -253,11 +255,12 @@ class TeamTick:
         missing = self.snapshot_ready(now)
         out: list[tuple] = []
         if missing is not None:
-            if now - self._after > self.params.snapshot_limit and self._has_everything():
+            late = wall - self._after_wall > self.params.snapshot_limit
+            if late and self._has_everything():
                 out.append(("report", f"tick {self.tick}: snapshot without a fresh {missing}"))
             else:
-                if now - self._asked >= self.params.snapshot_retry:
-                    out += self._request(now)
+                if wall - self._asked >= self.params.snapshot_retry:
+                    out += self._request(wall)
                 return out
         if self._final:
             self.phase = Phase.FINISHED
@@ -343,5 +346,5 @@ class TeamTick:
         self.tick += 1
         self._final = self.params.steps > 0 and self.tick >= self.params.steps
         self.phase = Phase.SNAPSHOT
-        self._after = now
-        return out + self._request(now)
+        self._after, self._after_wall = now, wall
+        return out + self._request(wall)

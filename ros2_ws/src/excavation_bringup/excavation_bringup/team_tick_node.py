@@ -171,7 +171,7 @@ class TeamTickNode(Node):
             if self.ready_since is None:
                 self.ready_since = wall
             if wall - self.ready_since >= self.topics.startup_period:
-                self.execute(self.core.start(now))
+                self.execute(self.core.start(now, wall))
             return
         self.execute(self.core.step(now, wall))
 

@@ -1,0 +1,139 @@
+"""Field-execution figures for docs/benchmarks.md and docs/results.md (prints Markdown).
+
+``python -m excavation_bringup.field_bench bench``: the executor's control-loop rate (pure
+core and through the node), the sim-time / wall-time ratio and the wall time per tick of a
+4-robot 300-tick continuous trial, with and without full perception.
+``python -m excavation_bringup.field_bench results``: fitness of the continuous trial with
+the default slip and noise and full perception over 5 seeds, next to the grid's (ant-eval,
+which equals the lockstep grid trial), with primitives aborted and stuck events.
+Times are wall-clock figures of this machine, printed, never asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import time
+
+GENOME = "genomes/best.json"
+
+
+def core_rate(cycles: int = 200_000) -> float:
+    """Control steps per second of the executor core on a perfect plant."""
+    from ant_controller.layout import MOVE_FORWARD, TURN_RIGHT
+    from drive_executor.core import DriveExecutorCore
+    from drive_executor.goals import DriveGoal
+    from drive_executor.params import ExecutorParams
+    from drive_executor.primitives import Pose2D
+    from excavation_common.safety import ARMED, MotionGate
+
+    gate = MotionGate(active=True, enabled=True)
+    core = DriveExecutorCore(ExecutorParams(), gate)
+    x, y, yaw, t, dt = 1.0, 1.0, 0.0, 0.0, 0.05
+    started = time.perf_counter()
+    for i in range(cycles):
+        if not core.busy:
+            core.submit(DriveGoal(i, 1 << MOVE_FORWARD | 1 << TURN_RIGHT), t)
+        gate.on_heartbeat(ARMED, t)
+        tw = core.on_pose(Pose2D(x, y, yaw), t, t)
+        core.drain()
+        x += tw.linear * math.cos(yaw) * dt
+        y += tw.linear * math.sin(yaw) * dt
+        yaw += tw.angular * dt
+        t += dt
+    return cycles / (time.perf_counter() - started)
+
+
+def trial(spec, robots, steps, seed, perception="truth", exact=False, drive="continuous"):
+    """One trial with its wall time."""
+    from excavation_bringup.trial import run_trial
+
+    return run_trial(
+        spec,
+        robots,
+        steps,
+        seed,
+        "default:1",
+        domain=int(os.environ.get("ROS_DOMAIN_ID", "57")),
+        command_timeout=30.0,
+        timeout=7200.0,
+        perception=perception,
+        drive=drive,
+        exact=exact,
+    )
+
+
+def bench() -> None:
+    """Print the benchmark table."""
+    print(
+        f"| executor core control steps per second (one core, perfect plant) | {core_rate():,.0f} |"
+    )
+    one = trial("hand-coded", 1, 100, 0)
+    print(
+        f"| executor node: pose -> cmd_vel round trips per second, 1 robot composed | "
+        f"{one.sim_seconds / 0.05 / one.seconds:,.0f} |"
+    )
+    for perception in ("truth", "full"):
+        r = trial(GENOME, 4, 300, 0, perception=perception)
+        walls = sorted(r.tick_wall)
+        p95 = walls[int(0.95 * (len(walls) - 1))]
+        print(
+            f"| continuous trial, 4 robots, 300 ticks, perception {perception}: sim / wall | "
+            f"{r.sim_seconds:.0f} s / {r.seconds:.0f} s = {r.sim_seconds / r.seconds:.1f} x |"
+        )
+        print(
+            f"| ... wall time per tick, mean / p95 | {statistics.mean(walls):.3f} s / "
+            f"{p95:.3f} s (sim {r.sim_seconds / 300:.1f} s per tick; {r.primitives_aborted} "
+            f"primitives aborted) |"
+        )
+    g = trial(GENOME, 4, 300, 0, drive="grid")
+    print(
+        f"| lockstep grid trial, 4 robots, 300 ticks, for comparison: wall per tick | "
+        f"{g.seconds / 300:.3f} s |"
+    )
+
+
+def results(seeds: int = 5) -> None:
+    """Print the 5-seed fitness table."""
+    from ant_controller.controller import Controller
+    from ant_evolution.evaluate import ScenarioSet, advance
+    from blueprint_server.blueprint import default_blueprint
+
+    print(
+        "| controller | seed | grid (ant-eval = lockstep trial) | continuous, default slip "
+        "and noise, full perception | ratio | primitives aborted | stuck events |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for spec in ("hand-coded", GENOME):
+        ctl = Controller.hand_coded() if spec == "hand-coded" else Controller.from_file(spec)
+        grid_all, cont_all = [], []
+        for seed in range(seeds):
+            world = ScenarioSet.create(default_blueprint(1), 4, 1, 300, seed).world(0)
+            advance(world, ctl, 300)
+            r = trial(spec, 4, 300, seed, perception="full")
+            grid_all.append(world.fitness())
+            cont_all.append(r.fitness)
+            print(
+                f"| {spec} | {seed} | {world.fitness():.4f} | {r.fitness:.4f} | "
+                f"{r.fitness / world.fitness():.3f} | {r.primitives_aborted} | "
+                f"{r.stuck_events} |",
+                flush=True,
+            )
+        g, c = statistics.mean(grid_all), statistics.mean(cont_all)
+        print(f"| {spec} | mean | {g:.4f} | {c:.4f} | {c / g:.3f} | | |", flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point (``python -m excavation_bringup.field_bench bench|results``)."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("what", choices=("bench", "results"))
+    args = p.parse_args(argv)
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    bench() if args.what == "bench" else results()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
