@@ -52,6 +52,7 @@ demo: setup
 bench: setup
 	$(BIN)/ant-bench --write docs/benchmarks.md
 	$(BIN)/ant-perception-bench --write docs/benchmarks.md --doc docs/perception.md
+	$(BIN)/python -m excavation_bringup.field_bench bench --write docs/benchmarks.md
 
 clean:
 	rm -rf $(VENV) ros2_ws/build ros2_ws/install ros2_ws/log $(DEMO_OUT)

@@ -65,34 +65,73 @@ def trial(spec, robots, steps, seed, perception="truth", exact=False, drive="con
     )
 
 
-def bench() -> None:
-    """Print the benchmark table."""
-    print(
-        f"| executor core control steps per second (one core, perfect plant) | {core_rate():,.0f} |"
-    )
+MARK = "<!-- field-bench -->"
+
+
+def bench() -> list[str]:
+    """Measure, print and return the benchmark table's rows."""
+    rows: list[str] = []
+
+    def emit(row: str) -> None:
+        rows.append(row)
+        print(row, flush=True)
+
+    emit(f"| executor core: control steps per second (perfect plant) | {core_rate():,.0f} |")
     one = trial("hand-coded", 1, 100, 0)
-    print(
-        f"| executor node: pose -> cmd_vel round trips per second, 1 robot composed | "
-        f"{one.sim_seconds / 0.05 / one.seconds:,.0f} |"
+    emit(
+        "| executor node: pose -> cmd_vel round trips per second (1 robot, composed with "
+        f"dynamics) | {one.sim_seconds / 0.05 / one.seconds:,.0f} |"
     )
     for perception in ("truth", "full"):
         r = trial(GENOME, 4, 300, 0, perception=perception)
         walls = sorted(r.tick_wall)
         p95 = walls[int(0.95 * (len(walls) - 1))]
-        print(
+        emit(
             f"| continuous trial, 4 robots, 300 ticks, perception {perception}: sim / wall | "
             f"{r.sim_seconds:.0f} s / {r.seconds:.0f} s = {r.sim_seconds / r.seconds:.1f} x |"
         )
-        print(
+        emit(
             f"| ... wall time per tick, mean / p95 | {statistics.mean(walls):.3f} s / "
             f"{p95:.3f} s (sim {r.sim_seconds / 300:.1f} s per tick; {r.primitives_aborted} "
-            f"primitives aborted) |"
+            "primitives aborted) |"
         )
     g = trial(GENOME, 4, 300, 0, drive="grid")
-    print(
-        f"| lockstep grid trial, 4 robots, 300 ticks, for comparison: wall per tick | "
+    emit(
+        "| lockstep grid trial, 4 robots, 300 ticks, for comparison: wall per tick | "
         f"{g.seconds / 300:.3f} s |"
     )
+    return rows
+
+
+def write_section(path: str, rows: list[str]) -> None:
+    """Put the table between the ``<!-- field-bench -->`` markers of ``path``."""
+    import platform
+    from pathlib import Path
+
+    text = Path(path).read_text()
+    section = "\n".join(
+        [
+            MARK,
+            "## Field execution (`python -m excavation_bringup.field_bench bench`)",
+            "",
+            f"Machine: {platform.machine()}, {os.cpu_count()} cores (shared), Python "
+            f"{platform.python_version()}. Trials are composed in one process on rclpy's "
+            "EventsExecutor; the 300-tick trials run the shipped genome, seed 0, default "
+            "slip and noise (docs/field.md). Wall-clock figures, printed, never asserted.",
+            "",
+            "| figure | value |",
+            "|---|---|",
+            *rows,
+            MARK,
+        ]
+    )
+    if MARK in text:
+        head, _, rest = text.partition(MARK)
+        _, _, tail = rest.partition(MARK)
+        text = head + section + tail
+    else:
+        text = text.rstrip("\n") + "\n\n" + section + "\n"
+    Path(path).write_text(text)
 
 
 def results(seeds: int = 5) -> None:
@@ -129,9 +168,15 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point (``python -m excavation_bringup.field_bench bench|results``)."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("what", choices=("bench", "results"))
+    p.add_argument("--write", metavar="MD", help="bench: put the table into this file")
     args = p.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    bench() if args.what == "bench" else results()
+    if args.what == "results":
+        results()
+        return 0
+    rows = bench()
+    if args.write:
+        write_section(args.write, rows)
     return 0
 
 
