@@ -25,6 +25,9 @@ from excavation_bringup.trial import TrialResult, TrialSpec
 TICK_PREFIX = "/tick"
 SNAPSHOT_PREFIX = "/snapshot"
 TRUTH_PREFIX = "/truth"
+IDLE_TIME_FACTOR = 10.0
+"""With full perception the simulator's clock runs at most 10 x real time while the team
+stands still: rendering a snapshot takes wall time, and the clock would race through it."""
 
 
 def controller_remaps(robot: int, robots: int) -> list[str]:
@@ -104,6 +107,7 @@ def run_continuous(
                 Parameter("noise_seed", value=spec.seed),
                 Parameter("pose_prefix", value=TRUTH_PREFIX if full else ""),
                 Parameter("snapshot_prefix", value=SNAPSHOT_PREFIX if full else ""),
+                Parameter("idle_time_factor", value=IDLE_TIME_FACTOR if full else 0.0),
             ]
             + [Parameter(name, value=value) for name, value in vars(physics).items()],
         )

@@ -134,7 +134,7 @@ def write_section(path: str, rows: list[str]) -> None:
     Path(path).write_text(text)
 
 
-def results(seeds: int = 5) -> None:
+def results(seeds: int = 5, specs: tuple[str, ...] = ("hand-coded", GENOME)) -> None:
     """Print the 5-seed fitness table."""
     from ant_controller.controller import Controller
     from ant_evolution.evaluate import ScenarioSet, advance
@@ -145,7 +145,7 @@ def results(seeds: int = 5) -> None:
         "and noise, full perception | ratio | primitives aborted | stuck events |"
     )
     print("|---|---|---|---|---|---|---|")
-    for spec in ("hand-coded", GENOME):
+    for spec in specs:
         ctl = Controller.hand_coded() if spec == "hand-coded" else Controller.from_file(spec)
         grid_all, cont_all = [], []
         for seed in range(seeds):
@@ -169,10 +169,13 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("what", choices=("bench", "results"))
     p.add_argument("--write", metavar="MD", help="bench: put the table into this file")
+    p.add_argument(
+        "--controllers", nargs="+", default=["hand-coded", GENOME], help="results: which"
+    )
     args = p.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     if args.what == "results":
-        results()
+        results(specs=tuple(args.controllers))
         return 0
     rows = bench()
     if args.write:

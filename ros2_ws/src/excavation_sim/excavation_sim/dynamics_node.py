@@ -6,7 +6,10 @@ clock of the trial: every step it integrates each robot's latest ``cmd_vel`` for
 seconds of sim time and publishes ``/clock`` and every robot's pose. It waits for one
 ``cmd_vel`` per robot stamped with the current step (the executors answer every pose) or
 ``command_timeout`` wall seconds, whichever comes first, so a trial runs as fast as the
-executors answer: faster than real time, and every node runs on ``use_sim_time``.
+executors answer: faster than real time, and every node runs on ``use_sim_time``. While
+every command is zero (the team waits for its controllers or a camera frame) the clock
+runs at most ``idle_time_factor`` times real time, so that waiting costs neither CPU nor
+a race of sim time.
 
 Subscribes, per robot k: ``/robot_k/cmd_vel`` (TwistStamped), ``/robot_k/drive/throttle``
 (Bool, latched: high-power mode), ``/robot_k/blade/servo_command`` (JointState, a blade
@@ -68,6 +71,11 @@ class DynamicsNodeParams:
     )
     startup_period: float = param(0.5, "wall seconds the team is present before step 0", low=0.0)
     imu_period: float = param(0.1, "sim seconds between IMU messages", low=0.001, high=10.0)
+    idle_time_factor: float = param(
+        0.0,
+        "while every command is zero, run at most this many times real time (0: no limit)",
+        low=0.0,
+    )
     pose_prefix: str = param("", "prefix of the per-step poses (with full perception: /truth)")
     snapshot_prefix: str = param("", "prefix of the snapshot height map and poses")
     blade_after_motion: bool = param(
@@ -157,7 +165,7 @@ class DynamicsNode(Node):
         self.sim.command(k, float(msg.twist.linear.x), float(msg.twist.angular.z))
         if self.started and _key(msg.header.stamp) >= self.now_ns:
             self.answered.add(k)
-            if len(self.answered) == self.n:
+            if len(self.answered) == self.n and self.due(time.monotonic()):
                 self.advance()
 
     def on_throttle(self, k: int, msg: Bool) -> None:
@@ -220,9 +228,18 @@ class DynamicsNode(Node):
                 if self.snapshot_request is not None:
                     self.publish_snapshot()
             return
-        if wall - self.wait_started > self.params.command_timeout:
+        if len(self.answered) == self.n and self.due(wall):
+            self.advance()
+        elif wall - self.wait_started > self.params.command_timeout:
             self.late += 1
             self.advance()
+
+    def due(self, wall: float) -> bool:
+        """False while the team stands still and the idle time factor holds the clock back."""
+        factor = self.params.idle_time_factor
+        if factor <= 0 or self.sim.commands.any():
+            return True
+        return wall - self.wait_started >= self.physics.dt / factor
 
     def advance(self) -> None:
         """Integrate one step and publish its state."""
