@@ -119,7 +119,7 @@ def test_silent_controller_idles_and_a_robot_that_never_finishes_is_left_out():
     assert kinds(tt.step(5.0, 2.0)) == []
     actions = tt.step(10.5, 3.0)
     assert "report" in kinds(actions) and "request" in kinds(actions)
-    assert tt.late == [1, 0] and tt.stuck == [True, False]
+    assert tt.late == [1, 0] and tt.stuck == [True, False] and tt.records[0].late == [0]
 
 
 def test_no_tick_starts_while_the_team_is_not_armed():

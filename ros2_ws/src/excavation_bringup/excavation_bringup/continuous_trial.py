@@ -26,8 +26,9 @@ TICK_PREFIX = "/tick"
 SNAPSHOT_PREFIX = "/snapshot"
 TRUTH_PREFIX = "/truth"
 IDLE_TIME_FACTOR = 10.0
-"""With full perception the simulator's clock runs at most 10 x real time while the team
-stands still: rendering a snapshot takes wall time, and the clock would race through it."""
+"""The simulator's clock runs at most 10 x real time while the team stands still (the
+controllers decide, a snapshot is rendered): otherwise it races through those waits,
+spending the CPU they need."""
 
 
 def controller_remaps(robot: int, robots: int) -> list[str]:
@@ -107,7 +108,7 @@ def run_continuous(
                 Parameter("noise_seed", value=spec.seed),
                 Parameter("pose_prefix", value=TRUTH_PREFIX if full else ""),
                 Parameter("snapshot_prefix", value=SNAPSHOT_PREFIX if full else ""),
-                Parameter("idle_time_factor", value=IDLE_TIME_FACTOR if full else 0.0),
+                Parameter("idle_time_factor", value=IDLE_TIME_FACTOR),
             ]
             + [Parameter(name, value=value) for name, value in vars(physics).items()],
         )

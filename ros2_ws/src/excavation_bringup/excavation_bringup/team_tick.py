@@ -328,6 +328,7 @@ class TeamTick:
         for k, granted in self._granted.items():
             if k not in self._done and now - granted > self.params.motion_limit:
                 self._done.add(k)
+                self.records[-1].late.append(k)
                 self.stuck[k] = True
                 self.late[k] += 1
                 out.append(
@@ -342,7 +343,6 @@ class TeamTick:
             return out
         record = self.records[-1]
         record.stuck, record.ended_wall = list(self.stuck), wall
-        record.late = [k for k in range(self.params.robots) if self.late[k]]
         self.tick += 1
         self._final = self.params.steps > 0 and self.tick >= self.params.steps
         self.phase = Phase.SNAPSHOT
