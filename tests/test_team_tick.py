@@ -90,7 +90,8 @@ def test_one_tick_end_to_end():
     assert [g[1] for g in goals] == [1]
     tt.on_status(2, 0, terminal=True, aborted=False, now=3.5)
     tt.on_status(1, 0, terminal=True, aborted=False, now=6.0)
-    assert kinds(tt.step(6.0, 3.0)) == ["request"]
+    actions = tt.step(6.0, 3.0)
+    assert actions == [("request", "tick 1", 6.0 + 0.1)]
     assert tt.tick == 1 and tt.phase is Phase.SNAPSHOT
     # A snapshot from before the motion ended does not count; nor a blade not yet lowered.
     feed_snapshot(tt, 5.0, [(3, 2, 0), (4, 3, 2), (12, 12, 2)])

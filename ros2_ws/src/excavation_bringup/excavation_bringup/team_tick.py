@@ -146,9 +146,10 @@ class TeamTick:
     """The barrier between perception, controllers and executors (pure, no ``rclpy``).
 
     Feed it inputs (``on_*``), call :meth:`step` often; it returns actions:
-    ``("request", label)`` ask for a snapshot; ``("publish", tick, stamp, snapshot)`` the
-    snapshot of a tick (``snapshot``: ``{"poses": [...], "heights": ..., "blades": [...],
-    "stuck": [...]}``, the payloads the node stored); ``("goal", robot, tick, stamp, word,
+    ``("request", label, not_before)`` ask for a snapshot taken at ``not_before`` or later;
+    ``("publish", tick, stamp, snapshot)`` the snapshot of a tick (``snapshot``:
+    ``{"poses": [...], "heights": ..., "blades": [...], "stuck": [...]}``, the payloads
+    the node stored); ``("goal", robot, tick, stamp, word,
     turn)``; ``("report", message)``; ``("finished",)``.
     """
 
@@ -230,7 +231,7 @@ class TeamTick:
 
     def _request(self, wall: float) -> list[tuple]:
         self._asked = wall
-        return [("request", f"tick {self.tick}")]
+        return [("request", f"tick {self.tick}", self._after + self.params.settle)]
 
     def snapshot_ready(self, now: float) -> str | None:
         """What the snapshot still lacks (``None``: complete)."""

@@ -12,7 +12,8 @@ height_map`` (latched) and ``/robot_k/{blade_out}`` (the blade driver's ``servo_
 that a controller run with ``lockstep: true`` and remapped onto ``{output_prefix}`` decides
 once per tick, unchanged; ``/team/tick`` (Header: the tick's stamp, ``frame_id`` = t);
 ``/robot_k/drive/goal`` (action_msgs/GoalInfo, :mod:`drive_executor.goals`) when robot k may
-move; ``/team/snapshot`` (Header) to ask for a snapshot; ``/diagnostics``.
+move; ``/team/snapshot`` (Header: ``stamp`` = the earliest time the snapshot may be taken,
+``settle`` after the motion ended) to ask for a snapshot; ``/diagnostics``.
 """
 
 from __future__ import annotations
@@ -180,9 +181,7 @@ class TeamTickNode(Node):
         for action in actions:
             kind = action[0]
             if kind == "request":
-                msg = Header(frame_id=action[1])
-                msg.stamp = self.get_clock().now().to_msg()
-                self.request_pub.publish(msg)
+                self.request_pub.publish(Header(stamp=_time(action[2]), frame_id=action[1]))
             elif kind == "publish":
                 self.publish_tick(action[1], _time(action[2]), action[3])
             elif kind == "goal":

@@ -17,7 +17,7 @@ set-point stamped with its tick, from the ``blade_driver`` sim backend) and
 ``/robot_k/drive/status`` (GoalStatus): with ``blade_after_motion`` a set-point takes effect
 once the robot's drive goal of the same tick has ended (Table 2 order: blade behaviours run
 after the moves). ``/team/snapshot`` (Header): the team tick asks for a perception
-snapshot.
+snapshot taken at ``stamp`` or later (published with the first step that reaches it).
 
 Publishes: ``/clock``; ``{pose_prefix}/robot_k/pose`` every step (PoseWithCovarianceStamped,
 with ``pose_noise``); ``/robot_k/imu`` every ``imu_period`` (sensor_msgs/Imu: yaw, and the
@@ -119,6 +119,7 @@ class DynamicsNode(Node):
         self.pending: list[tuple[int, int] | None] = [None] * self.n
         self.done_tick: list[int] = [-1] * self.n
         self.snapshot_request: str | None = None
+        self.snapshot_due: int | None = None
         self.snapshots: dict[str, float] = {}
         self.wall_started = time.monotonic()
 
@@ -199,9 +200,10 @@ class DynamicsNode(Node):
         self.pending[k] = None
 
     def on_snapshot_request(self, msg: Header) -> None:
-        """The team tick wants a perception snapshot: publish it now."""
+        """The team tick wants a perception snapshot taken at ``msg.stamp`` or later."""
         self.snapshot_request = msg.frame_id
-        if self.started:
+        self.snapshot_due = _key(msg.stamp)
+        if self.started and self.now_ns >= self.snapshot_due:
             self.publish_snapshot()
 
     # --- stepping ---------------------------------------------------------------------------
@@ -225,8 +227,6 @@ class DynamicsNode(Node):
                 self.started = True
                 self.wall_started = wall
                 self.publish_state()
-                if self.snapshot_request is not None:
-                    self.publish_snapshot()
             return
         if len(self.answered) == self.n and self.due(wall):
             self.advance()
@@ -261,6 +261,8 @@ class DynamicsNode(Node):
             self.pose_pubs[k].publish(self.pose(k, stamp))
             if imu_due:
                 self.imu_pubs[k].publish(self.imu(k, stamp))
+        if self.snapshot_due is not None and self.now_ns >= self.snapshot_due:
+            self.publish_snapshot()
 
     def pose(self, k: int, stamp: TimeMsg) -> PoseWithCovarianceStamped:
         """Robot k's measured pose in ``map``, with its covariance."""
@@ -311,6 +313,7 @@ class DynamicsNode(Node):
         fitness = w.fitness()
         if self.snapshot_request is not None:
             self.snapshots[self.snapshot_request] = fitness
+        self.snapshot_due = None
         self.fitness_pub.publish(Float32(data=float(fitness)))
         self.markers_pub.publish(self.markers(stamp))
 
