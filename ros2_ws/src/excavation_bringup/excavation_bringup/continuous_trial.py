@@ -192,7 +192,10 @@ def run_continuous(
             {k: tick.core.missed[k] for k in range(spec.robots)},
             time.monotonic() - started,
             [r.words for r in records],
-            tick_wall=[r.ended_wall - r.started_wall for r in records],
+            tick_wall=[
+                (later.started_wall if later else r.ended_wall) - r.started_wall
+                for r, later in zip(records, [*records[1:], None], strict=True)
+            ],
             primitives_aborted=sum(e.core.counters.primitives_aborted for e in executors),
             stuck_events=sum(sum(r.stuck) for r in records),
             sim_seconds=dynamics.now_ns * 1e-9,

@@ -49,6 +49,8 @@ from excavation_sim.world import next_random
 
 MOTION_BITS = sum(1 << b for b in (MOVE_FORWARD, MOVE_BACKWARD, RANDOM_TURN, TURN_RIGHT, TURN_LEFT))
 RIGHT, LEFT = 1, -1
+STAMP_SLACK = 1e-6
+"""Seconds: stamps are integer nanoseconds, times here floats (0.1 + 3.65 > 3.75)."""
 
 
 @dataclass(frozen=True)
@@ -235,7 +237,7 @@ class TeamTick:
 
     def snapshot_ready(self, now: float) -> str | None:
         """What the snapshot still lacks (``None``: complete)."""
-        after = self._after + self.params.settle
+        after = self._after + self.params.settle - STAMP_SLACK
         n = self.params.robots
         for k in range(n):
             if k not in self.poses or self.poses[k].stamp < after:
@@ -261,6 +263,7 @@ class TeamTick:
                 out.append(("report", f"tick {self.tick}: snapshot without a fresh {missing}"))
             else:
                 if wall - self._asked >= self.params.snapshot_retry:
+                    out.append(("report", f"tick {self.tick}: no {missing} yet; asking again"))
                     out += self._request(wall)
                 return out
         if self._final:

@@ -38,7 +38,8 @@ import numpy as np
 class TrialResult:
     """A trial's fitness, fitness per tick, final heights, missed and applied commands.
 
-    ``--drive continuous`` adds the wall time of every tick, the primitives the executors
+    ``--drive continuous`` adds the wall time of every tick (from its snapshot to the next
+    tick's, the last to the end of its motion), the primitives the executors
     aborted, the stuck events (robot-ticks with U1 set), the sim time and the robots the
     team tick left out of a tick.
     """

@@ -20,12 +20,13 @@ after the moves). ``/team/snapshot`` (Header): the team tick asks for a percepti
 snapshot taken at ``stamp`` or later (published with the first step that reaches it).
 
 Publishes: ``/clock``; ``{pose_prefix}/robot_k/pose`` every step (PoseWithCovarianceStamped,
-with ``pose_noise``); ``/robot_k/imu`` every ``imu_period`` (sensor_msgs/Imu: yaw, and the
-pitch of R1 when the robot stands tilted nose down); on each snapshot request
+with ``pose_noise``); every ``imu_period`` ``/robot_k/imu`` (sensor_msgs/Imu: yaw, and the
+pitch of R1 when the robot stands tilted nose down) and ``/robot_k/blade/plant_state``
+(JointState: the simulated servo's position and push force); on each snapshot request
 ``{snapshot_prefix}/worksite/height_map`` (latched, 32FC1 metres), the poses again under
 ``snapshot_prefix`` when it differs from ``pose_prefix`` (the ``sensors`` node renders
-exactly those), ``/robot_k/blade/plant_state`` (JointState: the simulated servo's
-position and push force), ``/worksite/fitness`` and ``/worksite/markers``; ``/diagnostics``.
+exactly those), the blade plant states, ``/worksite/fitness`` and ``/worksite/markers``;
+``/diagnostics``.
 """
 
 from __future__ import annotations
@@ -261,6 +262,7 @@ class DynamicsNode(Node):
             self.pose_pubs[k].publish(self.pose(k, stamp))
             if imu_due:
                 self.imu_pubs[k].publish(self.imu(k, stamp))
+                self.plant_pubs[k].publish(self.plant_state(k, stamp))
         if self.snapshot_due is not None and self.now_ns >= self.snapshot_due:
             self.publish_snapshot()
 
@@ -297,6 +299,12 @@ class DynamicsNode(Node):
         msg.orientation.y, msg.orientation.z = cy * sp, sy * cp
         return msg
 
+    def plant_state(self, k: int, stamp: TimeMsg) -> JointState:
+        """Robot k's blade servo as measured: position of its setting, push force."""
+        blade = int(self.sim.world.robots[k, BLADE])
+        force = self.sim.blade_force(k, self.geometry.max_force)
+        return blade_joint(blade, force, self.geometry, stamp)
+
     def publish_snapshot(self) -> None:
         """Height map, snapshot poses, blade plant states, fitness and markers, stamped now."""
         stamp = _stamp(self.now_ns)
@@ -307,9 +315,7 @@ class DynamicsNode(Node):
         for k in range(self.n):
             if self.snap_pose_pubs:
                 self.snap_pose_pubs[k].publish(self.pose(k, stamp))
-            blade = int(w.robots[k, BLADE])
-            force = self.sim.blade_force(k, self.geometry.max_force)
-            self.plant_pubs[k].publish(blade_joint(blade, force, self.geometry, stamp))
+            self.plant_pubs[k].publish(self.plant_state(k, stamp))
         fitness = w.fitness()
         if self.snapshot_request is not None:
             self.snapshots[self.snapshot_request] = fitness
