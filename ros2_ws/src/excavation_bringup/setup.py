@@ -24,6 +24,7 @@ setup(
         "terrain_mapper",
         "blade_driver",
         "team_supervisor",
+        "drive_executor",
         "excavation_bags",
         "numpy",
         "pyyaml",
@@ -41,6 +42,7 @@ setup(
             "ant-dome = excavation_bringup.dome:main",
             "ant-view = excavation_bringup.view:main",
             "ant-soak = excavation_bringup.soak:main",
+            "team_tick = excavation_bringup.team_tick_node:main",
         ],
     },
 )

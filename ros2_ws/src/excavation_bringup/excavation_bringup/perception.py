@@ -109,8 +109,15 @@ def perception_parameters(
     }
 
 
-def perception_nodes(context, robots: int, seed: int, blueprint, occlude: str = "") -> list:
-    """Sensors, localizer and mapper nodes for a lockstep trial on ``context``.
+def perception_nodes(
+    context,
+    robots: int,
+    seed: int,
+    blueprint,
+    occlude: str = "",
+    truth_prefix: str = SIM_TRUTH_PREFIX,
+) -> list:
+    """Sensors, localizer and mapper nodes for a trial on ``context``.
 
     Args:
         context: The rclpy context of the trial.
@@ -118,6 +125,8 @@ def perception_nodes(context, robots: int, seed: int, blueprint, occlude: str = 
         seed: Seed of the sensors' noise and of the calibration marks.
         blueprint: The trial's :class:`blueprint_server.blueprint.Blueprint`.
         occlude: LEDs hidden from the camera (the sensors node's ``occlude``).
+        truth_prefix: Where the sensors read the truth they render (the continuous trial:
+            the ``dynamics`` node's snapshots, ``/snapshot``).
     """
     from rclpy.parameter import Parameter
 
@@ -137,6 +146,7 @@ def perception_nodes(context, robots: int, seed: int, blueprint, occlude: str = 
         )  # loads the calibration now
     finally:
         os.unlink(calibration)
+    values["sensors"]["truth_prefix"] = truth_prefix
     sensors = SensorsNode(context=context, parameter_overrides=overrides(values["sensors"]))
     mapper = MapperNode(context=context, parameter_overrides=overrides(values["mapper"]))
     return [sensors, localizer, mapper]

@@ -33,7 +33,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +43,13 @@ from excavation_common.limits import MAX_ROBOTS, int_in
 
 @dataclass
 class TrialResult:
-    """A trial's fitness, fitness per tick, final heights, missed and applied commands."""
+    """A trial's fitness, fitness per tick, final heights, missed and applied commands.
+
+    ``--drive continuous`` adds the wall time of every tick (from its snapshot to the next
+    tick's, the last to the end of its motion), the primitives the executors
+    aborted, the stuck events (robot-ticks with U1 set), the sim time and the robots the
+    team tick left out of a tick.
+    """
 
     fitness: float
     trace: list[float]
@@ -52,6 +58,11 @@ class TrialResult:
     seconds: float
     commands: list[list[int]]
     holds: int = 0
+    tick_wall: list[float] = field(default_factory=list)
+    primitives_aborted: int = 0
+    stuck_events: int = 0
+    sim_seconds: float = 0.0
+    robots_late: int = 0
 
 
 @dataclass(frozen=True)
@@ -72,6 +83,7 @@ class TrialSpec:
     perception: str
     supervisor: str = "internal"
     occlude: str = ""
+    drive: str = "grid"
 
 
 LOST_TIMEOUT = 1.5
@@ -110,6 +122,8 @@ def run_trial(
     scenario: int = 0,
     supervisor: str = "internal",
     occlude: str = "",
+    drive: str = "grid",
+    exact: bool = False,
 ) -> TrialResult:
     """Run a trial through the nodes and return its result.
 
@@ -136,6 +150,10 @@ def run_trial(
             supervisor``) must be running, and nothing moves until it is armed.
         occlude: The sensors node's ``occlude`` (``"2:front,2:rear"`` hides robot 2 from
             the camera; ``perception="full"`` only).
+        drive: ``"grid"``: the lockstep simulator applies each word at once; ``"continuous"``:
+            drive executors, the team tick and the ``dynamics`` simulator
+            (:mod:`excavation_bringup.continuous_trial`; composed mode only).
+        exact: ``drive="continuous"`` without slip and noise (the parity setting).
 
     Raises:
         TimeoutError: When the trial does not finish in time.
@@ -158,6 +176,10 @@ def run_trial(
         raise ValueError(f"supervisor = {supervisor!r}: expected 'internal' or 'external'")
     if occlude and perception != "full":
         raise ValueError("occlude: hides a robot from the camera, so needs perception 'full'")
+    if drive not in ("grid", "continuous"):
+        raise ValueError(f"drive = {drive!r}: expected 'grid' or 'continuous'")
+    if drive == "continuous" and processes:
+        raise ValueError("drive: continuous runs in the composed mode (without processes)")
     spec = TrialSpec(
         controller_spec,
         robots,
@@ -173,7 +195,12 @@ def run_trial(
         perception,
         supervisor,
         occlude,
+        drive,
     )
+    if drive == "continuous":
+        from excavation_bringup.continuous_trial import run_continuous
+
+        return run_continuous(ctl, spec, exact=exact)
     return _run_processes(spec) if processes else _run_composed(ctl, spec)
 
 
@@ -590,6 +617,15 @@ def main(argv: list[str] | None = None) -> int:
         metavar="K:front,K:rear",
         help="hide LEDs from the camera (--perception full), e.g. 2:front,2:rear",
     )
+    p.add_argument(
+        "--drive",
+        choices=("grid", "continuous"),
+        default="grid",
+        help="continuous: drive executors, team tick and the continuous-motion simulator",
+    )
+    p.add_argument(
+        "--no-slip", action="store_true", help="--drive continuous without slip and noise"
+    )
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     from excavation_common.errors import FieldError
@@ -610,10 +646,21 @@ def main(argv: list[str] | None = None) -> int:
             supervisor=args.supervisor,
             occlude=args.occlude,
             command_timeout=args.command_timeout or (30.0 if args.perception == "full" else 2.0),
+            drive=args.drive,
+            exact=args.no_slip,
         )
     except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
         print(f"ant-trial: error: {exc}", file=sys.stderr)
         return 2
+    extra = {}
+    if args.drive == "continuous":
+        extra = {
+            "wall_per_tick": result.tick_wall,
+            "primitives_aborted": result.primitives_aborted,
+            "stuck_events": result.stuck_events,
+            "sim_seconds": result.sim_seconds,
+            "robots_late": result.robots_late,
+        }
     if args.json:
         print(
             json.dumps(
@@ -623,6 +670,7 @@ def main(argv: list[str] | None = None) -> int:
                     "seconds": result.seconds,
                     "holds": result.holds,
                 }
+                | extra
             )
         )
     else:
