@@ -4,9 +4,10 @@ Composed on one executor in one process (as ``ant-trial``'s default mode): the b
 server; the ``dynamics`` simulator (the clock: every other node runs on ``use_sim_time``);
 per robot a controller (lockstep mode, remapped onto the team tick's ``/tick`` topics), a
 blade driver (sim backend) and a drive executor (lifecycle: configured and activated here);
-the team tick; and :func:`~excavation_bringup.team_state.always_armed_team_state` in place of
-the supervisor. With ``perception="full"`` the controllers see the site only through the
-synthetic camera + localiser and laser + mapper, which render the dynamics' snapshots
+the team tick; and the team supervisor, armed at start (``ant-operator`` can e-stop, pause,
+disable or override it as in any trial). With ``perception="full"`` the controllers see the
+site only through the synthetic camera + localiser and laser + mapper, which render the
+dynamics' snapshots
 (``/snapshot``); the executors close their loop on the simulator's per-step pose
 (``/truth/robot_k/pose``), which stands in for a localiser running at camera rate.
 
@@ -72,11 +73,12 @@ def run_continuous(
     from blade_driver.driver_node import BladeDriverNode
     from blueprint_server.server_node import BlueprintServer
     from drive_executor.executor_node import ExecutorNode
-    from excavation_bringup.team_state import always_armed_team_state
     from excavation_bringup.team_tick import Phase
     from excavation_bringup.team_tick_node import TeamTickNode
+    from excavation_bringup.trial import _supervisor_params
     from excavation_sim.dynamics import DynamicsParams
     from excavation_sim.dynamics_node import DynamicsNode
+    from team_supervisor.supervisor_node import SupervisorNode
 
     full = spec.perception == "full"
     sim_time = Parameter("use_sim_time", value=True)
@@ -137,7 +139,14 @@ def run_continuous(
         )
         nodes.append(tick)
         nodes.append(
-            always_armed_team_state(spec.robots, context=context, parameter_overrides=[sim_time])
+            SupervisorNode(
+                context=context,
+                parameter_overrides=[
+                    Parameter(k, value=v)
+                    for k, v in _supervisor_params(spec.robots, armed=True).items()
+                ]
+                + [sim_time],
+            )
         )
         executors = []
         for k in range(spec.robots):
