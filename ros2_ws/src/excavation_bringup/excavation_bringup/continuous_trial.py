@@ -141,11 +141,13 @@ def run_continuous(
         nodes.append(
             SupervisorNode(
                 context=context,
+                # The lost-robot policy reads pose stamps per tick (the lockstep trial's);
+                # here poses come per motion step, so it stays off in this trial.
                 parameter_overrides=[
                     Parameter(k, value=v)
                     for k, v in _supervisor_params(spec.robots, armed=True).items()
                 ]
-                + [sim_time],
+                + [Parameter("watch_poses", value=False), sim_time],
             )
         )
         executors = []
