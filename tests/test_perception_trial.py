@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from conftest import next_domain
 
 import excavation_bringup.perception as perception
@@ -52,5 +53,8 @@ def test_short_trial_with_full_perception_matches_truth(monkeypatch):
 
 
 def test_perception_modes_are_checked(capsys):
-    assert main(["--hand-coded", "--perception", "full", "--processes", "--steps", "1"]) == 2
-    assert "perception: full runs in the composed mode" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        main(["--hand-coded", "--perception", "bogus", "--steps", "1"])
+    assert exit_.value.code == 2 and "bogus" in capsys.readouterr().err
+    assert main(["--hand-coded", "--drive", "continuous", "--processes", "--steps", "1"]) == 2
+    assert "drive: continuous runs in the composed mode" in capsys.readouterr().err

@@ -26,6 +26,7 @@ setup(
         "team_supervisor",
         "drive_executor",
         "excavation_bags",
+        "ant-evolution",
         "numpy",
         "pyyaml",
         "foxglove-sdk",

@@ -87,7 +87,7 @@ def perception_parameters(
             "rows": rows,
             "cols": cols,
             "reliable": True,
-            "occlude": occlude,
+            **({"occlude": occlude} if occlude else {}),  # "-p occlude:=" would not parse
         },
         "localizer": {"robots": robots, "calibration": calibration, "reliable": True},
         "mapper": {
