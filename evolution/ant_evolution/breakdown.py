@@ -6,7 +6,8 @@ runs one scenario exactly as the kernel does and keeps the state before every st
 robots, random-turn state) with the sensor vectors and masks of that step; then each phase
 is timed alone on those recorded inputs:
 
-* **sensing**: :func:`excavation_sim.world.sense_all` on each recorded state;
+* **sensing**: :func:`excavation_sim.world.sense_robot` of each active robot on each
+  recorded state;
 * **decision**: the program through its decision cache (:func:`ant_evolution.kernel.
   decide_cached`) on the recorded sensor vectors, one cache for the whole scenario set as
   in the kernel, so hits and misses are the kernel's;
@@ -29,7 +30,7 @@ import numpy as np
 from ant_controller.layout import N_SENSORS
 from ant_evolution.evaluate import ScenarioSet
 from ant_evolution.kernel import decide_cached, new_workspace, run_scenarios
-from excavation_sim.world import apply_all, occupancy, sense_all, step_robots
+from excavation_sim.world import apply_all, occupancy, sense_robot, step_robots
 
 
 @nb.njit(cache=True)
@@ -49,7 +50,9 @@ def record_scenario(
         rec_heights[t] = heights
         rec_robots[t] = robots
         rec_rng[t] = rng[0]
-        sense_all(heights, zones, goal, robots, active, work.codes)
+        for k in range(n):
+            if active[k]:
+                sense_robot(heights, zones, goal, robots, active, k, work.codes[k])
         for k in range(n):
             if not active[k]:
                 work.masks[k] = 0
@@ -64,9 +67,11 @@ def record_scenario(
 
 @nb.njit(cache=True, _nrt=False, error_model="numpy")
 def replay_sense(rec_heights, zones, goal, rec_robots, active, out):
-    """Sensing alone: every recorded state's sensor vectors into ``out[t]``."""
+    """Sensing alone: every recorded state's sensor vectors (active robots) into ``out[t]``."""
     for t in range(rec_heights.shape[0]):
-        sense_all(rec_heights[t], zones, goal, rec_robots[t], active, out[t])
+        for k in range(rec_robots.shape[1]):
+            if active[k]:
+                sense_robot(rec_heights[t], zones, goal, rec_robots[t], active, k, out[t, k])
 
 
 @nb.njit(cache=True, _nrt=False, error_model="numpy")
@@ -189,7 +194,7 @@ def phase_times(program, batch: ScenarioSet, repeats: int = 3) -> dict[str, floa
     check = new_workspace(record, n, *shape)
     for active, (h, r, g, codes, masks) in recs:  # the replays reproduce the recording
         replay_sense(h, batch.zones, batch.goal, r, active, out_codes)
-        bad = not np.array_equal(out_codes[: len(h)], codes)
+        bad = not np.array_equal(out_codes[: len(h)][:, active], codes[:, active])
         replay_decide(codes, active, record, check, out_masks)
         bad = bad or not np.array_equal(out_masks[: len(h)], masks)
         if bad or _apply_differs((h, r, g, codes, masks), active, batch.params):

@@ -22,7 +22,8 @@ lookup and skip it).
 :func:`run_scenarios` scores one program on every scenario of a set
 (:class:`ScenarioArrays`); both run the same per-step loop, one timestep being
 
-1. every robot senses the same snapshot (:func:`excavation_sim.world.sense_all`);
+1. every active robot senses the same snapshot (:func:`excavation_sim.world.sense_robot`;
+   a switched-off robot, such as those beyond a genome's N gene, is skipped);
 2. each active robot's program decides its behaviour mask;
 3. robots act in index order (:func:`excavation_sim.world.step_robots`, on an occupancy
    grid the kernel keeps for the episode).
@@ -43,7 +44,7 @@ from ant_controller.hand_coded import HandCodedRules, hand_coded_decide
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, SENSOR_STATES
 from ant_controller.tissue import TissueRecord, decide_into, new_scratch
 from ant_evolution.baselines.network import NetworkRecord, program_decide_into, program_scratch
-from excavation_sim.world import WorldArrays, fitness, occupancy, sense_all, step_robots
+from excavation_sim.world import WorldArrays, fitness, occupancy, sense_robot, step_robots
 
 
 class DecisionProgram(Protocol):
@@ -245,7 +246,9 @@ def _run_steps(world, steps, program, work, trace):
     n = robots.shape[0]
     occupancy(robots, active, occ)
     for t in range(steps):
-        sense_all(heights, zones, goal, robots, active, codes)
+        for k in range(n):  # every robot senses the snapshot before any acts
+            if active[k]:
+                sense_robot(heights, zones, goal, robots, active, k, codes[k])
         for k in range(n):
             if not active[k]:
                 masks[k] = 0
