@@ -178,3 +178,30 @@ def test_calibration_round_trip_and_clipping():
     for pos in (-0.02, 0.0, 0.02, 0.10):
         assert c.position(c.angle(pos)) == pytest.approx(pos)
     assert c.angle(1.0) == 180.0 and c.angle(-1.0) == 0.0
+
+
+def test_hold_sends_home_at_once_over_override_and_controller():
+    from ant_controller.layout import BLADE_BELOW_CMD
+
+    core = BladeDriverCore(DriverParams())
+    core.command(1 << BLADE_BELOW_CMD, 0.0)
+    assert core.update(0.0, 0.0) == pytest.approx(-0.02)
+    core.override(0.05, 0.05)
+    assert core.update(0.1, 0.0, hold="e-stop latched") == pytest.approx(0.10)  # no ramp
+    assert core.state.source == "hold: e-stop latched"
+    # Released: the operator's set-point is in charge again, reached with the slew ramp.
+    assert core.update(0.2, 0.0) == pytest.approx(0.10 - 0.25 * 0.1)
+
+
+def test_backoff_doubles_up_to_the_maximum_and_resets():
+    from blade_driver.reconnect import Backoff
+
+    b = Backoff(0.5, 3.0)
+    assert b.due(0.0)
+    delays = [b.failed(float(t)) for t in range(5)]
+    assert delays == [0.5, 1.0, 2.0, 3.0, 3.0]
+    assert not b.due(4.0) and b.due(7.0)
+    b.succeeded()
+    assert b.due(0.0) and b.failed(10.0) == 0.5
+    with pytest.raises(ValueError):
+        Backoff(2.0, 1.0)

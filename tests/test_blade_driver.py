@@ -79,11 +79,31 @@ def test_board_refusal_and_missing_port(board, tmp_path):
         SerialBackend(str(tmp_path / "no-such-tty"))
 
 
-def _driver(ros, **params):
+def _supervisor(ros, armed=True):
+    """The team's supervisor (one robot), armed at start unless told otherwise."""
+    from rclpy.parameter import Parameter
+
+    from team_supervisor.supervisor_node import SupervisorNode
+
+    return ros.add(
+        SupervisorNode(
+            context=ros.context,
+            parameter_overrides=[
+                Parameter("robots", value=1),
+                Parameter("watch_poses", value=False),
+                Parameter("arm_at_start", value=armed),
+            ],
+        )
+    )
+
+
+def _driver(ros, supervised=True, **params):
     from rclpy.parameter import Parameter
 
     from blade_driver.driver_node import BladeDriverNode
 
+    if supervised:
+        _supervisor(ros)
     return ros.add(
         BladeDriverNode(
             context=ros.context,
@@ -161,9 +181,10 @@ def test_sim_driver_node_answers_each_tick_in_sim_time(ros):
 
     from blade_driver.driver_node import joint_state
 
-    _driver(ros, backend="sim", watchdog_timeout=1.5)
+    driver = _driver(ros, backend="sim", watchdog_timeout=1.5)
     probe = _probe(ros)
     assert ros.spin_until(lambda: probe.count_subscribers("/robot_0/blade/servo_state") > 0)
+    assert ros.spin_until(lambda: driver.hold is None)  # the team is armed
 
     def tick(t, behaviour=None, force=0.0, position=0.10):
         n_servo = len(probe.servo)

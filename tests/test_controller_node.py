@@ -123,3 +123,47 @@ def test_bad_genome_exits_2_with_the_loaders_message(tmp_path, capsys):
     assert main(["controller", "--genome", str(bad)]) == 2
     err = capsys.readouterr().err
     assert str(bad) in err and "format" in err
+
+
+def test_a_disabled_robot_is_absent_and_does_not_freeze_the_controller(ros):
+    from excavation_common.safety import ENABLED_TOPIC
+
+    node, fake, seen = start(ros)
+    fake.robots = [0]  # robot 1 is never seen (the localiser lost it)
+    enabled = fake.create_publisher(Bool, f"/robot_1/{ENABLED_TOPIC}", LATCHED)
+
+    def waiting():
+        fake.publish()
+        return seen["diag"] and "no pose of robot 1" in seen["diag"][-1].message
+
+    assert ros.spin_until(waiting)
+    enabled.publish(Bool(data=False))  # the supervisor disables it
+    bp = default_blueprint(1)
+    alone = ControllerCore(Controller.hand_coded()).decide(
+        np.zeros((16, 16)),
+        bp.zones,
+        bp.goal,
+        np.array([POSES[0], (0, 0, 0)]),
+        0,
+        BLADE_HOME,
+        0,
+        False,
+        active=np.array([True, False]),
+    )
+
+    def acting():
+        fake.publish()
+        return seen["diag"][-1].level == DiagnosticStatus.OK
+
+    assert ros.spin_until(acting)
+    assert seen["behaviour"][-1] == alone
+    values = {v.key: v.value for v in seen["diag"][-1].values}
+    assert values["absent_robots"] == "[1]"
+
+
+def test_bad_parameters_exit_2_with_one_line(capsys):
+    for bad in (["-p", "rate:=0.0"], ["-p", "robots:=2", "-p", "robot_id:=2"]):
+        assert main(["controller", "--hand-coded", "--ros-args", *bad]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+        assert ("rate" in err) if "rate" in bad[1] else ("outside the team of 2" in err)

@@ -26,14 +26,20 @@ def _node(kind, context, tmp_path):
         from blade_driver.driver_node import BladeDriverNode
 
         return BladeDriverNode(context=context)
+    if kind == "supervisor":
+        from team_supervisor.supervisor_node import SupervisorNode
+
+        return SupervisorNode(context=context)
     if kind == "sensors":
         from excavation_sim.sensors_node import SensorsNode
 
         return SensorsNode(context=context)
     if kind == "localizer":
+        from overhead_localizer.beacons import CONFIG_DIR
         from overhead_localizer.localizer_node import LocalizerNode
 
-        return LocalizerNode(context=context)
+        calibration = Parameter("calibration", value=str(CONFIG_DIR / "camera_sim.yaml"))
+        return LocalizerNode(context=context, parameter_overrides=[calibration])
     if kind == "mapper":
         from terrain_mapper.mapper_node import MapperNode
 
@@ -57,6 +63,7 @@ def _node(kind, context, tmp_path):
         "server",
         "sim",
         "driver",
+        "supervisor",
         "sensors",
         "localizer",
         "mapper",

@@ -22,11 +22,11 @@ from ant_evolution.breakdown import phase_times
 from ant_evolution.evaluate import ScenarioSet, evaluate, scenario_worlds
 from ant_evolution.kernel import decide_cached, new_workspace
 from blueprint_server.blueprint import default_blueprint
+from excavation_sim.rules import WorldRules
 from excavation_sim.world import (
     BLADE,
     MEMORY,
     STUCK,
-    WorldParams,
     apply_all,
     occupancy,
     occupied,
@@ -43,7 +43,9 @@ def _random_state(rng: np.random.Generator, shape=(12, 12), n_robots=5):
     robots[:, MEMORY] = rng.integers(0, 2, n_robots)
     robots[:, STUCK] = rng.integers(0, 2, n_robots)
     active = rng.random(n_robots) < 0.85
-    params = WorldParams(normal_load=int(rng.integers(4, 13))).as_array()
+    params = WorldRules(
+        normal_load=int(rng.integers(4, 13)), soil_fill=bool(rng.integers(0, 2))
+    ).as_array()
     return heights, robots, active, params
 
 

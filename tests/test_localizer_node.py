@@ -12,6 +12,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
 
 from excavation_sim.camera import CameraParams, OverheadCamera, RobotView, default_beacons
+from overhead_localizer.beacons import CONFIG_DIR
+from overhead_localizer.errors import LocalizerConfigError
 from overhead_localizer.images import frame_to_message
 from overhead_localizer.localizer_node import LocalizerNode
 
@@ -57,6 +59,7 @@ class Probe:
 
 def localizer(ros, **params):
     overrides = [
+        Parameter("calibration", value=str(CONFIG_DIR / "camera_sim.yaml")),
         Parameter("robots", value=2),
         Parameter("reliable", value=True),
         Parameter("use_height_map", value=False),
@@ -77,15 +80,15 @@ def test_good_frame_gives_poses_with_covariance(ros, frame):
         assert abs(pose.pose.pose.position.y - view.y) < 0.04
         cov = np.array(pose.pose.covariance).reshape(6, 6)
         assert 0 < cov[0, 0] < 0.01 and 0 < cov[5, 5] < 0.05 and cov[2, 2] == 1e6
-    assert ros.spin_until(lambda: "localizer: robot_1" in probe.status)
-    assert probe.status["localizer: robot_1"].level == DiagnosticStatus.OK
+    assert ros.spin_until(lambda: "/localizer: robot_1" in probe.status)
+    assert probe.status["/localizer: robot_1"].level == DiagnosticStatus.OK
 
 
 @pytest.mark.parametrize(
     "bad, match",
     [
         ("size", "height x width x channels = (480, 640, 3)"),
-        ("encoding", "encoding = 'rgb8': expected bgr8"),
+        ("encoding", "encoding = 'yuv422': expected one of bgr8"),
         ("data", "data = "),
     ],
 )
@@ -97,13 +100,13 @@ def test_bad_frames_are_reported_and_give_no_pose(ros, frame, bad, match):
     else:
         msg = frame_to_message(frame, Image())
         if bad == "encoding":
-            msg.encoding = "rgb8"
+            msg.encoding = "yuv422"
         else:
             msg.data = bytes(msg.data)[:-5]
     probe.send(msg, 3)
 
     def reported():
-        s = probe.status.get("localizer: camera")
+        s = probe.status.get("/localizer")
         return s is not None and s.level == DiagnosticStatus.ERROR and match in s.message
 
     assert ros.spin_until(reported)
@@ -113,18 +116,29 @@ def test_bad_frames_are_reported_and_give_no_pose(ros, frame, bad, match):
     assert node.image_error is None
 
 
-def test_missing_calibration_keeps_running_and_publishes_nothing(ros, frame, tmp_path):
-    localizer(ros, calibration=str(tmp_path / "nowhere.yaml"))
-    probe = Probe(ros)
-    probe.send(frame_to_message(frame, Image()), 1)
+def test_no_calibration_refuses_to_start(ros, tmp_path):
+    from excavation_common.params import ParameterError
 
-    def reported():
-        s = probe.status.get("localizer: camera")
-        return s is not None and s.level == DiagnosticStatus.ERROR and "does not exist" in s.message
+    with pytest.raises(ParameterError, match="calibration = '': required"):
+        LocalizerNode(context=ros.context)
+    missing = [Parameter("calibration", value=str(tmp_path / "nowhere.yaml"))]
+    with pytest.raises(LocalizerConfigError, match="does not exist"):
+        LocalizerNode(context=ros.context, parameter_overrides=missing)
 
-    assert ros.spin_until(reported)
-    ros.spin_until(lambda: False, 0.5)
-    assert not any(probe.poses.values())
+
+def test_no_calibration_is_one_line_and_exit_code_2():
+    import os
+    import subprocess
+    import sys
+
+    from conftest import next_domain
+
+    env = dict(os.environ, ROS_DOMAIN_ID=str(next_domain()))
+    cmd = [sys.executable, "-m", "overhead_localizer.localizer_node"]
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "calibration = '': required" in lines[0]
 
 
 def test_two_robots_with_the_same_colours(ros, frame, tmp_path):
@@ -139,10 +153,10 @@ def test_two_robots_with_the_same_colours(ros, frame, tmp_path):
     probe.send(frame_to_message(frame, Image()), 2)
 
     def reported():
-        s = probe.status.get("localizer: robot_1")
+        s = probe.status.get("/localizer: robot_1")
         return s is not None and s.level == DiagnosticStatus.ERROR
 
     assert ros.spin_until(reported)
-    assert "shares LED colours" in probe.status["localizer: robot_0"].message
+    assert "shares LED colours" in probe.status["/localizer: robot_0"].message
     ros.spin_until(lambda: False, 0.3)
     assert not any(probe.poses.values())

@@ -71,7 +71,7 @@ def test_without_masks_robots_would_be_soil():
 
 def test_prior_holds_cells_never_seen_and_fusion_follows_changes():
     heights = terrain(5)
-    mapper = TerrainMapper(MapperParams(prior_height=0.0))
+    mapper = TerrainMapper(MapperParams(prior_known=True, prior_height=0.0))
     sweep_into(mapper, heights, [(7, 7)])
     assert np.all(mapper.height_map()[7:9, 7:9] == 0.0)
     first = mapper.height_map().copy()
@@ -98,7 +98,7 @@ def test_nan_inf_and_out_of_range_returns_are_dropped():
 
 
 def test_a_sweep_with_no_valid_return_changes_nothing():
-    mapper = TerrainMapper(MapperParams(prior_height=0.0))
+    mapper = TerrainMapper(MapperParams(prior_known=True, prior_height=0.0))
     mapper.add_scan(np.full(241, np.inf), -0.5, 1 / 240, 0.1, 8.0, 0.0, 0.0)
     assert mapper.finish_sweep().measured == 0
     assert np.all(mapper.height_map() == 0.0) and not mapper.counts.any()
@@ -140,9 +140,9 @@ def test_config_file_states_the_defaults():
 def test_body_height_stands_in_for_the_cells_under_a_robot():
     heights = np.zeros((16, 16))
     heights[7:9, 7:9] = -2 * UNIT  # the robot drove into a pit the map saw as level
-    mapper = TerrainMapper(MapperParams(prior_height=0.0, robot_height=0.2))
+    mapper = TerrainMapper(MapperParams(prior_known=True, prior_height=0.0, robot_height=0.2))
     sweep_into(mapper, heights, [(7, 7)])
     assert mapper.height_map()[7:9, 7:9] == pytest.approx(-2 * UNIT, abs=0.25 * UNIT)
-    blind = TerrainMapper(MapperParams(prior_height=0.0))
+    blind = TerrainMapper(MapperParams(prior_known=True, prior_height=0.0))
     sweep_into(blind, heights, [(7, 7)])
     assert np.all(blind.height_map()[7:9, 7:9] == 0.0)

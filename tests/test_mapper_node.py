@@ -54,7 +54,7 @@ class Rig:
 
     def on_diag(self, msg):
         for s in msg.status:
-            if s.name == "mapper":
+            if s.name == "/mapper":
                 self.status = s
 
     def send(self, sec, ranges, tilt, joints=(PAN_JOINT, TILT_JOINT), n=None):

@@ -24,6 +24,10 @@ def _make(kind, context, args):
         from excavation_sim.sim_node import SimNode
 
         return SimNode(context=context, cli_args=args)
+    if kind == "supervisor":
+        from team_supervisor.supervisor_node import SupervisorNode
+
+        return SupervisorNode(context=context, cli_args=args)
     from blade_driver.driver_node import BladeDriverNode
 
     return BladeDriverNode(context=context, cli_args=args)
@@ -36,6 +40,7 @@ def _make(kind, context, args):
         ("server", "blueprint_server/config/server.yaml"),
         ("sim", "excavation_sim/config/sim.yaml"),
         ("driver", "blade_driver/config/driver.yaml"),
+        ("supervisor", "team_supervisor/config/supervisor.yaml"),
     ],
 )
 def test_config_file_sets_every_parameter(ros, kind, path, tmp_path):

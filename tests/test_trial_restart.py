@@ -35,7 +35,17 @@ def controller(ros, k):
 def test_killed_controller_idles_then_rejoins(ros, drivers):
     from blade_driver.driver_node import BladeDriverNode
     from excavation_sim.world import BLADE
+    from team_supervisor.supervisor_node import SupervisorNode
 
+    ros.add(
+        SupervisorNode(
+            context=ros.context,
+            parameter_overrides=[
+                Parameter("robots", value=2),
+                Parameter("arm_at_start", value=True),
+            ],
+        )
+    )
     ros.add(BlueprintServer(context=ros.context))
     sim = ros.add(
         SimNode(

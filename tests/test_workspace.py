@@ -14,12 +14,14 @@ PACKAGES = {
     "excavation_common": [],
     "ant_controller": ["genome_info", "controller"],
     "blueprint_server": ["blueprint_info", "server"],
-    "excavation_sim": ["sim", "sensors"],
+    "excavation_sim": ["sim", "sensors", "dynamics"],
     "overhead_localizer": ["localizer", "calibrate"],
-    "terrain_mapper": ["mapper", "field-metrics"],
+    "terrain_mapper": ["mapper", "field-metrics", "calibrate_mount"],
     "blade_driver": ["driver", "fake_board"],
+    "team_supervisor": ["supervisor", "ant-operator"],
     "excavation_bags": ["ant-bag"],
-    "excavation_bringup": ["ant-trial"],
+    "drive_executor": ["executor"],
+    "excavation_bringup": ["ant-trial", "ant-dome", "ant-view", "ant-soak", "team_tick"],
 }
 
 

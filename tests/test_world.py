@@ -42,10 +42,10 @@ from ant_controller.layout import (
 )
 from ant_controller.sensing import load_code
 from blueprint_server.blueprint import default_blueprint
+from excavation_sim.rules import DEFAULT_RULES
 from excavation_sim.world import (
     BLADE,
     COL,
-    DEFAULT_PARAMS,
     HEADING,
     MEMORY,
     ROBOT_FIELDS,
@@ -75,7 +75,7 @@ def make_world(robots, size=8, heights=None, zones=None, goal=None):
         robots=rs,
         active=np.ones(len(robots), dtype=np.bool_),
         rng=seed_state(12345),
-        params=DEFAULT_PARAMS.as_array(),
+        params=DEFAULT_RULES.as_array(),
     )
 
 

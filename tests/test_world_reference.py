@@ -14,11 +14,11 @@ from ant_controller.layout import N_BEHAVIOURS, N_SENSORS
 from ant_controller.memory import next_memory
 from ant_controller.sensing import sense
 from ant_controller.sensing_reference import sense_reference
+from excavation_sim.rules import WorldRules
 from excavation_sim.world import (
     BLADE,
     MEMORY,
     STUCK,
-    WorldParams,
     apply_all,
     blade_volume,
     is_tilted_down,
@@ -45,8 +45,11 @@ def random_state(rng: np.random.Generator, shape=(10, 12), n_robots=4):
     robots[:, MEMORY] = rng.integers(0, 2, n_robots)
     robots[:, STUCK] = rng.integers(0, 2, n_robots)
     active = rng.random(n_robots) < 0.85
-    params = WorldParams(
-        normal_load=int(rng.integers(4, 13)), throttle_load=int(rng.integers(12, 25))
+    params = WorldRules(
+        normal_load=int(rng.integers(4, 13)),
+        throttle_load=int(rng.integers(12, 25)),
+        soil_fill=bool(rng.integers(0, 2)),
+        h1=("relative", "absolute")[int(rng.integers(0, 2))],
     ).as_array()
     return heights, zones, goal, robots, active, params
 
@@ -60,20 +63,24 @@ def random_masks(rng: np.random.Generator, n: int) -> np.ndarray:
 @pytest.mark.parametrize("seed", range(60))
 def test_sense_kernel_equals_reference(seed):
     rng = np.random.default_rng(seed)
-    heights, zones, goal, robots, active, _ = random_state(rng)
+    heights, zones, goal, robots, active, params = random_state(rng)
     for k in range(len(robots)):
         blade, volume = int(rng.integers(0, 4)), int(rng.integers(0, 30))
         stuck, tilted, memory = (bool(b) for b in rng.integers(0, 2, 3))
+        h1_frame = int(rng.integers(0, 2))
         out = np.zeros(N_SENSORS, dtype=np.int64)
         poses = robots[:, :3].copy()
-        sense(heights, zones, goal, poses, active, k, blade, volume, stuck, tilted, memory, out)
+        sense(
+            heights, zones, goal, poses, active, k, blade, volume, stuck, tilted, memory, out,
+            h1_frame,
+        )  # fmt: skip
         ref = sense_reference(
-            heights, zones, goal, poses, active, k, blade, volume, stuck, tilted, memory
+            heights, zones, goal, poses, active, k, blade, volume, stuck, tilted, memory, h1_frame
         )
         assert out.tolist() == ref
     assert np.array_equal(
-        sense_all_reference(heights, zones, goal, robots, active),
-        _sense_all(heights, zones, goal, robots, active),
+        sense_all_reference(heights, zones, goal, robots, active, params),
+        _sense_all(heights, zones, goal, robots, active, params),
     )
 
 
@@ -114,8 +121,10 @@ def test_random_episodes_equal_reference_step_by_step(seed):
     ref = (heights.copy(), robots.copy(), int(state[0]))
     total = int(heights.sum())
     for _ in range(200):
-        codes = _sense_all(heights, zones, goal, robots, active)
-        assert np.array_equal(codes, sense_all_reference(ref[0], zones, goal, ref[1], active))
+        codes = _sense_all(heights, zones, goal, robots, active, params)
+        assert np.array_equal(
+            codes, sense_all_reference(ref[0], zones, goal, ref[1], active, params)
+        )
         masks = random_masks(rng, len(robots))
         apply_all(heights, robots, active, masks, state, params)
         ref = step_reference(ref[0], ref[1], active, masks, ref[2], params)
@@ -143,7 +152,7 @@ def test_memory_bit_rule(memory, mask):
     assert next_memory(memory, mask) == expected
 
 
-def _sense_all(heights, zones, goal, robots, active) -> np.ndarray:
+def _sense_all(heights, zones, goal, robots, active, params) -> np.ndarray:
     out = np.zeros((len(robots), N_SENSORS), dtype=np.int64)
-    sense_all(heights, zones, goal, robots, active, out)
+    sense_all(heights, zones, goal, robots, active, out, params)
     return out

@@ -69,10 +69,10 @@ generation at most 1.5 x an ANT generation of the same size.
 * **Reference counting was the first bound.** numba reference-counts arrays passed to
   functions; every call site that passes arrays cost 40-70 ns per robot and step even when
   its branch was not taken. The step loop (`_run_steps` in
-  `evolution/ant_evolution/kernel.py`) and the two world functions it calls per step
-  (`sense_all` / `step_robots` in `excavation_sim/world.py`) are compiled with `_nrt=False`
-  and allocate nothing; helpers that run several times per robot take scalars
-  (`zone_code`, `in_grid`). Compiling `sense_all` and `step_robots` that way (before, only
+  `evolution/ant_evolution/kernel.py`) and the world step it calls (`step_robots` in
+  `excavation_sim/world.py`) are compiled with `_nrt=False` and allocate nothing; sensing
+  (`sense_robot`) is inlined into the loop; helpers that run several times per robot take
+  scalars (`zone_code`, `in_grid`). Compiling the world functions that way (before, only
   the loop was) halved the evolved genome's cost per robot-step (about 180 to 85 ns on
   one core, measured under the same load).
 * **Python's error model.** The step loop is compiled with numba's `error_model="numpy"`

@@ -52,7 +52,7 @@ def record_scenario(
         rec_rng[t] = rng[0]
         for k in range(n):
             if active[k]:
-                sense_robot(heights, zones, goal, robots, active, k, work.codes[k])
+                sense_robot(heights, zones, goal, robots, active, k, work.codes[k], params)
         for k in range(n):
             if not active[k]:
                 work.masks[k] = 0
@@ -66,12 +66,14 @@ def record_scenario(
 
 
 @nb.njit(cache=True, _nrt=False, error_model="numpy")
-def replay_sense(rec_heights, zones, goal, rec_robots, active, out):
+def replay_sense(rec_heights, zones, goal, rec_robots, active, params, out):
     """Sensing alone: every recorded state's sensor vectors (active robots) into ``out[t]``."""
     for t in range(rec_heights.shape[0]):
         for k in range(rec_robots.shape[1]):
             if active[k]:
-                sense_robot(rec_heights[t], zones, goal, rec_robots[t], active, k, out[t, k])
+                sense_robot(
+                    rec_heights[t], zones, goal, rec_robots[t], active, k, out[t, k], params
+                )
 
 
 @nb.njit(cache=True, _nrt=False, error_model="numpy")
@@ -188,12 +190,12 @@ def phase_times(program, batch: ScenarioSet, repeats: int = 3) -> dict[str, floa
     sensing = world = copies = 0.0
     params = batch.params
     for active, (h, r, g, _, masks) in recs:  # one scenario at a time (its states fit in L2)
-        sensing += best_of(replay_sense, h, batch.zones, batch.goal, r, active, out_codes)
+        sensing += best_of(replay_sense, h, batch.zones, batch.goal, r, active, params, out_codes)
         copies += best_of(replay_apply, h, r, g, active, masks, params, state, False)
         world += best_of(replay_apply, h, r, g, active, masks, params, state, True)
     check = new_workspace(record, n, *shape)
     for active, (h, r, g, codes, masks) in recs:  # the replays reproduce the recording
-        replay_sense(h, batch.zones, batch.goal, r, active, out_codes)
+        replay_sense(h, batch.zones, batch.goal, r, active, batch.params, out_codes)
         bad = not np.array_equal(out_codes[: len(h)][:, active], codes[:, active])
         replay_decide(codes, active, record, check, out_masks)
         bad = bad or not np.array_equal(out_masks[: len(h)], masks)

@@ -5,6 +5,10 @@ Examples::
     ant-eval --hand-coded --robots 4 --scenarios 100 --seed 0
     ant-eval --genome genomes/best.json --blueprint my_site.yaml --json
     ant-eval --hand-coded --snapshots out/snapshots --snapshot-steps 0,50,100,300
+    ant-eval --hand-coded --profile paper --set hand_coded=chain
+
+``--profile`` picks the readings of the paper (world, hand-coded rules; docs/evolution.md,
+"Profiles"); ``--set KEY=VALUE`` overrides one switch.
 
 Exit codes: 0 success, 2 bad arguments or input file (the message names the file, the
 field and the value).
@@ -30,9 +34,11 @@ from ant_evolution.evaluate import (
     scenario_worlds,
 )
 from ant_evolution.limits import MAX_DEPTH_UNITS, MAX_STEPS, check_workload, option
+from ant_evolution.profiles import PROFILES, assignment, resolve_switches, world_rules_of
 from blueprint_server.blueprint import resolve_blueprint
 from blueprint_server.errors import BlueprintError
 from excavation_common.limits import int_in
+from excavation_sim.rules import DEFAULT_RULES, WorldRules
 from excavation_sim.world import PlacementError
 
 DEFAULT_SNAPSHOT_STEPS = (0, 50, 75, 100, 170)
@@ -83,6 +89,21 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"timesteps per scenario (default {DEFAULT_STEPS})",
     )
     p.add_argument("--seed", type=option("seed"), default=0, help="scenario seed (default 0)")
+    p.add_argument(
+        "--profile",
+        choices=tuple(PROFILES),
+        default="v1",
+        help="readings of the paper: v1 (default) or paper",
+    )
+    p.add_argument(
+        "--set",
+        dest="assignments",
+        action="append",
+        type=assignment,
+        default=[],
+        metavar="KEY=VALUE",
+        help="override one switch of the profile (repeatable)",
+    )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--snapshots", metavar="DIR", help="write terrain PNGs of scenario 0 here")
     p.add_argument(
@@ -103,11 +124,12 @@ def write_snapshots(
     seed: int,
     out_dir: Path,
     at: list[int],
+    rules: WorldRules = DEFAULT_RULES,
 ) -> list[Path]:
     """Replay scenario 0 of ``seed`` and write a PNG at each step in ``at`` plus a strip."""
     from excavation_sim.snapshots import save_snapshot, save_strip
 
-    world = scenario_worlds(blueprint, n_robots, 1, seed)[0]
+    world = scenario_worlds(blueprint, n_robots, 1, seed, rules)[0]
     wanted = sorted({s for s in at if s <= steps} | {steps})
     frames = []
     paths = []
@@ -142,13 +164,19 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ant-eval``."""
     args = build_parser().parse_args(argv)
     try:
+        switches = resolve_switches(args.profile, args.assignments)
+        rules = world_rules_of(switches)
         controller = (
-            Controller.hand_coded() if args.hand_coded else Controller.from_file(args.genome)
+            Controller.hand_coded(switches["hand_coded"])
+            if args.hand_coded
+            else Controller.from_file(args.genome)
         )
-        blueprint = resolve_blueprint(args.blueprint, args.depth)
+        blueprint = resolve_blueprint(args.blueprint, args.depth, rules.fitted_site)
         n_robots = args.robots or controller.robots or DEFAULT_ROBOTS
         check_workload("<command line>", blueprint.zones.size, args.scenarios, args.steps)
-        result = evaluate(controller, blueprint, n_robots, args.scenarios, args.steps, args.seed)
+        result = evaluate(
+            controller, blueprint, n_robots, args.scenarios, args.steps, args.seed, rules
+        )
         snaps = []
         if args.snapshots:
             snaps = write_snapshots(
@@ -159,6 +187,7 @@ def main(argv: list[str] | None = None) -> int:
                 args.seed,
                 Path(args.snapshots),
                 args.snapshot_steps,
+                rules,
             )
     except (GenomeFormatError, BlueprintError, PlacementError, ConfigError) as exc:
         print(f"ant-eval: error: {exc}", file=sys.stderr)
@@ -174,6 +203,8 @@ def main(argv: list[str] | None = None) -> int:
                     "scenarios": args.scenarios,
                     "steps": args.steps,
                     "seed": args.seed,
+                    **({"profile": args.profile} if args.profile != "v1" else {}),
+                    **({"switches": dict(args.assignments)} if args.assignments else {}),
                     **summary,
                     "scores": [float(v) for v in result.scores],
                     "snapshots": [str(p) for p in snaps],
@@ -182,9 +213,12 @@ def main(argv: list[str] | None = None) -> int:
             )
         )
     else:
+        profile = "" if args.profile == "v1" else f" | profile {args.profile}"
+        changed = "".join(f" | {k}={v}" for k, v in args.assignments)
         print(
             f"{controller.name} | {blueprint.name} | {n_robots} robots | "
             f"{args.scenarios} scenarios x {args.steps} steps | seed {args.seed}"
+            f"{profile}{changed}"
         )
         print(
             "fitness: mean {mean:.4f}  std {std:.4f}  min {min:.4f}  max {max:.4f}".format(

@@ -7,6 +7,10 @@ Examples::
     ant-evolve --out runs/mix --robots-mix 1,4 --workers 2
     ant-evolve --out runs/n --evolve-robots --ray-address local
     ant-evolve --out runs/check --evaluator ros --population 10 --scenarios 4 --workers 2
+    ant-evolve --profile paper --out runs/paper --set elitism=1
+
+``--profile`` sets every switch of docs/evolution.md ("Profiles") to that profile's
+reading; keys of ``--config`` and then ``--set KEY=VALUE`` override single switches.
 
 Command-line values override the config file; the resolved configuration is written to
 ``OUT/config.yaml``. Exit codes: 0 done, 2 bad configuration or checkpoint, 130 interrupted
@@ -33,6 +37,7 @@ from ant_evolution.limits import (
     int_list,
     option,
 )
+from ant_evolution.profiles import PROFILES, apply_assignments, assignment
 from ant_evolution.ros_evaluator import TrialError
 from blueprint_server.errors import BlueprintError
 from excavation_common.limits import int_in
@@ -43,6 +48,20 @@ def build_parser() -> argparse.ArgumentParser:
     """The command-line interface."""
     p = argparse.ArgumentParser(prog="ant-evolve", description=__doc__.split("\n\n")[0])
     p.add_argument("--config", metavar="FILE", help="YAML run configuration")
+    p.add_argument(
+        "--profile",
+        choices=tuple(PROFILES),
+        help="readings of the paper: v1 (the first, default) or paper (literal)",
+    )
+    p.add_argument(
+        "--set",
+        dest="assignments",
+        action="append",
+        type=assignment,
+        default=[],
+        metavar="KEY=VALUE",
+        help="override one switch of the profile (repeatable), e.g. soil_fill=false",
+    )
     p.add_argument("--out", required=True, metavar="DIR", help="run directory")
     p.add_argument("--population", type=option("population"), help="P (default 100)")
     p.add_argument("--generations", type=option("generations"), help="generations (default 100)")
@@ -111,7 +130,9 @@ def resolve_config(args: argparse.Namespace) -> EvolveConfig:
     if source is None and args.resume and (Path(args.out) / "config.yaml").exists():
         source = str(Path(args.out) / "config.yaml")
     if source:
-        config = load_config(source)
+        config = load_config(source, profile=args.profile)
+    elif args.profile is not None:
+        config = config.with_profile(args.profile)
     overrides = {
         "population": args.population,
         "generations": args.generations,
@@ -131,6 +152,8 @@ def resolve_config(args: argparse.Namespace) -> EvolveConfig:
         values.update(evolve_robots=True, robots_mix=())
     if args.no_coarse_coding:
         values["coarse_coding"] = False
+    if args.assignments:
+        values.update(apply_assignments(config.switches(), args.assignments))
     try:
         return dataclasses.replace(config, **values)
     except ConfigError as exc:

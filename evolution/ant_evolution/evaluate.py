@@ -27,12 +27,8 @@ import numpy as np
 
 from ant_evolution.kernel import DecisionProgram, ScenarioArrays, run_episode, run_scenarios
 from blueprint_server.blueprint import Blueprint
-from excavation_sim.world import (
-    DEFAULT_PARAMS,
-    World,
-    WorldParams,
-    scenario_start,
-)
+from excavation_sim.rules import DEFAULT_RULES, WorldRules
+from excavation_sim.world import World, placement_zones, scenario_start
 
 DEFAULT_STEPS = 300
 """Timesteps per scenario. Long enough for the hand-coded controller's fitness to level
@@ -51,7 +47,7 @@ class ScenarioSet:
         robots: ``int64 [S, N_max, 6]`` robot states.
         active: ``bool [S, N_max]`` robots taking part.
         rng: ``uint64 [S]`` random-turn generator states.
-        params: Packed world parameters.
+        params: Packed world rules (:meth:`~excavation_sim.rules.WorldRules.as_array`).
         steps: Timesteps per scenario.
         seed: The seed the scenarios were drawn from (scenario i: ``scenario_start(..., seed, i)``).
         robot_counts: The robot counts scenarios alternate between.
@@ -76,9 +72,11 @@ class ScenarioSet:
         scenarios: int,
         steps: int,
         seed: int,
-        params: WorldParams = DEFAULT_PARAMS,
+        rules: WorldRules = DEFAULT_RULES,
     ) -> ScenarioSet:
         """The scenarios of ``seed``; ``robots`` may list counts to alternate between.
+
+        ``rules``: the world's readings (kernel switches, and where robots start).
 
         Raises:
             ValueError: When a count is not positive.
@@ -97,9 +95,10 @@ class ScenarioSet:
         all_robots = np.zeros((scenarios, n_max, 6), dtype=np.int64)
         active = np.zeros((scenarios, n_max), dtype=np.bool_)
         rng_states = np.zeros(scenarios, dtype=np.uint64)
+        worksite = placement_zones(rules, blueprint.zones)
         for i in range(scenarios):
             all_robots[i], active[i], rng_states[i] = scenario_start(
-                shape, n_max, counts[i % len(counts)], seed, i
+                shape, n_max, counts[i % len(counts)], seed, i, worksite
             )
         return cls(
             heights=np.zeros((scenarios, *shape), dtype=np.int32),
@@ -108,7 +107,7 @@ class ScenarioSet:
             robots=all_robots,
             active=active,
             rng=rng_states,
-            params=params.as_array(),
+            params=rules.as_array(),
             steps=steps,
             seed=seed,
             robot_counts=tuple(counts),
@@ -166,10 +165,10 @@ def scenario_worlds(
     n_robots: int,
     scenarios: int,
     seed: int,
-    params: WorldParams = DEFAULT_PARAMS,
+    rules: WorldRules = DEFAULT_RULES,
 ) -> list[World]:
     """The ``scenarios`` starting worlds of a seed (same seed, same worlds)."""
-    batch = ScenarioSet.create(blueprint, n_robots, scenarios, 1, seed, params)
+    batch = ScenarioSet.create(blueprint, n_robots, scenarios, 1, seed, rules)
     return [batch.world(i) for i in range(scenarios)]
 
 
@@ -208,7 +207,7 @@ def evaluate(
     scenarios: int = 100,
     steps: int = DEFAULT_STEPS,
     seed: int = 0,
-    params: WorldParams = DEFAULT_PARAMS,
+    rules: WorldRules = DEFAULT_RULES,
 ) -> Evaluation:
     """Run ``controller`` on ``scenarios`` seeded scenarios and collect fitness curves.
 
@@ -216,7 +215,7 @@ def evaluate(
         ValueError: When a count is not positive.
         excavation_sim.world.PlacementError: When the robots do not fit the grid.
     """
-    batch = ScenarioSet.create(blueprint, n_robots, scenarios, steps, seed, params)
+    batch = ScenarioSet.create(blueprint, n_robots, scenarios, steps, seed, rules)
     curves = np.zeros((scenarios, steps + 1))
     for i in range(scenarios):
         w = batch.world(i)

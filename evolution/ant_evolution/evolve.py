@@ -39,8 +39,16 @@ from ant_evolution.evaluate import DEFAULT_STEPS, ScenarioSet
 from ant_evolution.ga import GAParams, next_generation
 from ant_evolution.limits import MAX_CONFIG_BYTES, check_config_value
 from ant_evolution.loop import RunState, run_strategy
+from ant_evolution.profiles import (
+    CHOICES,
+    PROFILES,
+    SWITCHES,
+    profile_switches,
+    world_rules_of,
+)
 from blueprint_server.blueprint import Blueprint, resolve_blueprint
 from excavation_common.loaders import load_yaml
+from excavation_sim.rules import WorldRules
 
 CHECKPOINT_FORMAT = "ant-checkpoint/1"
 
@@ -65,9 +73,17 @@ class EvolveConfig:
         tournament_fraction: Tournament size as a fraction of P (paper: 0.06).
         crossover_prob: Paper: 0.7.
         mutation_prob: Paper: 0.025.
-        elitism: Best genomes copied unchanged (0 disables).
+        elitism: Best genomes copied unchanged (0 disables; a profile switch).
         seed: Seed of everything random in the run.
         checkpoint_every: Generations between checkpoints.
+        profile: The profile the switches below started from (``v1`` or ``paper``,
+            :mod:`ant_evolution.profiles`); a key given in the same file overrides one.
+        soil_fill, normal_load, throttle_load, normal_climb, throttle_climb, h1,
+            placement, site: The world's switches (:class:`excavation_sim.rules.WorldRules`).
+        hand_coded: The hand-coded rules' reading (experiments that score them).
+        mutation_scope, mutation_operator, mutation_width, replication_parent: The GA's
+            switches (:class:`ant_evolution.ga.GAParams`).
+        neat_activation, neat_budget: The NEAT baseline's switches.
     """
 
     population: int = 100
@@ -88,6 +104,22 @@ class EvolveConfig:
     elitism: int = 1
     seed: int = 0
     checkpoint_every: int = 10
+    profile: str = "v1"
+    soil_fill: bool = False
+    normal_load: int = 12
+    throttle_load: int = 24
+    normal_climb: int = 1
+    throttle_climb: int = 2
+    h1: str = "relative"
+    placement: str = "anywhere"
+    site: str = "shared"
+    hand_coded: str = "chain"
+    mutation_scope: str = "parameter"
+    mutation_operator: str = "redraw"
+    mutation_width: float = 0.1
+    replication_parent: str = "max"
+    neat_activation: str = "sigmoid"
+    neat_budget: str = "library"
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -117,6 +149,34 @@ class EvolveConfig:
                 list(self.robots_mix),
                 "cannot be combined with evolve_robots",
             )
+        profile_switches(self.profile, "<config>")  # a known profile name
+        world_rules_of(self.to_dict())
+        for name, allowed in CHOICES.items():
+            if getattr(self, name) not in allowed:
+                raise ConfigError(
+                    "<config>", name, getattr(self, name), f"must be one of {allowed}"
+                )
+        try:
+            self.ga  # noqa: B018 (validates the GA switches)
+        except ConfigError as exc:
+            raise ConfigError("<config>", exc.field, exc.value, exc.reason) from None
+
+    def with_profile(self, name: str) -> EvolveConfig:
+        """This config with every switch set to profile ``name``'s values.
+
+        Raises:
+            ConfigError: For an unknown profile.
+        """
+        return dataclasses.replace(self, profile=name, **profile_switches(name, "<config>"))
+
+    def switches(self) -> dict:
+        """Switch name -> value (:data:`ant_evolution.profiles.SWITCHES`)."""
+        return {k: getattr(self, k) for k in SWITCHES}
+
+    @property
+    def world_rules(self) -> WorldRules:
+        """The world's switches, as the kernels and scenarios take them."""
+        return world_rules_of(self.to_dict())
 
     @property
     def ga(self) -> GAParams:
@@ -128,6 +188,10 @@ class EvolveConfig:
             mutation_prob=self.mutation_prob,
             elitism=self.elitism,
             robots_range=self.robots_range,
+            mutation_scope=self.mutation_scope,
+            mutation_operator=self.mutation_operator,
+            mutation_width=self.mutation_width,
+            replication_parent=self.replication_parent,
         )
 
     def to_dict(self) -> dict:
@@ -141,14 +205,23 @@ class EvolveConfig:
         return out
 
     def run_key(self) -> str:
-        """Hash of everything that changes results (not ``generations``)."""
+        """Hash of everything that changes results (not ``generations``).
+
+        The profile and the switches added with it count only where they differ from
+        ``v1``, so a ``v1`` run keeps the key its checkpoints were written with.
+        """
         d = self.to_dict()
         d.pop("generations")
         d.pop("checkpoint_every")
+        v1 = {"profile": "v1", **PROFILES["v1"]}
+        for key in _KEYED_SINCE_PROFILES:
+            if d[key] == v1[key]:
+                d.pop(key)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
 _FIELD_TYPES = {f.name: f.type for f in dataclasses.fields(EvolveConfig)}
+_KEYED_SINCE_PROFILES = ("profile", *(k for k in SWITCHES if k != "elitism"))
 
 
 def config_from_dict(
@@ -156,12 +229,21 @@ def config_from_dict(
 ) -> EvolveConfig:
     """Build a config from a mapping; unknown keys and wrong types are errors.
 
+    A ``profile`` key first sets every switch to that profile's values; the other keys
+    then override (so ``profile: paper`` with ``elitism: 1`` is the paper profile with
+    elitism).
+
     Raises:
         ConfigError: Naming the file, the key and the value.
     """
     if not isinstance(data, dict):
         raise ConfigError(path, "<root>", type(data).__name__, "must be a mapping")
     base = base or EvolveConfig()
+    if "profile" in data:
+        name = data["profile"]
+        if not isinstance(name, str) or name not in PROFILES:
+            raise ConfigError(path, "profile", name, f"must be one of {list(PROFILES)}")
+        base = base.with_profile(name)
     values = {}
     for key, value in data.items():
         if key not in _FIELD_TYPES or key == "extra":
@@ -192,25 +274,33 @@ def config_from_dict(
         raise ConfigError(path, exc.field, exc.value, exc.reason) from None
 
 
-def load_config(path: str | Path, base: EvolveConfig | None = None) -> EvolveConfig:
+def load_config(
+    path: str | Path, base: EvolveConfig | None = None, profile: str | None = None
+) -> EvolveConfig:
     """Read a YAML config file.
+
+    ``profile``: replaces the file's ``profile`` key (``ant-evolve --profile``); the file's
+    other keys still override the profile's switches.
 
     Raises:
         ConfigError: For an unreadable file, bad YAML, unknown keys or bad values.
     """
     label = str(path)
-    data = load_yaml(label, ConfigError, max_bytes=MAX_CONFIG_BYTES)
-    return config_from_dict(data or {}, label, base)
+    data = load_yaml(label, ConfigError, max_bytes=MAX_CONFIG_BYTES) or {}
+    if profile is not None and isinstance(data, dict):
+        data = {**data, "profile": profile}
+    return config_from_dict(data, label, base)
 
 
 # --- the run ---------------------------------------------------------------------------------
 
 
 def blueprints_of(config: EvolveConfig) -> list[Blueprint]:
-    """The blueprints scenarios are spread over."""
+    """The blueprints scenarios are spread over (switch ``site`` sizes the default's grid)."""
+    fitted = config.world_rules.fitted_site
     if config.blueprint == "default":
-        return [resolve_blueprint("default", d) for d in config.depths]
-    return [resolve_blueprint(config.blueprint)]
+        return [resolve_blueprint("default", d, fitted) for d in config.depths]
+    return [resolve_blueprint(config.blueprint, fitted=fitted)]
 
 
 def scenario_sets(
@@ -224,8 +314,9 @@ def scenario_sets(
         robots = list(config.robots_mix) or config.robots
     n = len(blueprints)
     sizes = [config.scenarios // n + (i < config.scenarios % n) for i in range(n)]
+    rules = config.world_rules
     return [
-        ScenarioSet.create(bp, robots, size, config.steps, seed + i)
+        ScenarioSet.create(bp, robots, size, config.steps, seed + i, rules)
         for i, (bp, size) in enumerate(zip(blueprints, sizes, strict=True))
         if size > 0
     ]

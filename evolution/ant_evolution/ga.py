@@ -4,22 +4,40 @@ Every operator takes an explicit ``numpy.random.Generator`` and returns new geno
 is modified in place. Defaults follow the paper: population 100, tournament size 0.06 P,
 crossover probability 0.7, mutation probability 0.025 per gene parameter.
 
-* :func:`mutate`: each parameter of each cell gene is redrawn uniformly over its range with
-  probability ``mutation_prob`` (flags and selector bits are flipped); the tissue gene's
-  parameters likewise (the N gene steps by one robot). Then, with the tissue's replication
+* :func:`mutate`: "manipulation of gene parameters with a uniform random distribution" with
+  p_m = 0.025, in one of two readings (``mutation_scope``) and with one of two operators
+  (``mutation_operator``):
+
+  - scope ``"parameter"`` (profile ``v1``): every parameter of every gene mutates with
+    probability p_m (about 112 changes per offspring for the shipped genome);
+  - scope ``"gene"`` (profile ``paper``): every gene (each cell gene, and the tissue gene)
+    mutates with probability p_m, and a mutating gene changes one of its parameters,
+    chosen uniformly;
+  - operator ``"redraw"`` (``v1``): the value is drawn afresh, uniform over its range;
+  - operator ``"perturb"`` (``paper``): bounded uniform perturbation, the value plus
+    ``U(-w, w)`` times its range (``w = mutation_width``), clipped to the range; an
+    integer field half-extent steps by one.
+
+  Under both operators flags and selector bits flip, the behaviour is redrawn (it is a
+  category) and the N gene steps by one robot. Then, with the tissue's replication
   probability, a cell divides (:func:`replicate`).
-* :func:`replicate`: the parent is the grown cell with the highest replication value; the
-  daughter takes a free lattice site next to it (one of six neighbours, chosen at random),
-  is a decision neuron with probability ``decision_ratio``, and copies the first m% of the
+* :func:`replicate`: the parent is a grown cell, either the one with the highest
+  replication value (``replication_parent = "max"``, ``v1``) or one drawn with probability
+  proportional to its replication value (``"proportional"``, ``paper``); the daughter
+  takes a free lattice site next to it (one of six neighbours, chosen at random), is a
+  decision neuron with probability ``decision_ratio``, and copies the first m% of the
   parent's parameters (m uniform), the rest drawn at random.
 * :func:`crossover`: a plane normal to the l or m axis cuts the tissue; child 1 has
   affinity to parent A and child 2 to parent B. Genes on the origin side of the plane come
   from the affine parent; beyond it a gene is exchanged with the other parent's gene at the
   same lattice site when both are expressed or both repressed (the compatibility criterion);
   otherwise it stays.
-* :func:`next_generation`: elitism (a documented option, default 1: the best genome is
-  copied unchanged), then tournament selection, crossover and mutation. It is the one
-  breeding loop: the fixed-topology baseline passes its own ``crossover`` and ``mutate``.
+* :func:`next_generation`: elitism (a switch: ``v1`` copies the best genome unchanged,
+  ``paper`` none, as the paper states none), then tournament selection, crossover and
+  mutation. It is the one breeding loop: the fixed-topology baseline passes its own
+  ``crossover`` and ``mutate``.
+
+``v1`` reproduces the first runs draw for draw (its code path is the original one).
 """
 
 from __future__ import annotations
@@ -39,6 +57,11 @@ from ant_controller.genome import (
     random_cell,
 )
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS
+from ant_evolution.errors import ConfigError
+
+MUTATION_SCOPES = ("parameter", "gene")
+MUTATION_OPERATORS = ("redraw", "perturb")
+REPLICATION_PARENTS = ("max", "proportional")
 
 _NEIGHBOURS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
 
@@ -54,6 +77,10 @@ class GAParams:
         mutation_prob: Probability that one gene parameter mutates.
         elitism: Best genomes copied unchanged into the next generation.
         robots_range: Bounds of the N gene when it is evolved.
+        mutation_scope: ``"parameter"`` or ``"gene"`` (what ``mutation_prob`` is per).
+        mutation_operator: ``"redraw"`` or ``"perturb"``.
+        mutation_width: Half-width of a perturbation as a fraction of the range.
+        replication_parent: ``"max"`` or ``"proportional"``.
     """
 
     population: int = 100
@@ -62,6 +89,26 @@ class GAParams:
     mutation_prob: float = 0.025
     elitism: int = 1
     robots_range: tuple[int, int] = (1, 8)
+    mutation_scope: str = "parameter"
+    mutation_operator: str = "redraw"
+    mutation_width: float = 0.1
+    replication_parent: str = "max"
+
+    def __post_init__(self) -> None:
+        for name, choices in (
+            ("mutation_scope", MUTATION_SCOPES),
+            ("mutation_operator", MUTATION_OPERATORS),
+            ("replication_parent", REPLICATION_PARENTS),
+        ):
+            if getattr(self, name) not in choices:
+                raise ConfigError("<ga>", name, getattr(self, name), f"must be one of {choices}")
+        if not 0.0 < self.mutation_width <= 1.0:
+            raise ConfigError("<ga>", "mutation_width", self.mutation_width, "must lie in (0, 1]")
+
+    @property
+    def legacy_mutation(self) -> bool:
+        """Per-parameter full-range redraws: ``v1``'s operator, drawn exactly as it was."""
+        return self.mutation_scope == "parameter" and self.mutation_operator == "redraw"
 
     @property
     def tournament_size(self) -> int:
@@ -109,6 +156,16 @@ def mutate_cell(rng: np.random.Generator, gene: CellGene, p: float) -> CellGene:
 
 def mutate(rng: np.random.Generator, genome: Genome, params: GAParams) -> Genome:
     """Mutate a genome's cell genes and tissue gene, then maybe replicate a cell."""
+    if params.legacy_mutation:
+        child = _mutate_v1(rng, genome, params)
+    else:
+        child = _mutate_slots(rng, genome, params)
+    if rng.random() < child.tissue.replication_probability:
+        child = replicate(rng, child, params.replication_parent)
+    return child
+
+
+def _mutate_v1(rng: np.random.Generator, genome: Genome, params: GAParams) -> Genome:
     p = params.mutation_prob
     cells = tuple(mutate_cell(rng, g, p) for g in genome.cells)
     t = genome.tissue
@@ -122,10 +179,93 @@ def mutate(rng: np.random.Generator, genome: Genome, params: GAParams) -> Genome
         decision_ratio=_redraw(rng, t.decision_ratio, 0.0, 1.0, p),
         robots=robots,
     )
-    child = replace(genome, tissue=tissue, cells=cells)
-    if rng.random() < tissue.replication_probability:
-        child = replicate(rng, child)
-    return child
+    return replace(genome, tissue=tissue, cells=cells)
+
+
+# Parameter slots of a cell gene, in order: (field, index or -1, kind, low, high).
+# Kinds: "flag" flips, "bit" flips a 0/1 int, "real" and "int" are ranged, "category" is
+# redrawn over its values.
+_CELL_SLOTS: tuple[tuple[str, int, str, float, float], ...] = (
+    ("expressed", -1, "flag", 0, 1),
+    ("dead", -1, "flag", 0, 1),
+    ("k1", -1, "bit", 0, 1),
+    ("k2", -1, "bit", 0, 1),
+    ("replication", -1, "real", 0.0, 1.0),
+    ("theta1", -1, "real", -1.0, 1.0),
+    ("theta2", -1, "real", -1.0, 1.0),
+    ("concentration", -1, "real", 0.0, 1.0),
+    ("behaviour", -1, "category", 0, N_BEHAVIOURS),
+    *(("sensor_weights", i, "real", -1.0, 1.0) for i in range(N_SENSORS)),
+    *(("input_weights", i, "real", -1.0, 1.0) for i in range(N_NOMINAL_INPUTS)),
+    *(("extent", i, "int", 0, MAX_EXTENT) for i in range(3)),
+)
+
+
+def _new_value(rng: np.random.Generator, value, kind: str, lo, hi, params: GAParams):
+    """One parameter's mutated value under ``params.mutation_operator``."""
+    if kind == "flag":
+        return not value
+    if kind == "bit":
+        return 1 - int(value)
+    if kind == "category":
+        return int(rng.integers(lo, hi))
+    perturb = params.mutation_operator == "perturb"
+    if kind == "int":
+        if not perturb:
+            return int(rng.integers(lo, hi + 1))
+        return int(np.clip(int(value) + (1 if rng.random() < 0.5 else -1), lo, hi))
+    if not perturb:
+        return float(rng.uniform(lo, hi))
+    w = params.mutation_width * (hi - lo)
+    return float(np.clip(float(value) + rng.uniform(-w, w), lo, hi))
+
+
+def _mutate_gene_slots(rng, gene: CellGene, slots, params: GAParams) -> CellGene:
+    """``gene`` with the parameter slots ``slots`` (indices into ``_CELL_SLOTS``) mutated."""
+    changes: dict = {}
+    for s in slots:
+        name, index, kind, lo, hi = _CELL_SLOTS[s]
+        if index < 0:
+            current = changes.get(name, getattr(gene, name))
+            changes[name] = _new_value(rng, current, kind, lo, hi, params)
+        else:
+            vec = list(changes.get(name, getattr(gene, name)))
+            vec[index] = _new_value(rng, vec[index], kind, lo, hi, params)
+            changes[name] = tuple(vec)
+    return replace(gene, **changes) if changes else gene
+
+
+def _chosen_slots(rng: np.random.Generator, n_slots: int, params: GAParams) -> list[int]:
+    """Slots that mutate in one gene: each with p (``parameter``), or one with p (``gene``)."""
+    p = params.mutation_prob
+    if params.mutation_scope == "parameter":
+        return [int(i) for i in np.flatnonzero(rng.random(n_slots) < p)]
+    if rng.random() < p:
+        return [int(rng.integers(0, n_slots))]
+    return []
+
+
+def _mutate_slots(rng: np.random.Generator, genome: Genome, params: GAParams) -> Genome:
+    """Mutation under the ``gene`` scope or the ``perturb`` operator (see the module)."""
+    cells = tuple(
+        _mutate_gene_slots(rng, g, _chosen_slots(rng, len(_CELL_SLOTS), params), params)
+        for g in genome.cells
+    )
+    t = genome.tissue
+    n_tissue = 3 if t.robots is not None else 2
+    changes: dict = {}
+    for s in _chosen_slots(rng, n_tissue, params):
+        if s == 0:
+            changes["replication_probability"] = _new_value(
+                rng, t.replication_probability, "real", 0.0, 0.1, params
+            )
+        elif s == 1:
+            changes["decision_ratio"] = _new_value(rng, t.decision_ratio, "real", 0.0, 1.0, params)
+        else:
+            lo, hi = params.robots_range
+            changes["robots"] = int(np.clip(t.robots + (1 if rng.random() < 0.5 else -1), lo, hi))
+    tissue = replace(t, **changes) if changes else t
+    return replace(genome, tissue=tissue, cells=cells)
 
 
 def _param_vector(g: CellGene) -> list[float]:
@@ -161,16 +301,28 @@ def _from_vector(base: CellGene, v: list[float]) -> CellGene:
     )
 
 
-def replicate(rng: np.random.Generator, genome: Genome) -> Genome:
-    """Cell division: add one daughter gene next to the most replicative grown cell.
+def replicate(rng: np.random.Generator, genome: Genome, parent_rule: str = "max") -> Genome:
+    """Cell division: add one daughter gene next to a grown parent cell.
 
-    Returns the genome unchanged when no cell is grown or the parent has no free
-    neighbouring site inside the lattice.
+    ``parent_rule``: ``"max"``, the grown cell with the highest replication value (first
+    of equals in gene order); ``"proportional"``, a grown cell drawn with probability
+    proportional to its replication value (uniform when all are 0). Returns the genome
+    unchanged when no cell is grown or the parent has no free neighbouring site inside
+    the lattice.
     """
     grown = [g for g in genome.cells if g.expressed and not g.dead]
     if not grown:
         return genome
-    parent = max(grown, key=lambda g: g.replication)  # first of equals: gene order
+    if parent_rule == "proportional":
+        weights = np.array([g.replication for g in grown], dtype=np.float64)
+        total = float(weights.sum())
+        if total > 0.0:
+            i = int(np.searchsorted(np.cumsum(weights), rng.random() * total, side="right"))
+            parent = grown[min(i, len(grown) - 1)]
+        else:
+            parent = grown[int(rng.integers(0, len(grown)))]
+    else:
+        parent = max(grown, key=lambda g: g.replication)
     taken = {genome.absolute(g) for g in genome.cells}
     base = genome.absolute(parent)
     sites = [

@@ -6,7 +6,7 @@ that maps a sensor vector to a behaviour bit mask.
 * :class:`ant_controller.tissue.TissueRecord`: an ANT tissue (with or without coarse
   coding), :func:`ant_controller.tissue.decide_into`;
 * :class:`ant_controller.hand_coded.HandCodedRules`: the appendix's hand-coded controller,
-  :func:`ant_controller.hand_coded.hand_coded_decide`;
+  :func:`ant_controller.hand_coded.hand_coded_program` (either reading of the rules);
 * :class:`ant_evolution.baselines.network.NetworkRecord`: a fixed-topology or NEAT network,
   :func:`ant_evolution.baselines.network.program_decide_into`.
 
@@ -40,7 +40,7 @@ import numba as nb
 import numpy as np
 from numba.extending import overload
 
-from ant_controller.hand_coded import HandCodedRules, hand_coded_decide
+from ant_controller.hand_coded import HandCodedRules, hand_coded_program
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, SENSOR_STATES
 from ant_controller.tissue import TissueRecord, decide_into, new_scratch
 from ant_evolution.baselines.network import NetworkRecord, program_decide_into, program_scratch
@@ -95,7 +95,7 @@ def decide_program(codes, program, scratch):
     if isinstance(program, NetworkRecord):
         return program_decide_into(codes, program, scratch)
     if isinstance(program, HandCodedRules):
-        return hand_coded_decide(codes)
+        return hand_coded_program(codes, program)
     raise TypeError(f"not a decision program: {type(program).__name__}")
 
 
@@ -118,7 +118,7 @@ def _decide_program(codes, program, scratch):
     if kind is NetworkRecord:
         return lambda codes, program, scratch: program_decide_into(codes, program, scratch)
     if kind is HandCodedRules:
-        return lambda codes, program, scratch: hand_coded_decide(codes)
+        return lambda codes, program, scratch: hand_coded_program(codes, program)
     return None
 
 
@@ -168,7 +168,7 @@ def decide_cached(codes, program, scratch, cache):
     holds the sensor key and the mask in one word (``key << 12 | mask``).
     """
     if isinstance(program, HandCodedRules):
-        return hand_coded_decide(codes)
+        return hand_coded_program(codes, program)
     return _lookup(codes, program, scratch, cache)
 
 
@@ -188,7 +188,7 @@ def _lookup(codes, program, scratch, cache):
 def _decide_cached(codes, program, scratch, cache):
     kind = _kind(program)
     if kind is HandCodedRules:
-        return lambda codes, program, scratch, cache: hand_coded_decide(codes)
+        return lambda codes, program, scratch, cache: hand_coded_program(codes, program)
     if kind is TissueRecord or kind is NetworkRecord:
         return lambda codes, program, scratch, cache: _lookup(codes, program, scratch, cache)
     return None
@@ -248,7 +248,7 @@ def _run_steps(world, steps, program, work, trace):
     for t in range(steps):
         for k in range(n):  # every robot senses the snapshot before any acts
             if active[k]:
-                sense_robot(heights, zones, goal, robots, active, k, codes[k])
+                sense_robot(heights, zones, goal, robots, active, k, codes[k], world.params)
         for k in range(n):
             if not active[k]:
                 masks[k] = 0

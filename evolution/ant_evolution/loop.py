@@ -35,6 +35,7 @@ import numpy as np
 import yaml
 
 from ant_evolution.errors import CheckpointError
+from ant_evolution.profiles import PROFILES
 from excavation_common.files import write_text_atomic
 
 HISTORY_FIELDS = (
@@ -234,6 +235,7 @@ def save_checkpoint(out: Path, strategy: Strategy, run: RunState) -> None:
     data = {
         "format": strategy.checkpoint_formats[0],
         "run_key": strategy.run_key,
+        **_profile_record(strategy.config),
         "generation": run.generation,
         "evaluations": run.evaluations,
         "best_fitness": run.best_fitness,
@@ -263,6 +265,7 @@ def load_checkpoint(out: Path, strategy: Strategy) -> RunState:
     fmt = strategy.checkpoint_formats[0]
     if not isinstance(data, dict) or data.get("format") not in strategy.checkpoint_formats:
         raise CheckpointError(label, f"is not an {fmt} file")
+    _check_profile(label, data, strategy.config)
     if data.get("run_key") != strategy.run_key:
         raise CheckpointError(
             label,
@@ -283,6 +286,41 @@ def load_checkpoint(out: Path, strategy: Strategy) -> RunState:
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise CheckpointError(label, f"is corrupt: {exc!r}") from None
+
+
+def _profile_record(config) -> dict:
+    """The profile and switches a checkpoint records (configs without them: none)."""
+    if not hasattr(config, "switches"):
+        return {}
+    return {"profile": config.profile, "switches": config.switches()}
+
+
+def _check_profile(label: str, data: dict, config) -> None:
+    """Refuse a checkpoint written under another profile or other switches, naming them.
+
+    A checkpoint from before profiles existed was written under ``v1``.
+    """
+    if not hasattr(config, "switches"):
+        return
+    profile = data.get("profile", "v1")
+    switches = data.get("switches", PROFILES["v1"])
+    if profile != config.profile:
+        raise CheckpointError(
+            label,
+            f"was written under profile {profile!r}, not {config.profile!r}; resume with "
+            f"--profile {profile}, or start a new run directory",
+        )
+    if not isinstance(switches, dict):
+        raise CheckpointError(label, "is corrupt: its switches are not a mapping")
+    ours = config.switches()
+    differ = [k for k in ours if k in switches and switches[k] != ours[k]]
+    if differ:
+        shown = ", ".join(f"{k}: {switches[k]!r} there, {ours[k]!r} here" for k in differ)
+        raise CheckpointError(
+            label,
+            f"was written with other switches of profile {profile!r} ({shown}); restore "
+            "them (its config.yaml) or start a new run directory",
+        )
 
 
 # --- hooks -----------------------------------------------------------------------------------

@@ -3,6 +3,10 @@
 Example (the hand-coded table of ``docs/results.md``)::
 
     ant-sweep --hand-coded --robots 1-10 --depths 1,2,3 --scenarios 100 --out docs/figures
+    ant-sweep --hand-coded --profile v1 --set soil_fill=true --out docs/figures/paper_profile/x
+
+``--profile`` and ``--set KEY=VALUE`` choose the readings of the paper (docs/evolution.md,
+"Profiles").
 
 Writes ``sweep.csv``, ``sweep.md`` (a markdown table of mean +- std) and ``sweep.png``
 into ``--out``, showing progress with a bar.
@@ -22,6 +26,7 @@ from ant_controller.errors import GenomeFormatError
 from ant_evolution.errors import ConfigError
 from ant_evolution.evaluate import DEFAULT_STEPS, evaluate
 from ant_evolution.limits import MAX_DEPTH_UNITS, MAX_ROBOTS, check_workload, option
+from ant_evolution.profiles import PROFILES, assignment, resolve_switches, world_rules_of
 
 
 def _int_list(high: int):
@@ -56,30 +61,44 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenarios", type=option("scenarios"), default=100)
     p.add_argument("--steps", type=option("steps"), default=DEFAULT_STEPS)
     p.add_argument("--seed", type=option("seed"), default=0)
+    p.add_argument("--profile", choices=tuple(PROFILES), default="v1")
+    p.add_argument(
+        "--set", dest="assignments", action="append", type=assignment, default=[],
+        metavar="KEY=VALUE", help="override one switch of the profile (repeatable)",
+    )  # fmt: skip
     p.add_argument("--out", required=True, type=Path)
     args = p.parse_args(argv)
     from blueprint_server.blueprint import default_blueprint
 
     try:
+        switches = resolve_switches(args.profile, args.assignments)
+        rules = world_rules_of(switches)
         check_workload("<command line>", 16 * 16, args.scenarios, args.steps)
-        ctl = Controller.hand_coded() if args.hand_coded else Controller.from_file(args.genome)
+        ctl = (
+            Controller.hand_coded(switches["hand_coded"])
+            if args.hand_coded
+            else Controller.from_file(args.genome)
+        )
     except (GenomeFormatError, ConfigError) as exc:
         print(f"ant-sweep: error: {exc}", file=sys.stderr)
         return 2
     rows = []
     cells = [(d, n) for d in args.depths for n in args.robots]
     for d, n in tqdm(cells, desc="sweep", unit="setting"):
-        res = evaluate(ctl, default_blueprint(d), n, args.scenarios, args.steps, args.seed)
+        bp = default_blueprint(d, rules.fitted_site)
+        res = evaluate(ctl, bp, n, args.scenarios, args.steps, args.seed, rules)
         rows.append({"depth": d, "robots": n, **res.summary()})
+    site = bp.name.partition(" (")[0]
     args.out.mkdir(parents=True, exist_ok=True)
     with open(args.out / "sweep.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
     by = {(r["depth"], r["robots"]): r for r in rows}
+    readings = f"profile {args.profile}" + "".join(f", {k}={v}" for k, v in args.assignments)
     lines = [
-        f"Fitness of {ctl.name} on the default blueprint, mean +- std over {args.scenarios} "
-        f"scenarios of {args.steps} steps (seed {args.seed}).",
+        f"Fitness of {ctl.name} on the {site} blueprint, mean +- std over {args.scenarios} "
+        f"scenarios of {args.steps} steps (seed {args.seed}; {readings}).",
         "",
         "| robots | " + " | ".join(f"depth {d}" for d in args.depths) + " |",
         "|---:|" + "---:|" * len(args.depths),
@@ -102,7 +121,8 @@ def main(argv: list[str] | None = None) -> int:
         ax.errorbar(args.robots, means, yerr=stds, capsize=3, marker="o", label=f"depth {d}")
     ax.set_xlabel("robots")
     ax.set_ylabel(f"fitness after {args.steps} steps")
-    ax.set_title(f"{ctl.name}, default blueprint (8 x 8 pit in 16 x 16)")
+    grid = "x".join(str(v) for v in bp.shape)
+    ax.set_title(f"{ctl.name}, 8 x 8 pit in {grid}; {readings}", fontsize=8)
     ax.set_ylim(0, 1)
     ax.legend()
     ax.grid(alpha=0.3)

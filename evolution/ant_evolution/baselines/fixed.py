@@ -9,9 +9,10 @@ output) is drawn once per run from 40 to 120, like ANT's initial tissues; the sp
 between the two hidden layers is drawn too (a second hidden layer of 0 means 3 layers).
 
 The genome is a flat parameter vector per neuron. The GA uses ANT's settings (tournament
-of 0.06 P, crossover 0.7, mutation 0.025 per parameter, elitism); crossover cuts the
-neuron list at one random point and swaps the tails, mutation redraws a weight or a
-threshold uniformly in ``[-1, 1]`` and flips a selector bit.
+of 0.06 P, crossover 0.7, mutation 0.025, elitism, and ANT's mutation switches with a
+neuron as the gene); crossover cuts the neuron list at one random point and swaps the
+tails, mutation redraws (or perturbs) a weight or a threshold in ``[-1, 1]`` and flips a
+selector bit.
 """
 
 from __future__ import annotations
@@ -145,8 +146,24 @@ def _neuron_bounds(topology: FixedTopology) -> np.ndarray:
     return np.concatenate(([0], np.cumsum(fans)))
 
 
-def mutate(rng: np.random.Generator, net: FixedNetwork, params: GAParams) -> FixedNetwork:
-    """Redraw each weight and threshold with probability p; flip each selector bit with p."""
+def mutate(
+    rng: np.random.Generator,
+    net: FixedNetwork,
+    params: GAParams,
+    topology: FixedTopology | None = None,
+) -> FixedNetwork:
+    """Mutate under ANT's switches (:mod:`ant_evolution.ga`), a neuron being a gene.
+
+    ``v1`` (scope ``parameter``, operator ``redraw``): redraw each weight and threshold with
+    probability p, flip each selector bit with p. Otherwise (``topology`` needed) each
+    neuron (its input weights, two thresholds, two selector bits) is a gene: scope
+    ``gene`` mutates one of its parameters with p, scope ``parameter`` each with p; the
+    operator redraws or perturbs a weight or threshold as ANT's does.
+    """
+    if not params.legacy_mutation:
+        if topology is None:
+            raise ValueError("fixed network: switched mutation needs the topology")
+        return _mutate_switched(rng, net, params, _neuron_bounds(topology))
     p = params.mutation_prob
     w = net.weights.copy()
     hit = rng.random(w.shape) < p
@@ -156,6 +173,32 @@ def mutate(rng: np.random.Generator, net: FixedNetwork, params: GAParams) -> Fix
     th[hit] = rng.uniform(-1.0, 1.0, int(hit.sum()))
     flips = (rng.random((net.func.shape[0], 2)) < p).astype(np.int64)
     func = net.func ^ (flips[:, 0] * 2 + flips[:, 1])
+    return FixedNetwork(w, th, func)
+
+
+def _mutate_switched(
+    rng: np.random.Generator, net: FixedNetwork, params: GAParams, bounds: np.ndarray
+) -> FixedNetwork:
+    w, th, func = net.weights.copy(), net.theta.copy(), net.func.copy()
+    width = 2.0 * params.mutation_width  # the range [-1, 1] is 2 wide
+    for j in range(func.shape[0]):
+        fan = int(bounds[j + 1] - bounds[j])
+        slots = fan + 4  # input weights, theta1, theta2, k1, k2
+        if params.mutation_scope == "parameter":
+            chosen = [int(s) for s in np.flatnonzero(rng.random(slots) < params.mutation_prob)]
+        elif rng.random() < params.mutation_prob:
+            chosen = [int(rng.integers(0, slots))]
+        else:
+            chosen = []
+        for s in chosen:
+            if s >= fan + 2:
+                func[j] ^= 2 if s == fan + 2 else 1
+                continue
+            arr, i = (w, int(bounds[j]) + s) if s < fan else (th, (j, s - fan))
+            if params.mutation_operator == "perturb":
+                arr[i] = float(np.clip(arr[i] + rng.uniform(-width, width), -1.0, 1.0))
+            else:
+                arr[i] = float(rng.uniform(-1.0, 1.0))
     return FixedNetwork(w, th, func)
 
 

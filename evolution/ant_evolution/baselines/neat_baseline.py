@@ -8,15 +8,31 @@ from the run's seed), and a fitness function that compiles every genome into a
 ``FeedForwardNetwork.create`` builds, computed with numpy) and scores it on the same
 scenarios and the same batched kernel path as the fixed network.
 
-Nodes use neat-python's ``sum`` aggregation and ``sigmoid`` activation; behaviour q fires
-when output q is at least 0.5 (the sigmoid's midpoint).
+Two switches of the run's profile (:mod:`ant_evolution.profiles`) make the comparison like
+for like:
 
-:class:`NeatGenome` is neat-python's ``DefaultGenome`` with one change that leaves every
+* ``neat_activation``: ``"sigmoid"`` (``v1``): neat-python's ``sum`` aggregation and
+  ``sigmoid`` activation, behaviour q fires when output q is at least 0.5 (the sigmoid's
+  midpoint). ``"modular"`` (``paper``): the neuron of ANT and of the fixed networks, the
+  weighted mean of the inputs and the modular activation function (section 3.3, "the
+  transfer function used is the modular activation function"): the four functions
+  (``k1, k2``) are neat-python activation options that mutate like any other, the node's
+  bias is ``theta1`` and its response ``theta2``, and weights, bias and response live in
+  ``[-1, 1]`` as ANT's parameters do.
+* ``neat_budget``: ``"library"`` (``v1``): neat-python's usual rates (80 % of the weights
+  perturbed per offspring, a node added with p = 0.2, a connection with 0.5). ``"ant"``
+  (``paper``): ANT's budget: each weight, bias, response and activation mutates with the
+  run's ``mutation_prob`` (perturbed when ``mutation_operator`` is ``perturb``, redrawn
+  otherwise), structural additions and deletions with p = 0.05 (the mean of ANT's cell
+  replication probability, uniform in 0..0.1), and the run's ``elitism``.
+
+:class:`NeatGenome` is neat-python's ``DefaultGenome`` with changes that leave every
 result as it was: crossover's check that an inherited connection closes no cycle, which
 the library does by rescanning every connection of the child (quadratic: about 0.1 s per
 child of 1,600 connections, most of a generation), is answered once per child from the
-fitter parent's graph instead, with the same answers, so children, random draws and runs
-are unchanged.
+fitter parent's graph instead, with the same answers; and the connection genes' copy,
+crossover and mutation are written out with the library's random draws. Children, random
+draws and runs are unchanged.
 """
 
 from __future__ import annotations
@@ -30,7 +46,13 @@ import numpy as np
 from neat.genes import DefaultConnectionGene
 
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS
-from ant_evolution.baselines.network import ACT_IDENTITY, ACT_SIGMOID, AGG_SUM, NetworkProgram
+from ant_evolution.baselines.network import (
+    ACT_IDENTITY,
+    ACT_SIGMOID,
+    AGG_MEAN,
+    AGG_SUM,
+    NetworkProgram,
+)
 
 NEAT_CONFIG_TEMPLATE = """\
 [NEAT]
@@ -259,29 +281,129 @@ def _closes_cycle(successors: dict[int, list[int]], key: tuple[int, int]) -> boo
     return False
 
 
-def neat_config(path: Path, population: int, hidden: int):
-    """Write the run's neat-python configuration to ``path`` and load it."""
-    path.write_text(
-        NEAT_CONFIG_TEMPLATE.format(
-            population=population,
-            inputs=N_SENSORS,
-            outputs=N_BEHAVIOURS,
-            hidden=hidden,
-            genome_section=NeatGenome.__name__,
-        ),
-        encoding="utf-8",
+def modular_down(z: float) -> float:
+    """neat-python activation option ``modular_down`` (k1 = 0, k2 = 0); compiled, never run."""
+    return z
+
+
+def modular_up(z: float) -> float:
+    """neat-python activation option ``modular_up`` (k1 = 0, k2 = 1); compiled, never run."""
+    return z
+
+
+def modular_ditch(z: float) -> float:
+    """neat-python activation option ``modular_ditch`` (k1 = 1, k2 = 0); compiled, never run."""
+    return z
+
+
+def modular_mound(z: float) -> float:
+    """neat-python activation option ``modular_mound`` (k1 = 1, k2 = 1); compiled, never run."""
+    return z
+
+
+MODULAR = (modular_down, modular_up, modular_ditch, modular_mound)
+"""The modular activation's four functions, index = ``k1 * 2 + k2`` (the kernel's code)."""
+STRUCTURE_PROB = 0.05
+"""``neat_budget = "ant"``: probability of each structural mutation per offspring."""
+
+
+def config_overrides(
+    activation: str = "sigmoid",
+    budget: str = "library",
+    mutation_prob: float = 0.025,
+    perturb: bool = False,
+    width: float = 0.1,
+    elitism: int = 2,
+) -> dict[str, str]:
+    """Keys of :data:`NEAT_CONFIG_TEMPLATE` that the two switches change (module docstring)."""
+    out: dict[str, str] = {}
+    if activation == "modular":
+        names = " ".join(f.__name__ for f in MODULAR)
+        out.update(
+            activation_default="random",
+            activation_options=names,
+            activation_mutate_rate="0.1",
+            bias_init_type="uniform",
+            bias_init_mean="0.0",
+            bias_init_stdev="0.5",
+            bias_max_value="1.0",
+            bias_min_value="-1.0",
+            response_init_type="uniform",
+            response_init_mean="0.0",
+            response_init_stdev="0.5",
+            response_max_value="1.0",
+            response_min_value="-1.0",
+            response_mutate_power="0.5",
+            response_mutate_rate="0.7",
+            response_replace_rate="0.1",
+            weight_init_type="uniform",
+            weight_init_stdev="0.5",
+            weight_max_value="1.0",
+            weight_min_value="-1.0",
+        )
+    elif activation != "sigmoid":
+        raise ValueError(f"neat_activation {activation!r}: must be sigmoid or modular")
+    if budget == "ant":
+        p = f"{mutation_prob:g}"
+        power = f"{2.0 * width / 1.7320508:g}"  # the stdev of U(-w, w) times the range 2
+        mutate, replace = (p, "0.0") if perturb else ("0.0", p)
+        for gene in ("bias", "response", "weight"):
+            out[f"{gene}_mutate_rate"] = mutate
+            out[f"{gene}_replace_rate"] = replace
+            out[f"{gene}_mutate_power"] = power
+        if activation == "modular":
+            out["activation_mutate_rate"] = p
+        else:  # the sigmoid's response stays 1, as in the library budget
+            out.update(response_mutate_rate="0.0", response_replace_rate="0.0")
+        out.update(
+            enabled_mutate_rate=p,
+            conn_add_prob=f"{STRUCTURE_PROB:g}",
+            conn_delete_prob=f"{STRUCTURE_PROB:g}",
+            node_add_prob=f"{STRUCTURE_PROB:g}",
+            node_delete_prob=f"{STRUCTURE_PROB:g}",
+            elitism=str(elitism),
+        )
+    elif budget != "library":
+        raise ValueError(f"neat_budget {budget!r}: must be library or ant")
+    return out
+
+
+def neat_config_text(population: int, hidden: int, overrides: dict[str, str] | None = None) -> str:
+    """The run's ``neat.ini``: the template with ``overrides`` (``key = value`` lines)."""
+    text = NEAT_CONFIG_TEMPLATE.format(
+        population=population,
+        inputs=N_SENSORS,
+        outputs=N_BEHAVIOURS,
+        hidden=hidden,
+        genome_section=NeatGenome.__name__,
     )
-    return neat.Config(
+    lines = []
+    for line in text.splitlines():
+        key = line.split("=", 1)[0].strip()
+        if "=" in line and key in (overrides or {}):
+            line = f"{key.ljust(23)} = {overrides[key]}"
+        lines.append(line)
+    return "\n".join(lines) + "\n"
+
+
+def neat_config(path: Path, population: int, hidden: int, overrides: dict[str, str] | None = None):
+    """Write the run's neat-python configuration to ``path`` and load it."""
+    path.write_text(neat_config_text(population, hidden, overrides), encoding="utf-8")
+    config = neat.Config(
         NeatGenome,
         neat.DefaultReproduction,
         neat.DefaultSpeciesSet,
         neat.DefaultStagnation,
         str(path),
     )
+    for f in MODULAR:
+        config.genome_config.add_activation(f.__name__, f)
+    return config
 
 
 _ACTIVATIONS = {"sigmoid": ACT_SIGMOID, "identity": ACT_IDENTITY}
-"""neat-python activation names that compile, and their network-program codes."""
+"""neat-python activation names that compile to a sum node, and their network-program codes."""
+_MODULAR_CODES = {f.__name__: i for i, f in enumerate(MODULAR)}
 
 
 def compile_neat(genome, config) -> NetworkProgram:
@@ -293,6 +415,8 @@ def compile_neat(genome, config) -> NetworkProgram:
     genome's order. Nodes are laid out by depth (0: no required predecessor), an
     evaluation order as good as the library's layers, since a node's value depends on its
     inputs' values alone. Input key ``-1 - i`` is sensor i; output key q is behaviour q.
+    A node with one of the :data:`MODULAR` activations becomes ANT's neuron (weighted mean,
+    modular activation with ``theta1`` = bias, ``theta2`` = response).
     """
     gc = config.genome_config
     outputs = list(gc.output_keys)
@@ -335,24 +459,27 @@ def compile_neat(genome, config) -> NetworkProgram:
     e = e[np.argsort(position[dst[e]], kind="stable")]  # by node, genome order within
     edge_src = np.where(from_node[e], N_SENSORS + position[np.maximum(src[e], 0)], -1 - src_key[e])
     counts = np.bincount(position[dst[e]], minlength=order.size)
-    act, bias, resp = [], [], []
+    act, agg, theta, bias, resp = [], [], [], [], []
     for j in order:
         key = node_keys[j]
         ng = genome.nodes[key]
         if ng.aggregation != "sum":
             raise ValueError(f"NEAT node {key}: only the sum aggregation compiles")
-        if ng.activation not in _ACTIVATIONS:
+        modular = _MODULAR_CODES.get(ng.activation, -1)
+        if modular < 0 and ng.activation not in _ACTIVATIONS:
             raise ValueError(f"NEAT node {key}: only sigmoid and identity activations compile")
-        act.append(_ACTIVATIONS[ng.activation])
+        act.append(modular if modular >= 0 else _ACTIVATIONS[ng.activation])
+        agg.append(AGG_MEAN if modular >= 0 else AGG_SUM)
+        theta.append((ng.bias, ng.response) if modular >= 0 else (0.0, 0.0))
         bias.append(ng.bias)
         resp.append(ng.response)
     m = order.size
     return NetworkProgram(
         node_act=np.asarray(act, dtype=np.int64).reshape(m),
-        node_agg=np.full(m, AGG_SUM, dtype=np.int64),
+        node_agg=np.asarray(agg, dtype=np.int64).reshape(m),
         node_bias=np.asarray(bias, dtype=np.float64).reshape(m),
         node_resp=np.asarray(resp, dtype=np.float64).reshape(m),
-        node_theta=np.zeros((m, 2)),
+        node_theta=np.asarray(theta, dtype=np.float64).reshape(m, 2),
         edge_start=np.concatenate(([0], np.cumsum(counts))).astype(np.int64),
         edge_src=edge_src.astype(np.int64),
         edge_w=weight[e],

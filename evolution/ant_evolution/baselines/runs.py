@@ -36,7 +36,12 @@ import numpy as np
 from ant_evolution.backends import CompileHere, Evaluator
 from ant_evolution.baselines import fixed
 from ant_evolution.baselines.fixed import FixedNetwork, FixedTopology, compile_fixed
-from ant_evolution.baselines.neat_baseline import compile_neat, neat_config, neat_hidden
+from ant_evolution.baselines.neat_baseline import (
+    compile_neat,
+    config_overrides,
+    neat_config,
+    neat_hidden,
+)
 from ant_evolution.baselines.network import NetworkProgram
 from ant_evolution.errors import CheckpointError
 from ant_evolution.evolve import (
@@ -160,7 +165,7 @@ class FixedStrategy:
             fitness,
             self.config.ga,
             crossover=functools.partial(fixed.crossover, topology=state.topology),
-            mutate=fixed.mutate,
+            mutate=functools.partial(fixed.mutate, topology=state.topology),
         )
         return FixedState(population, rng.bit_generator.state, state.topology)
 
@@ -265,7 +270,15 @@ class NeatStrategy:
         self.run_key = "neat-" + config.run_key()
         self.out = out
         hidden = neat_hidden(config.seed, config.neurons)
-        self.neat_config = neat_config(out / "neat.ini", config.population, hidden)
+        overrides = config_overrides(
+            config.neat_activation,
+            config.neat_budget,
+            config.mutation_prob,
+            config.mutation_operator == "perturb",
+            config.mutation_width,
+            config.elitism,
+        )
+        self.neat_config = neat_config(out / "neat.ini", config.population, hidden, overrides)
 
     def init(self) -> NeatState:
         """neat-python's initial population (seeded with ``config.seed``)."""

@@ -19,6 +19,7 @@ from pathlib import Path
 from ant_evolution.errors import CheckpointError, ConfigError
 from ant_evolution.experiments.core import SCALES, Context, scale_dict
 from ant_evolution.limits import MAX_WORKERS, option
+from ant_evolution.profiles import PROFILES, assignment, resolve_switches
 from excavation_common.limits import int_in
 
 
@@ -71,6 +72,21 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="behaviours: replay only this many generations",
     )
+    p.add_argument(
+        "--profile",
+        choices=tuple(PROFILES),
+        default="v1",
+        help="readings of the paper for training and scoring: v1 (default) or paper",
+    )
+    p.add_argument(
+        "--set",
+        dest="assignments",
+        action="append",
+        type=assignment,
+        default=[],
+        metavar="KEY=VALUE",
+        help="override one switch of the profile (repeatable)",
+    )
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
     scale = SCALES[args.scale]
@@ -85,6 +101,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.replay is not None and not (args.replay / "config.yaml").is_file():
         p.error(f"--replay {args.replay}: no config.yaml there")
+    try:
+        switches = resolve_switches(args.profile, args.assignments)
+    except ConfigError as exc:
+        print(f"ant-experiment: error: {exc}", file=sys.stderr)
+        return 2
     ctx = Context(
         args.out,
         scale,
@@ -94,10 +115,14 @@ def main(argv: list[str] | None = None) -> int:
         args.genome,
         args.replay,
         args.generations,
+        args.profile,
+        switches,
     )
     args.out.mkdir(parents=True, exist_ok=True)
+    readings = {} if args.profile == "v1" and not args.assignments else {
+        "profile": args.profile, "switches": switches}  # fmt: skip
     (ctx.dir(args.name) / "scale.json").write_text(
-        json.dumps({**scale_dict(scale), "runs": runs}, indent=1)
+        json.dumps({**scale_dict(scale), "runs": runs, **readings}, indent=1)
     )
     try:
         experiments[args.name](ctx)

@@ -26,7 +26,9 @@ from ant_evolution.baselines.network import NetworkProgram
 from ant_evolution.baselines.runs import load_program, run_fixed, run_neat
 from ant_evolution.evaluate import ScenarioSet
 from ant_evolution.evolve import EvolveConfig, run_evolution
+from ant_evolution.profiles import profile_switches, world_rules_of
 from blueprint_server.blueprint import Blueprint, pit_blueprint
+from excavation_sim.rules import DEFAULT_RULES, WorldRules
 
 METHODS = ("ant", "ant-nocc", "fixed", "neat")
 METHOD_LABELS = {
@@ -154,6 +156,11 @@ class Context:
         replay: ``behaviours``: the ANT run directory to replay (``None``: this scale's
             4-robot run r0).
         generations: ``behaviours``: replay only this many generations.
+        profile: The readings of the paper (``v1`` or ``paper``,
+            :mod:`ant_evolution.profiles`); training runs of another profile than ``v1``
+            live under ``runs/SCALE-PROFILE``.
+        switches: Every switch (the profile's, with ``--set`` applied); ``None``: the
+            profile's.
     """
 
     out: Path
@@ -164,6 +171,18 @@ class Context:
     genome: Path | None = None
     replay: Path | None = None
     generations: int | None = None
+    profile: str = "v1"
+    switches: dict | None = None
+
+    @property
+    def readings(self) -> dict:
+        """Every switch of this context."""
+        return dict(self.switches) if self.switches is not None else profile_switches(self.profile)
+
+    @property
+    def rules(self) -> WorldRules:
+        """The world's switches."""
+        return world_rules_of(self.readings)
 
     def dir(self, name: str) -> Path:
         """Output directory of experiment ``name``."""
@@ -200,12 +219,13 @@ def train_config(ctx: Context, method: str, robots, run: int) -> EvolveConfig:
         kw.update(robots=robots[0], robots_mix=robots)
     else:
         kw["robots"] = int(robots)
-    return EvolveConfig(**kw)
+    return EvolveConfig(profile=ctx.profile, **ctx.readings, **kw)
 
 
 def run_dir(ctx: Context, method: str, robots, run: int) -> Path:
-    """Directory of one training run."""
-    return ctx.out / "runs" / ctx.scale.name / f"{method}-{setting_label(robots)}-r{run}"
+    """Directory of one training run (``runs/SCALE`` under ``v1``, else ``SCALE-PROFILE``)."""
+    scale = ctx.scale.name if ctx.profile == "v1" else f"{ctx.scale.name}-{ctx.profile}"
+    return ctx.out / "runs" / scale / f"{method}-{setting_label(robots)}-r{run}"
 
 
 def _finished(d: Path) -> bool:
@@ -311,9 +331,17 @@ def four_robot_genome(ctx: Context) -> Path:
     return best_of_runs(ctx, "ant", n)[0]
 
 
-def score(controller, blueprint: Blueprint, robots: int, scenarios: int, steps: int, seed: int):
+def score(
+    controller,
+    blueprint: Blueprint,
+    robots: int,
+    scenarios: int,
+    steps: int,
+    seed: int,
+    rules: WorldRules = DEFAULT_RULES,
+):
     """Final fitness of a controller (ANT, hand-coded or network program) per scenario."""
-    return ScenarioSet.create(blueprint, robots, scenarios, steps, seed).score(controller)
+    return ScenarioSet.create(blueprint, robots, scenarios, steps, seed, rules).score(controller)
 
 
 def score_depths(controller, ctx: Context, robots: int, steps: int | None = None, size: int = 8):
@@ -325,14 +353,18 @@ def score_depths(controller, ctx: Context, robots: int, steps: int | None = None
     for i, d in enumerate(s.depths):
         k = s.eval_scenarios // n + (i < s.eval_scenarios % n)
         if k:
-            bp = site(size, d)
-            scores.append(score(controller, bp, robots, k, steps, EVAL_SEED + 97 * i + robots))
+            bp = site(size, d, ctx.rules.fitted_site)
+            seed = EVAL_SEED + 97 * i + robots
+            scores.append(score(controller, bp, robots, k, steps, seed, ctx.rules))
     return np.concatenate(scores)
 
 
-def site(pit: int, depth: int) -> Blueprint:
-    """A square pit of ``pit`` cells (dump band 2) centred on a grid of at least 16 x 16."""
-    grid = max(16, pit + 8)
+def site(pit: int, depth: int, fitted: bool = False) -> Blueprint:
+    """A square pit of ``pit`` cells (dump band 2) centred on a grid of at least 16 x 16.
+
+    ``fitted`` (switch ``site = "fitted"``): the grid is the pit plus its dump band.
+    """
+    grid = pit + 4 if fitted else max(16, pit + 8)
     return pit_blueprint((grid, grid), (pit, pit), depth, 2, name=f"{pit}x{pit} depth {depth}")
 
 

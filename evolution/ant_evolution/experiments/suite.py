@@ -265,7 +265,7 @@ def scaleup(ctx: Context) -> None:
         for label, m, r in plan:
             path, _ = best_of_runs(ctx, m, r)
             rows += _sweep(ctx, load_controller(path), label, bar)
-        rows += _sweep(ctx, Controller.hand_coded(), "hand-coded", bar)
+        rows += _sweep(ctx, Controller.hand_coded(ctx.readings["hand_coded"]), "hand-coded", bar)
     write_csv(ctx.dir("scaleup") / "scaleup.csv", rows)
     labels = [p[0] for p in plan] + ["hand-coded"]
     by = {(r["controller"], r["robots"]): r for r in rows}
@@ -392,7 +392,8 @@ def depth(ctx: Context) -> None:
     ctl, note = _genome_note(ctx)
     rows = _robot_grid(
         ctx, "depth", s.depths, "depth",
-        lambda d, n: score(ctl, site(8, d), n, s.eval_scenarios, s.long_steps, EVAL_SEED + n),
+        lambda d, n: score(ctl, site(8, d, ctx.rules.fitted_site), n, s.eval_scenarios,
+                           s.long_steps, EVAL_SEED + n, ctx.rules),
         f"fitness after {s.long_steps} steps",
     )  # fmt: skip
     write_section(

@@ -23,8 +23,13 @@ setup(
         "overhead_localizer",
         "terrain_mapper",
         "blade_driver",
+        "team_supervisor",
+        "drive_executor",
         "excavation_bags",
         "numpy",
+        "pyyaml",
+        "foxglove-sdk",
+        "matplotlib",
     ],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
@@ -34,6 +39,10 @@ setup(
     entry_points={
         "console_scripts": [
             "ant-trial = excavation_bringup.trial:main",
+            "ant-dome = excavation_bringup.dome:main",
+            "ant-view = excavation_bringup.view:main",
+            "ant-soak = excavation_bringup.soak:main",
+            "team_tick = excavation_bringup.team_tick_node:main",
         ],
     },
 )

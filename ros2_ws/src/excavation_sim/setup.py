@@ -36,6 +36,7 @@ setup(
         "console_scripts": [
             "sim = excavation_sim.sim_node:main",
             "sensors = excavation_sim.sensors_node:main",
+            "dynamics = excavation_sim.dynamics_node:main",
         ],
     },
 )

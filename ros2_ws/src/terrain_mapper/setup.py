@@ -15,7 +15,14 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*")),
     ],
-    install_requires=["numpy", "pyyaml", "matplotlib", "blueprint_server", "excavation_common"],
+    install_requires=[
+        "numpy",
+        "pyyaml",
+        "matplotlib",
+        "blueprint_server",
+        "excavation_common",
+        "rosbags",
+    ],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
     maintainer_email="maintainers@ant-excavation.org",
@@ -25,6 +32,7 @@ setup(
         "console_scripts": [
             "mapper = terrain_mapper.mapper_node:main",
             "field-metrics = terrain_mapper.field_metrics:main",
+            "calibrate_mount = terrain_mapper.calibrate_mount:main",
         ],
     },
 )

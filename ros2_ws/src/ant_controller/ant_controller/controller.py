@@ -19,9 +19,10 @@ import numpy as np
 
 from ant_controller.genome import Genome, TissueGene
 from ant_controller.genome_io import load_genome
-from ant_controller.hand_coded import HandCodedRules, hand_coded_decide
+from ant_controller.hand_coded import HandCodedRules, hand_coded_program
 from ant_controller.layout import N_SENSORS
 from ant_controller.memory import next_memory
+from ant_controller.readings import H1_RELATIVE, HAND_CODED_READINGS, ReadingError
 from ant_controller.sensing import is_tilted_down, sensor_vector
 from ant_controller.tissue import CompiledTissue, TissueRecord, compile_tissue, decide
 
@@ -38,12 +39,15 @@ class Controller:
         tissue: The compiled tissue (an empty one for the hand-coded controller).
         name: Label for reports.
         robots: The genome's N gene, if it has one.
+        union: Hand-coded only: the paper's reading of the rules (rules 3-11 as a union),
+            else the first-match chain (:mod:`ant_controller.hand_coded`).
     """
 
     kind: int
     tissue: CompiledTissue
     name: str
     robots: int | None = None
+    union: bool = False
 
     @classmethod
     def from_genome(cls, genome: Genome, name: str = "genome") -> Controller:
@@ -56,21 +60,31 @@ class Controller:
         return cls.from_genome(load_genome(path), name=str(path))
 
     @classmethod
-    def hand_coded(cls) -> Controller:
-        """The appendix's hand-coded controller."""
-        return cls(KIND_HAND_CODED, _EMPTY_TISSUE, "hand-coded")
+    def hand_coded(cls, reading: str = "chain") -> Controller:
+        """The appendix's hand-coded controller (``reading``: ``"chain"`` or ``"union"``).
+
+        Raises:
+            ReadingError: For another reading.
+        """
+        if reading not in HAND_CODED_READINGS:
+            raise ReadingError(
+                "<arguments>", "hand_coded", reading, f"must be one of {HAND_CODED_READINGS}"
+            )
+        union = reading == "union"
+        name = "hand-coded (union)" if union else "hand-coded"
+        return cls(KIND_HAND_CODED, _EMPTY_TISSUE, name, union=union)
 
     def record(self) -> TissueRecord | HandCodedRules:
         """The decision program as the kernels take it (a tissue record or the rules)."""
         if self.kind == KIND_HAND_CODED:
-            return HandCodedRules()
+            return HandCodedRules(self.union)
         return self.tissue.record()
 
     def decide(self, codes: np.ndarray) -> int:
         """Behaviour mask for one sensor vector."""
         c = np.asarray(codes, dtype=np.int64)
         if self.kind == KIND_HAND_CODED:
-            return int(hand_coded_decide(c))
+            return int(hand_coded_program(c, HandCodedRules(self.union)))
         return int(decide(c, self.tissue.record()))
 
 
@@ -84,10 +98,13 @@ class ControllerCore:
     Attributes:
         controller: What decides.
         memory: The memory bit M1.
+        h1_frame: H1 relative to the robot's heading or on the compass
+            (:mod:`ant_controller.readings`: ``ControllerReadings.h1_frame``).
     """
 
     controller: Controller
     memory: int = 0
+    h1_frame: int = H1_RELATIVE
     _codes: np.ndarray = field(default_factory=lambda: np.zeros(N_SENSORS, dtype=np.int64))
 
     def decide(
@@ -130,6 +147,7 @@ class ControllerCore:
             tilted=bool(is_tilted_down(heights, row, col, heading)),
             memory=bool(self.memory),
             active=active,
+            h1_frame=self.h1_frame,
         )
         mask = self.controller.decide(self._codes)
         self.memory = int(next_memory(self.memory, mask))

@@ -46,8 +46,13 @@ from ant_controller.layout import (
     Z_DUMP,
     Z_LEVEL,
 )
+from ant_controller.readings import H1_ABSOLUTE, H1_RELATIVE
 from excavation_common.constants import (  # noqa: F401 (re-exported for the kernels)
+    EAST,
     MAX_LOAD,
+    NORTH,
+    SOUTH,
+    WEST,
     ZONE_DIG,
     ZONE_DONT_CARE,
     ZONE_DUMP,
@@ -245,7 +250,35 @@ def relative_bearing(poses, k, j):
 
 
 @nb.njit(cache=True, inline="always")
-def sense(heights, zones, goal, poses, active, k, blade, load_volume, stuck, tilted, memory, out):
+def absolute_bearing(poses, k, j):
+    """H1, paper reading: the compass bearing of robot j from robot k (0 N, 1 E, 2 S, 3 W).
+
+    The dominant axis of the anchor offset wins; ties go to north / south.
+    """
+    dr = poses[j, POSE_ROW] - poses[k, POSE_ROW]
+    dc = poses[j, POSE_COL] - poses[k, POSE_COL]
+    if abs(dr) >= abs(dc):
+        return NORTH if dr >= 0 else SOUTH
+    return EAST if dc > 0 else WEST
+
+
+@nb.njit(cache=True, inline="always")
+def bearing_code(poses, k, j, h1_frame):
+    """H1 of robot k for nearest robot j (-1: alone) in the frame ``h1_frame``.
+
+    A robot alone reads ahead (relative frame) or north (absolute frame), code 0 in both.
+    """
+    if j < 0:
+        return AHEAD if h1_frame == H1_RELATIVE else NORTH
+    if h1_frame == H1_ABSOLUTE:
+        return absolute_bearing(poses, k, j)
+    return relative_bearing(poses, k, j)
+
+
+@nb.njit(cache=True, inline="always")
+def sense(
+    heights, zones, goal, poses, active, k, blade, load_volume, stuck, tilted, memory, out, h1_frame
+):
     """Fill ``out`` (length 14, integer) with robot k's sensor vector (Table 1).
 
     Args:
@@ -262,6 +295,7 @@ def sense(heights, zones, goal, poses, active, k, blade, load_volume, stuck, til
         tilted: R1 flag.
         memory: M1 bit.
         out: Output array, length ``N_SENSORS``.
+        h1_frame: ``H1_RELATIVE`` or ``H1_ABSOLUTE`` (:mod:`ant_controller.readings`).
     """
     row = poses[k, POSE_ROW]
     col = poses[k, POSE_COL]
@@ -291,7 +325,7 @@ def sense(heights, zones, goal, poses, active, k, blade, load_volume, stuck, til
     out[S1] = obstacle
     j, gap = nearest_robot(poses, active, k)
     out[D1] = gap if gap < SENSE_RANGE else SENSE_RANGE
-    out[H1] = relative_bearing(poses, k, j) if j >= 0 else AHEAD
+    out[H1] = bearing_code(poses, k, j, h1_frame)
     out[R1] = 1 if tilted else 0
     out[U1] = 1 if stuck else 0
     out[M1] = 1 if memory else 0
@@ -310,6 +344,7 @@ def sensor_vector(
     tilted: bool,
     memory: bool,
     active: np.ndarray | None = None,
+    h1_frame: int = H1_RELATIVE,
 ) -> np.ndarray:
     """Convenience wrapper around :func:`sense` that allocates and returns the vector."""
     out = np.zeros(N_SENSORS, dtype=np.int64)
@@ -328,5 +363,6 @@ def sensor_vector(
         tilted,
         memory,
         out,
+        h1_frame,
     )
     return out

@@ -40,6 +40,7 @@ from ant_controller.layout import (
     Z_DUMP,
     Z_LEVEL,
 )
+from ant_controller.readings import H1_ABSOLUTE, H1_RELATIVE
 from ant_controller.sensing import (
     FORWARD,
     FRONT_LEFT,
@@ -49,6 +50,7 @@ from ant_controller.sensing import (
     ZONE_DIG,
     ZONE_DUMP,
 )
+from excavation_common.constants import EAST, NORTH, SOUTH, WEST
 
 Cell = tuple[int, int]
 
@@ -127,8 +129,13 @@ def sense_reference(
     stuck: bool,
     tilted: bool,
     memory: bool,
+    h1_frame: int = H1_RELATIVE,
 ) -> list[int]:
-    """Robot k's 14 sensor codes, one Table 1 rule after another (see the module docstring)."""
+    """Robot k's 14 sensor codes, one Table 1 rule after another (see the module docstring).
+
+    ``h1_frame``: H1 relative to the robot's heading (``H1_RELATIVE``) or as a compass
+    bearing (``H1_ABSOLUTE``), :mod:`ant_controller.readings`.
+    """
     pose = poses[k]
     out = [0] * N_SENSORS
     # Z1..Z4: the row of four cells ahead, against the blueprint.
@@ -162,7 +169,7 @@ def sense_reference(
     out[L1] = 0 if load_volume <= 0 else min(4, -(-4 * int(load_volume) // MAX_LOAD))
     out[S1] = int(obstacle)
     # D1, H1: the nearest other active robot (Chebyshev gap between footprints, ties to
-    # the lowest index) and its bearing from this robot's heading.
+    # the lowest index) and its bearing, from this robot's heading or on the compass.
     nearest, gap = -1, SENSE_RANGE
     best: int | None = None
     for j in range(len(poses)):
@@ -176,8 +183,15 @@ def sense_reference(
     if nearest >= 0:
         gap = best
     out[D1] = min(gap, SENSE_RANGE)
-    out[H1] = AHEAD
-    if nearest >= 0:
+    out[H1] = AHEAD if h1_frame == H1_RELATIVE else NORTH  # alone: code 0 either way
+    if nearest >= 0 and h1_frame == H1_ABSOLUTE:
+        dr = int(poses[nearest][0]) - int(pose[0])
+        dc = int(poses[nearest][1]) - int(pose[1])
+        if abs(dr) >= abs(dc):  # the dominant axis; ties to north / south
+            out[H1] = NORTH if dr >= 0 else SOUTH
+        else:
+            out[H1] = EAST if dc > 0 else WEST
+    elif nearest >= 0:
         h = int(pose[2])
         dr = int(poses[nearest][0]) - int(pose[0])
         dc = int(poses[nearest][1]) - int(pose[1])

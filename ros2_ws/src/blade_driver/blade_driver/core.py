@@ -17,6 +17,10 @@ On top of that nominal setting the driver adds what a real blade needs:
   soil contact) and stays there until commands return.
 * **Operator override.** A set-point from ``blade/commands`` wins over the controller while it
   is younger than ``override_timeout``.
+* **Hold.** While the team's :class:`~excavation_common.safety.MotionGate` is closed (e-stop,
+  pause, disabled robot, lost heartbeat, inactive node) the caller passes the reason as
+  ``hold`` and the blade goes home at once (no slew ramp), whatever the controller or the
+  operator asks.
 
 Time is whatever the caller passes: wall-clock seconds on hardware, simulated seconds in a
 lockstep trial, so the same core is deterministic in both.
@@ -236,18 +240,28 @@ class BladeDriverCore:
         """The set-point at ``now`` does not wait for a behaviour word (override or watchdog)."""
         return self.override_active(now) or self.watchdog_due(now)
 
-    def update(self, now: float, force: float | None) -> float:
+    def update(self, now: float, force: float | None, hold: str | None = None) -> float:
         """Advance to time ``now`` with the measured push force (N, None if unknown).
 
+        Args:
+            now: Seconds (wall or simulated).
+            force: Measured push force, N, or ``None``.
+            hold: Why the robot must stand still (the MotionGate's reason), or ``None``.
+                A hold sends the blade home at once (no ``max_speed`` ramp: the servo moves
+                at its own speed); it beats the operator and the controller.
+
         Returns:
-            The servo set-point (m), within the limits; after the first call it moves at
-            most ``max_speed * (now - previous now)``.
+            The servo set-point (m), within the limits; after the first call and unless
+            held it moves at most ``max_speed * (now - previous now)``.
         """
         p, s = self.params, self.state
         first = self._last_update is None
         dt = 0.0 if first else max(0.0, now - self._last_update)
         self._last_update = now
-        if self.override_active(now):
+        if hold is not None:
+            target, s.source, s.trim = p.home, f"hold: {hold}", 0.0
+            self._pid.reset()
+        elif self.override_active(now):
             target, s.source, s.trim = s.override, "operator override", 0.0
             self._pid.reset()
         else:
@@ -274,7 +288,7 @@ class BladeDriverCore:
             target = nominal + s.trim
             s.source = s.source if not s.trim else s.source + " (constant force)"
         target = min(p.position_max, max(p.position_min, target))
-        if not first:
+        if not first and hold is None:
             step = p.max_speed * dt
             target = min(s.setpoint + step, max(s.setpoint - step, target))
         s.setpoint = target

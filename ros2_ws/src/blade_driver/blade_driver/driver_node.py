@@ -6,6 +6,15 @@ r"""``ros2 run blade_driver driver``: one robot's blade, between its controller 
         -p backend:=serial -p port:=/dev/ttyUSB0
     ros2 run blade_driver driver --ros-args -r __ns:=/robot_0 --params-file config/driver.yaml
 
+A managed (lifecycle) node: with ``autostart`` (the default) it configures and activates
+itself at start; with ``autostart:=false`` a lifecycle manager drives it through
+``~/change_state``. It moves the blade only while it is *active* and the team's
+:class:`~excavation_common.safety.MotionGate` is open: no e-stop latched on ``/team/estop``,
+a heartbeat on ``/team/heartbeat`` younger than ``deadman`` that says ``armed``, and this
+robot enabled on ``enabled``. Otherwise the blade goes home at once (the gate is checked on
+every team-state message and ``safety_rate`` times a second) and stays home until the gate
+opens again; the operator's override does not beat a closed gate.
+
 Subscribes ``behaviour`` (std_msgs/UInt16, the controller's word) and ``blade/commands``
 (std_msgs/Float64MultiArray, one value per joint in ``joints``: the ros2_control
 forward-command convention, for an operator override); publishes ``blade/joint_states``
@@ -16,14 +25,20 @@ Backends (parameter ``backend``):
 
 * ``serial``: a servo board on ``port`` (:mod:`blade_driver.protocol`). A wall-clock timer at
   ``rate`` Hz reads the board, publishes the joint state, runs the force loop and sends the
-  set-point.
+  set-point. A port that is absent or fails (unplugged) is closed and reopened with
+  back-off (``reopen_initial`` doubling up to ``reopen_max``), reported on ``/diagnostics``.
 * ``sim``: the simulator's blade, through two topics in the style of
   topic_based_ros2_control: the simulator publishes ``blade/servo_state`` (JointState,
   stamped with its tick) and takes ``blade/servo_command`` (JointState, the set-point,
   stamped with the tick it is for). Time is the simulator's: watchdog and override
   timeouts count simulated seconds, so a lockstep trial is deterministic however slow the
   machine is. Each tick gets one set-point: at once when the watchdog or an override is in
-  charge, otherwise when the controller's word for that tick arrives.
+  charge, otherwise when the controller's word for that tick arrives. An operator set-point
+  counts from the first tick whose set-point is computed after it arrives (for
+  ``override_timeout`` of sim time), so every tick of a streamed override gets it. While the
+  gate is closed the driver sends home with ``frame_id`` :data:`~excavation_common.safety.HELD`
+  instead and leaves its core untouched; when the gate opens it sends the tick's own
+  set-point, so a paused lockstep trial ends as an unpaused one does.
 """
 
 from __future__ import annotations
@@ -32,24 +47,34 @@ import math
 import sys
 
 from builtin_interfaces.msg import Time as TimeMsg
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.node import Node
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, UInt16
+from std_msgs.msg import Bool, Float64MultiArray, Header, UInt16
 
-from blade_driver.core import BLADE_NAMES, BladeDriverCore, DriverParams
-from blade_driver.errors import BoardError, DriverConfigError
-from blade_driver.protocol import ServoCalibration
-from excavation_common.ros import spin_node
+from blade_driver.core import BLADE_NAMES, BladeDriverCore
+from blade_driver.errors import BoardError, DriverConfigError, PortError
+from blade_driver.params import JOINT, DriverNodeParams
+from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
+from excavation_common.safety import (
+    ENABLED_TOPIC,
+    ESTOP_TOPIC,
+    HEARTBEAT_TOPIC,
+    HELD,
+    MotionGate,
+)
 
-JOINT = "blade"
+SUCCESS = TransitionCallbackReturn.SUCCESS
 
 
-def joint_state(position: float, force: float, stamp: TimeMsg | None = None) -> JointState:
+def joint_state(
+    position: float, force: float, stamp: TimeMsg | None = None, frame_id: str = ""
+) -> JointState:
     """A ``blade`` joint state (position m, effort N)."""
     msg = JointState()
     if stamp is not None:
         msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
     msg.name = [JOINT]
     msg.position = [float(position)]
     msg.effort = [float(force)]
@@ -80,69 +105,159 @@ def _seconds(stamp: TimeMsg) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-class BladeDriverNode(Node):
+class BladeDriverNode(LifecycleNode):
     """The blade driver of one robot (run it in the robot's namespace)."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__("blade_driver", **kwargs)
-        p = self.declare_parameter
-        defaults = DriverParams()
-        values = {name: float(p(name, getattr(defaults, name)).value) for name in _PARAM_NAMES}
-        self.params = DriverParams(**values)
-        self.backend_name = str(p("backend", "sim").value)
-        self.joints = [str(j) for j in p("joints", [JOINT]).value]
-        rate = float(p("rate", 20.0).value)
-        calibration = ServoCalibration(
-            float(p("servo_zero_deg", 90.0).value),
-            float(p("servo_deg_per_m", 600.0).value),
-            float(p("servo_min_deg", 0.0).value),
-            float(p("servo_max_deg", 180.0).value),
-        )
-        port = str(p("port", "/dev/ttyUSB0").value)
-        baudrate = int(p("baudrate", 115200).value)
-        serial_timeout = float(p("serial_timeout", 0.1).value)
-        period = float(p("diagnostics_period", 1.0).value)
-        self.core = BladeDriverCore(self.params)
+        self.params = declare_params(self, DriverNodeParams, on_change=self.on_params)
+        p = self.params
+        self.core = BladeDriverCore(p.driver())
+        self.gate = MotionGate(deadman=p.deadman)
+        self.hold: str | None = self.gate.reason(self._wall())
+        self.lifecycle = "unconfigured"
         self.errors: dict[str, str] = {}
         self.force: float | None = None
         self.position: float | None = None
         self.board = None
-        self.port = ""
+        self.backoff = p.backoff()
+        self.reopened = 0
         self.tick_stamp: TimeMsg | None = None
-        self.sent_for: tuple[int, int] | None = None
+        self.word_tick: tuple[int, int] | None = None
+        self.open_setpoint: tuple[tuple[int, int], float] | None = None
+        self.pending_override: float | None = None
+        self.last_sent: tuple[tuple[int, int], str] | None = None
         self.commands = 0
         self._reported_source = ""
+        self._io: list = []
 
-        self.joint_pub = self.create_publisher(JointState, "blade/joint_states", 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.create_subscription(UInt16, "behaviour", self.on_behaviour, 10)
-        self.create_subscription(Float64MultiArray, "blade/commands", self.on_override, 10)
-        if self.backend_name == "sim":
+        self.create_subscription(Bool, ESTOP_TOPIC, self.on_estop, LATCHED)
+        self.create_subscription(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
+        self.create_subscription(Bool, ENABLED_TOPIC, self.on_enabled, LATCHED)
+        self.create_timer(1.0 / p.safety_rate, self.apply_gate)
+        self.create_timer(p.diagnostics_period, self.publish_diagnostics)
+        if p.autostart:
+            self.trigger_configure()
+            self.trigger_activate()
+
+    # --- lifecycle --------------------------------------------------------------------------
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Create the blade's topics (and the serial control loop)."""
+        p = self.params
+        self._io = [
+            self.create_subscription(UInt16, "behaviour", self.on_behaviour, 10),
+            self.create_subscription(Float64MultiArray, "blade/commands", self.on_override, 10),
+        ]
+        self.joint_pub = self.create_publisher(JointState, "blade/joint_states", 10)
+        if p.backend == "sim":
             self.servo_pub = self.create_publisher(JointState, "blade/servo_command", 10)
-            self.create_subscription(JointState, "blade/servo_state", self.on_servo_state, 10)
-        elif self.backend_name == "serial":
-            from blade_driver.serial_backend import SerialBackend
-
-            self.port = port
-            try:
-                self.board = SerialBackend(port, baudrate, serial_timeout, calibration)
-            except BoardError as exc:
-                self.errors["board"] = str(exc)
-                self.get_logger().error(str(exc))
-            self.create_timer(1.0 / rate, self.on_control_step)
-        else:
-            raise DriverConfigError(
-                "<parameters>", "backend", self.backend_name, "must be 'sim' or 'serial'"
+            self._io.append(
+                self.create_subscription(JointState, "blade/servo_state", self.on_servo_state, 10)
             )
-        self.create_timer(period, self.publish_diagnostics)
+        else:
+            self.backoff = p.backoff()
+            self.open_board()
+            self._io.append(self.create_timer(1.0 / p.rate, self.on_control_step))
+        self.lifecycle = "inactive"
+        self.apply_gate()
+        return SUCCESS
 
-    # --- time -------------------------------------------------------------------------------
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Allow motion (the team's gate still decides)."""
+        self.gate.active = True
+        self.lifecycle = "active"
+        self.apply_gate()
+        return SUCCESS
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Blade home at once; nothing moves until activated again."""
+        self.gate.active = False
+        self.lifecycle = "inactive"
+        self.apply_gate()
+        return SUCCESS
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Release the topics and the port."""
+        self.release()
+        self.lifecycle = "unconfigured"
+        return SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Blade home, then release everything."""
+        self.gate.active = False
+        self.apply_gate()
+        self.release()
+        self.lifecycle = "finalized"
+        return SUCCESS
+
+    def release(self) -> None:
+        """Destroy what :meth:`on_configure` created; close the port."""
+        for entity in self._io:
+            if hasattr(entity, "cancel"):
+                self.destroy_timer(entity)
+            else:
+                self.destroy_subscription(entity)
+        self._io = []
+        for name in ("joint_pub", "servo_pub"):
+            if hasattr(self, name):
+                self.destroy_publisher(getattr(self, name))
+                delattr(self, name)
+        if self.board is not None:
+            self.board.close()
+            self.board = None
+
+    def on_params(self, params: DriverNodeParams) -> None:
+        """A runtime change of the force loop or the timeouts."""
+        self.params = params
+        self.core.params = params.driver()
+        pid = self.core._pid
+        pid.kp, pid.ki, pid.kd, pid.limit = params.kp, params.ki, params.kd, params.trim_limit
+
+    # --- time and the team's gate -----------------------------------------------------------
+
+    def _wall(self) -> float:
+        """Seconds on the node's clock (what the deadman counts)."""
+        return self.get_clock().now().nanoseconds * 1e-9
 
     def _now(self) -> float:
         """Seconds on the driver's clock: the simulator's ticks, or the node's clock."""
-        if self.backend_name == "sim":
+        if self.params.backend == "sim":
             return _seconds(self.tick_stamp) if self.tick_stamp is not None else 0.0
-        return self.get_clock().now().nanoseconds * 1e-9
+        return self._wall()
+
+    def on_estop(self, msg: Bool) -> None:
+        """``/team/estop`` changed."""
+        self.gate.on_estop(msg.data)
+        self.apply_gate()
+
+    def on_heartbeat(self, msg: Header) -> None:
+        """A team heartbeat (``frame_id`` = team state)."""
+        self.gate.on_heartbeat(msg.frame_id, self._wall())
+        self.apply_gate()
+
+    def on_enabled(self, msg: Bool) -> None:
+        """This robot was enabled or disabled."""
+        self.gate.on_enabled(msg.data)
+        self.apply_gate()
+
+    def apply_gate(self) -> None:
+        """Act at once when the gate closes (blade home) or opens (follow the controller)."""
+        reason = self.gate.reason(self._wall())
+        if reason == self.hold:
+            return
+        self.hold = reason
+        if reason is not None:
+            self.get_logger().warning(f"blade home: {reason}")
+        else:
+            self.get_logger().info("team armed: blade follows the controller")
+        if self.lifecycle in ("inactive", "active"):
+            if self.params.backend == "sim":
+                self.send_sim_setpoint()
+            else:
+                self.on_control_step()
+        self.publish_diagnostics()
 
     # --- inputs -----------------------------------------------------------------------------
 
@@ -150,24 +265,34 @@ class BladeDriverNode(Node):
         """The controller's word: the blade setting it asks for."""
         self.commands += 1
         self.core.command(int(msg.data), self._now())
-        if self.backend_name == "sim" and self.tick_stamp is not None:
+        if self.params.backend == "sim" and self.tick_stamp is not None:
+            self.word_tick = (self.tick_stamp.sec, self.tick_stamp.nanosec)
             self.send_sim_setpoint()
 
     def on_override(self, msg: Float64MultiArray) -> None:
         """An operator set-point (forward-command convention: ``data[i]`` for ``joints[i]``)."""
         topic = "blade/commands"
+        joints = list(self.params.joints)
         try:
-            if len(msg.data) != len(self.joints):
+            if len(msg.data) != len(joints):
                 raise DriverConfigError(
-                    topic, "data", list(msg.data), f"needs one value per joint {self.joints}"
+                    topic, "data", list(msg.data), f"needs one value per joint {joints}"
                 )
-            self.core.override(float(msg.data[self.joints.index(JOINT)]), self._now())
+            value = float(msg.data[joints.index(JOINT)])
+            if self.params.backend == "sim":
+                if not math.isfinite(value):
+                    raise DriverConfigError(topic, "data[0]", value, "must be finite")
+                self.pending_override = value  # taken by the next set-point computed
+            else:
+                self.core.override(value, self._now())
         except (DriverConfigError, ValueError) as exc:
             self.errors[topic] = str(exc)
             self.get_logger().warning(str(exc), throttle_duration_sec=5.0)
             self.publish_diagnostics()
             return
         self.errors.pop(topic, None)
+        if self.params.backend == "sim" and self.tick_stamp is not None:
+            self.send_sim_setpoint()
 
     def on_servo_state(self, msg: JointState) -> None:
         """Sim backend: the simulator's blade for a new tick."""
@@ -181,36 +306,85 @@ class BladeDriverNode(Node):
         self.errors.pop(topic, None)
         self.tick_stamp = msg.header.stamp
         self.joint_pub.publish(joint_state(self.position, self.force, msg.header.stamp))
-        if self.core.needs_no_controller(self._now()):
-            self.send_sim_setpoint()
+        self.send_sim_setpoint()
 
     def send_sim_setpoint(self) -> None:
-        """Sim backend: the set-point for the current tick (at most one per tick)."""
-        stamp = (self.tick_stamp.sec, self.tick_stamp.nanosec)
-        if self.sent_for == stamp:
+        """Sim backend: the current tick's set-point, if it is due and not yet sent.
+
+        A closed gate sends home marked :data:`HELD` without touching the core; an open one
+        sends the tick's own set-point (computed once per tick, when the controller's word
+        is in or the watchdog or an override is in charge).
+        """
+        if self.tick_stamp is None or not hasattr(self, "servo_pub"):
             return
-        self.sent_for = stamp
-        setpoint = self.core.update(self._now(), self.force)
-        self.servo_pub.publish(joint_state(setpoint, 0.0, self.tick_stamp))
+        tick = (self.tick_stamp.sec, self.tick_stamp.nanosec)
+        if self.hold is not None:
+            value, kind = self.params.home, HELD
+        else:
+            if self.open_setpoint is None or self.open_setpoint[0] != tick:
+                if self.pending_override is not None:
+                    self.core.override(self.pending_override, self._now())
+                    self.pending_override = None
+                if self.word_tick != tick and not self.core.needs_no_controller(self._now()):
+                    return  # wait for the controller's word of this tick
+                self.open_setpoint = (tick, self.core.update(self._now(), self.force))
+            value, kind = self.open_setpoint[1], ""
+        if self.last_sent == (tick, kind):
+            return
+        self.last_sent = (tick, kind)
+        self.servo_pub.publish(joint_state(value, 0.0, self.tick_stamp, kind))
         self.report_changes()
+
+    def open_board(self) -> bool:
+        """Serial backend: try to open the port; on failure schedule the next try."""
+        from blade_driver.serial_backend import SerialBackend
+
+        p = self.params
+        try:
+            self.board = SerialBackend(p.port, p.baudrate, p.serial_timeout, p.calibration())
+        except PortError as exc:
+            delay = self.backoff.failed(self._wall())
+            self.fault(f"{exc}; retry in {delay:.1f} s")
+            return False
+        reopened = self.backoff.failures > 0
+        self.backoff.succeeded()
+        self.errors.pop("board", None)
+        if reopened:
+            self.reopened += 1
+            self.get_logger().info(f"{p.port}: port open again")
+            self.publish_diagnostics()
+        return True
+
+    def fault(self, message: str) -> None:
+        """Record a board fault (logged once per distinct message)."""
+        if self.errors.get("board") != message:
+            self.get_logger().error(message)
+            self.errors["board"] = message
+            self.publish_diagnostics()
 
     def on_control_step(self) -> None:
         """Serial backend: read the board, publish, run the force loop, send the set-point."""
         if self.board is None:
-            return
+            if not self.backoff.due(self._wall()) or not self.open_board():
+                return
+        now = self._wall()
         try:
             self.position, self.force = self.board.read()
             self.joint_pub.publish(
                 joint_state(self.position, self.force, self.get_clock().now().to_msg())
             )
-            self.board.set_position(self.core.update(self._now(), self.force))
+            self.board.set_position(self.core.update(now, self.force, self.gate.reason(now)))
+        except PortError as exc:
+            self.board.close()
+            self.board = None
+            delay = self.backoff.failed(self._wall())
+            self.fault(f"{exc}; port closed, reopening in {delay:.1f} s")
+            return
         except BoardError as exc:
-            if self.errors.get("board") != str(exc):
-                self.get_logger().error(str(exc))
-            self.errors["board"] = str(exc)
+            self.fault(str(exc))
             return
         if self.errors.pop("board", None) is not None:
-            self.get_logger().info(f"{self.port}: servo board answers again")
+            self.get_logger().info(f"{self.params.port}: servo board answers again")
         self.report_changes()
 
     def report_changes(self) -> None:
@@ -226,49 +400,48 @@ class BladeDriverNode(Node):
     # --- diagnostics ------------------------------------------------------------------------
 
     def publish_diagnostics(self) -> None:
-        """OK while the controller is in charge; WARN for watchdog/override; ERROR on faults."""
-        s = self.core.state
-        status = DiagnosticStatus(
-            name=f"{self.get_namespace().rstrip('/')}/blade_driver",
-            hardware_id=self.port if self.board is not None else f"sim{self.get_namespace()}",
-        )
+        """OK: the controller is in charge; WARN: held, watchdog or override; ERROR: faults."""
+        s, p = self.core.state, self.params
+        source = f"hold: {self.hold}" if self.hold is not None else s.source
         if self.errors:
-            status.level = DiagnosticStatus.ERROR
-            status.message = "; ".join([*self.errors.values(), f"blade: {s.source}"])
-        elif s.source.startswith("controller"):
-            status.level, status.message = DiagnosticStatus.OK, s.source
+            level = DiagnosticStatus.ERROR
+            message = "; ".join([*self.errors.values(), f"blade: {source}"])
+        elif source.startswith("controller"):
+            level, message = DiagnosticStatus.OK, source
         else:
-            status.level, status.message = DiagnosticStatus.WARN, s.source
-        status.values = [
-            KeyValue(key="backend", value=self.backend_name),
-            KeyValue(key="setting", value=BLADE_NAMES[s.setting]),
-            KeyValue(key="setpoint", value=f"{s.setpoint:.4f}"),
-            KeyValue(key="trim", value=f"{s.trim:.4f}"),
-            KeyValue(key="force", value="unknown" if self.force is None else f"{self.force:.3f}"),
-            KeyValue(key="commands", value=str(self.commands)),
-            KeyValue(key="override_clipped", value=str(s.clipped)),
-        ]
-        msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self.diag_pub.publish(msg)
+            level, message = DiagnosticStatus.WARN, source
+        values = {
+            "backend": p.backend,
+            "lifecycle": self.lifecycle,
+            "gate": self.hold or "open",
+            "setting": BLADE_NAMES[s.setting],
+            "setpoint": f"{s.setpoint:.4f}",
+            "trim": f"{s.trim:.4f}",
+            "force": "unknown" if self.force is None else f"{self.force:.3f}",
+            "commands": self.commands,
+            "override_clipped": s.clipped,
+        }
+        if p.backend == "serial":
+            values |= {
+                "port": p.port,
+                "port_open": self.board is not None,
+                "reopen_failures": self.backoff.failures,
+                "reopened": self.reopened,
+            }
+        hardware = p.port if p.backend == "serial" else f"sim{self.get_namespace()}"
+        self.diag_pub.publish(diagnostics(self, level, message, values, hardware_id=hardware))
 
     def destroy_node(self) -> None:
         """Close the serial port with the node."""
         if self.board is not None:
             self.board.close()
+            self.board = None
         super().destroy_node()
-
-
-_PARAM_NAMES = tuple(DriverParams.__dataclass_fields__)
 
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``ros2 run blade_driver driver``."""
-    try:
-        return spin_node(BladeDriverNode, args)
-    except DriverConfigError as exc:
-        print(f"driver: error: {exc}", file=sys.stderr)
-        return 2
+    return spin_node(BladeDriverNode, args)
 
 
 if __name__ == "__main__":

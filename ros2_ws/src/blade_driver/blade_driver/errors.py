@@ -11,3 +11,7 @@ class DriverConfigError(FieldError):
 
 class BoardError(Exception):
     """The servo board did not answer, or answered something the protocol does not allow."""
+
+
+class PortError(BoardError):
+    """The serial port cannot be opened or stopped working (unplugged): reopen it."""

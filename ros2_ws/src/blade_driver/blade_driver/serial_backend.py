@@ -2,14 +2,19 @@
 
 Uses pyserial. One request, one answer (see :mod:`blade_driver.protocol`); a missing, garbled
 or refused answer raises :class:`~blade_driver.errors.BoardError` with the port and the line,
-which the node reports on ``/diagnostics`` before it tries again on the next control step.
+which the node reports on ``/diagnostics`` before it tries again on the next control step. A
+port that cannot be opened, or whose I/O fails (the board was unplugged), raises
+:class:`~blade_driver.errors.PortError`: the node closes it and reopens it with back-off
+(:mod:`blade_driver.reconnect`).
 """
 
 from __future__ import annotations
 
+import termios
+
 import serial
 
-from blade_driver.errors import BoardError
+from blade_driver.errors import BoardError, PortError
 from blade_driver.protocol import ServoCalibration, decode, encode
 
 
@@ -23,7 +28,7 @@ class SerialBackend:
         calibration: Blade position to servo angle.
 
     Raises:
-        BoardError: The port cannot be opened.
+        PortError: The port cannot be opened.
     """
 
     def __init__(
@@ -38,15 +43,15 @@ class SerialBackend:
         try:
             self._serial = serial.Serial(port, baudrate=baudrate, timeout=timeout)
         except (serial.SerialException, OSError, ValueError) as exc:
-            raise BoardError(f"{port}: cannot open the servo board's port: {exc}") from exc
+            raise PortError(f"{port}: cannot open the servo board's port: {exc}") from exc
 
     def _request(self, *fields: object) -> list[str]:
         try:
             self._serial.reset_input_buffer()
             self._serial.write(encode(*fields))
             line = self._serial.readline()
-        except (serial.SerialException, OSError) as exc:
-            raise BoardError(f"{self.port}: serial I/O failed: {exc}") from exc
+        except (serial.SerialException, OSError, termios.error) as exc:  # termios: unplugged
+            raise PortError(f"{self.port}: serial I/O failed: {exc}") from exc
         reply = decode(line, self.port)
         if reply and reply[0] == "ERR":
             raise BoardError(f"{self.port}: board refused {fields[0]}: {' '.join(reply[1:])}")
@@ -81,5 +86,8 @@ class SerialBackend:
         return self.calibration.position(angle), force
 
     def close(self) -> None:
-        """Close the port."""
-        self._serial.close()
+        """Close the port (never raises: the device may be gone already)."""
+        try:
+            self._serial.close()
+        except (serial.SerialException, OSError):
+            pass

@@ -211,8 +211,16 @@ def pit_blueprint(
     return Blueprint(zones, goal, cell_size, height_unit, name=label)
 
 
-def default_blueprint(depth: int = 1) -> Blueprint:
-    """The paper's training site: an 8 x 8 pit of ``depth`` units centred in 16 x 16."""
+def default_blueprint(depth: int = 1, fitted: bool = False) -> Blueprint:
+    """The paper's training site: an 8 x 8 pit of ``depth`` units with a dump band of 2.
+
+    Args:
+        depth: Goal depth, soil units.
+        fitted: The grid is the pit plus its dump band (12 x 12, the paper profile's
+            ``site = "fitted"``); False: the pit centred in 16 x 16.
+    """
+    if fitted:
+        return pit_blueprint((12, 12), (8, 8), depth, 2, name=f"default 12x12 (depth {depth})")
     return pit_blueprint((16, 16), (8, 8), depth, 2, name=f"default (depth {depth})")
 
 
@@ -503,22 +511,26 @@ def load_blueprint(path: str | Path) -> Blueprint:
     return blueprint_from_dict(data, label)
 
 
-def resolve_blueprint(spec: str | None, depth: int = 1) -> Blueprint:
+def resolve_blueprint(spec: str | None, depth: int = 1, fitted: bool = False) -> Blueprint:
     """The one blueprint resolver of the suite (command lines, node parameters, configs).
 
     Args:
         spec: ``None`` or ``"default"`` (the default pit at ``depth``), ``"default:D"``
-            (goal depth ``D``), ``"landing-pad"``, or the path of a blueprint file.
-        depth: Goal depth of a plain ``"default"``.
+            (goal depth ``D``), ``"fitted"`` / ``"fitted:D"`` (the same pit on the grid of
+            the pit plus its dump band, the paper profile's site), ``"landing-pad"``, or
+            the path of a blueprint file.
+        depth: Goal depth of a plain ``"default"`` or ``"fitted"``.
+        fitted: The default pit on a grid of the pit plus its dump band (see
+            :func:`default_blueprint`); files and the landing pad keep their own grid.
 
     Raises:
         BlueprintError: A bad depth, or a file that is missing or malformed.
     """
-    if spec is None or spec == "default":
-        return default_blueprint(depth)
+    if spec is None or spec in ("default", "fitted"):
+        return default_blueprint(depth, fitted or spec == "fitted")
     if spec == "landing-pad":
         return landing_pad()
-    if spec.startswith("default:"):
+    if spec.startswith(("default:", "fitted:")):
         text = spec.partition(":")[2]
         if not text.isdigit() or int(text) < 1:
             raise BlueprintError(spec, "depth", text, "must be a positive integer")
@@ -526,5 +538,5 @@ def resolve_blueprint(spec: str | None, depth: int = 1) -> Blueprint:
             raise BlueprintError(
                 spec, "depth", text, f"must lie in 1..{MAX_DEPTH_UNITS} soil units (the limit)"
             )
-        return default_blueprint(int(text))
+        return default_blueprint(int(text), fitted or spec.startswith("fitted:"))
     return load_blueprint(spec)

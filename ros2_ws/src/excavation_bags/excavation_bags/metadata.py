@@ -26,6 +26,7 @@ from rosbags.interfaces import (
 
 from excavation_bags.errors import BagFormatError
 from excavation_common.files import write_text_atomic
+from excavation_common.loaders import load_yaml
 
 PRODUCER = "ant-bag"
 """``custom_data.producer`` of bags this project records."""
@@ -231,7 +232,8 @@ def read_metadata(bag_dir: Path) -> dict | None:
     if not meta.is_file():
         return None
     try:
-        data = yaml.safe_load(meta.read_text(encoding="utf-8"))
+        # Bounded (4 MiB), no duplicate keys or aliases: see excavation_common.loaders.
+        data = load_yaml(meta, BagFormatError, max_bytes=4 << 20)
         info = data["rosbag2_bagfile_information"]
         if not isinstance(info, dict):
             raise TypeError("not a mapping")

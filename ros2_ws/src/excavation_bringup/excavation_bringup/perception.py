@@ -8,9 +8,9 @@ controllers read. The camera is calibrated first, as in the field: marks at know
 are "clicked" in a frame (with pixel noise) and :func:`overhead_localizer.camera_model.calibrate`
 fits the model the localizer loads.
 
-The mapper starts from a level site (``prior_height`` 0: the survey before the robots
-enter), so the cells under the robots' start positions have a value before any beam
-reaches them.
+The mapper starts from a level site (``prior_known``, ``prior_height`` 0: the survey
+before the robots enter), so the cells under the robots' start positions have a value
+before any beam reaches them.
 """
 
 from __future__ import annotations
@@ -29,76 +29,124 @@ trial's single executor a few milliseconds; one such sweep still measures every 
 under a robot to 0.05 soil unit RMSE (docs/perception.md)."""
 
 
-def perception_nodes(context, robots: int, seed: int, blueprint) -> list:
-    """Sensors, localizer and mapper nodes for a lockstep trial on ``context``.
+def simulated_calibration(blueprint, seed: int):
+    """The synthetic camera over ``blueprint``'s site, calibrated from surveyed marks.
 
-    Args:
-        context: The rclpy context of the trial.
-        robots: Number of robots.
-        seed: Seed of the sensors' noise and of the calibration marks.
-        blueprint: The trial's :class:`blueprint_server.blueprint.Blueprint`.
+    As in the field: marks at known places are "clicked" in a frame (with pixel noise,
+    seeded by ``seed``) and :func:`overhead_localizer.camera_model.calibrate` fits the
+    model. ``ant-dome up --sim`` uses the same model as this trial.
     """
-    from rclpy.parameter import Parameter
-
     from excavation_sim.camera import (
         CameraParams,
         OverheadCamera,
         calibration_marks,
         default_beacons,
     )
-    from excavation_sim.sensors_node import SensorsNode
-    from overhead_localizer.camera_model import calibrate, save_model
-    from overhead_localizer.localizer_node import LocalizerNode
-    from terrain_mapper.mapper_node import MapperNode
+    from overhead_localizer.camera_model import calibrate
 
     rows, cols = blueprint.shape
     params = CameraParams.for_site(cols * blueprint.cell_size, rows * blueprint.cell_size)
     camera = OverheadCamera(params, default_beacons(), rows, cols, blueprint.cell_size, seed)
     pixels, points = calibration_marks(camera, np.random.default_rng([seed, 1]))
-    model = calibrate(pixels, points, (params.width, params.height))
+    return calibrate(pixels, points, (params.width, params.height))
+
+
+def perception_parameters(
+    robots: int, seed: int, blueprint, calibration: str, occlude: str = ""
+) -> dict:
+    """Parameters of the sensors, localizer and mapper of a lockstep trial.
+
+    Calibrates the camera (as :func:`perception_nodes` does) and writes the model to
+    ``calibration``, which the localizer's parameters name. Both trial modes use this:
+    composed nodes get the values as parameter overrides, processes as ``-p`` arguments.
+
+    Args:
+        robots: Number of robots.
+        seed: Seed of the sensors' noise and of the calibration marks.
+        blueprint: The trial's :class:`blueprint_server.blueprint.Blueprint`.
+        calibration: Path of the camera model file to write.
+        occlude: LEDs hidden from the camera (the sensors node's ``occlude``).
+
+    Returns:
+        ``{"sensors": {...}, "localizer": {...}, "mapper": {...}}``: name -> value.
+    """
+    from excavation_sim.laser import LaserParams
+    from overhead_localizer.camera_model import save_model
+
+    rows, cols = blueprint.shape
+    cell = float(blueprint.cell_size)
+    save_model(simulated_calibration(blueprint, seed), calibration)
+    laser = LaserParams.for_site(rows, cols, cell, sweep_scans=TRIAL_SWEEP_SCANS)
+    return {
+        "sensors": {
+            "robots": robots,
+            "seed": seed,
+            "truth_prefix": SIM_TRUTH_PREFIX,
+            "sweep_scans": laser.sweep_scans,
+            "cell_size": cell,
+            "rows": rows,
+            "cols": cols,
+            "reliable": True,
+            "occlude": occlude,
+        },
+        "localizer": {"robots": robots, "calibration": calibration, "reliable": True},
+        "mapper": {
+            "robots": robots,
+            "rows": rows,
+            "cols": cols,
+            "cell_size": cell,
+            "mount_x": float(laser.mount[0]),
+            "mount_y": float(laser.mount[1]),
+            "mount_z": float(laser.mount[2]),
+            "sweep_scans": laser.sweep_scans,
+            "prior_known": True,
+            "prior_height": 0.0,
+            "robot_height": float(laser.robot_height),
+            "publish_map_info": False,
+            "pose_wait": 2.0,
+            "reliable": True,
+        },
+    }
+
+
+def perception_nodes(
+    context,
+    robots: int,
+    seed: int,
+    blueprint,
+    occlude: str = "",
+    truth_prefix: str = SIM_TRUTH_PREFIX,
+) -> list:
+    """Sensors, localizer and mapper nodes for a trial on ``context``.
+
+    Args:
+        context: The rclpy context of the trial.
+        robots: Number of robots.
+        seed: Seed of the sensors' noise and of the calibration marks.
+        blueprint: The trial's :class:`blueprint_server.blueprint.Blueprint`.
+        occlude: LEDs hidden from the camera (the sensors node's ``occlude``).
+        truth_prefix: Where the sensors read the truth they render (the continuous trial:
+            the ``dynamics`` node's snapshots, ``/snapshot``).
+    """
+    from rclpy.parameter import Parameter
+
+    from excavation_sim.sensors_node import SensorsNode
+    from overhead_localizer.localizer_node import LocalizerNode
+    from terrain_mapper.mapper_node import MapperNode
+
+    def overrides(values: dict) -> list:
+        return [Parameter(k, value=v) for k, v in values.items()]
+
     fd, calibration = tempfile.mkstemp(prefix="ant-trial-camera-", suffix=".yaml")
     os.close(fd)
     try:
-        save_model(model, calibration)
+        values = perception_parameters(robots, seed, blueprint, calibration, occlude)
         localizer = LocalizerNode(
-            context=context,
-            parameter_overrides=[
-                Parameter("robots", value=robots),
-                Parameter("calibration", value=calibration),
-                Parameter("reliable", value=True),
-            ],
+            context=context, parameter_overrides=overrides(values["localizer"])
         )  # loads the calibration now
     finally:
         os.unlink(calibration)
-    sensors = SensorsNode(
-        context=context,
-        parameter_overrides=[
-            Parameter("robots", value=robots),
-            Parameter("seed", value=seed),
-            Parameter("truth_prefix", value=SIM_TRUTH_PREFIX),
-            Parameter("sweep_scans", value=TRIAL_SWEEP_SCANS),
-            Parameter("cell_size", value=float(blueprint.cell_size)),
-            Parameter("rows", value=rows),
-            Parameter("cols", value=cols),
-            Parameter("reliable", value=True),
-        ],
-    )
-    mapper = MapperNode(
-        context=context,
-        parameter_overrides=[
-            Parameter("robots", value=robots),
-            Parameter("rows", value=rows),
-            Parameter("cols", value=cols),
-            Parameter("cell_size", value=float(blueprint.cell_size)),
-            Parameter("mount_x", value=float(sensors.laser_params.mount[0])),
-            Parameter("mount_y", value=float(sensors.laser_params.mount[1])),
-            Parameter("mount_z", value=float(sensors.laser_params.mount[2])),
-            Parameter("sweep_scans", value=sensors.laser_params.sweep_scans),
-            Parameter("prior_height", value=0.0),
-            Parameter("robot_height", value=float(sensors.laser_params.robot_height)),
-            Parameter("publish_map_info", value=False),
-            Parameter("pose_wait", value=2.0),
-            Parameter("reliable", value=True),
-        ],
-    )
+    values["sensors"]["truth_prefix"] = truth_prefix
+    sensors = SensorsNode(context=context, parameter_overrides=overrides(values["sensors"]))
+    mapper = MapperNode(context=context, parameter_overrides=overrides(values["mapper"]))
     return [sensors, localizer, mapper]

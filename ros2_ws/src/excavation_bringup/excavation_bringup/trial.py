@@ -1,13 +1,18 @@
 """``ant-trial``: one excavation trial through the ROS nodes.
 
-Starts the blueprint server, the lockstep simulator, and per robot a controller and a blade
-driver (``--no-blade-driver`` leaves the drivers out; the simulator then publishes the
-blade's joint state itself). By default the nodes are composed on one executor in one
-process (the way ``executors/composed.py`` of ros2/examples composes nodes; this
-environment has no launch); ``--processes`` starts each node as its own process, as
-separate ``ros2 run`` commands would, and collects the result from the simulator's
-``result_file``. Either way it runs ``--steps`` ticks, prints the fitness and stops every
-node. The result equals ``ant-eval --scenarios 1`` with the same seed (``tests/test_trial.py``).
+Starts the team supervisor, the blueprint server, the lockstep simulator, and per robot a
+controller and a blade driver (``--no-blade-driver`` leaves the drivers out; the simulator
+then publishes the blade's joint state itself). The supervisor is armed at start
+(``--supervisor internal``, the default), or the trial waits for an operator to run one and
+arm it (``--supervisor external``: ``ant-operator arm``); either way ``ant-operator`` can
+pause, e-stop, disable robots and override blades while the trial runs, and a paused trial
+resumes and ends as an unpaused one does (docs/operator.md). By default the nodes are
+composed on one executor in one process (the way ``executors/composed.py`` of ros2/examples
+composes nodes; this environment has no launch); ``--processes`` starts each node as its own
+process, as separate ``ros2 run`` commands would, and collects the result from the
+simulator's ``result_file``. Either way it runs ``--steps`` ticks, prints the fitness and
+stops every node. The result equals ``ant-eval --scenarios 1`` with the same seed
+(``tests/test_trial.py``).
 
 Examples::
 
@@ -28,7 +33,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +43,13 @@ from excavation_common.limits import MAX_ROBOTS, int_in
 
 @dataclass
 class TrialResult:
-    """A trial's fitness, fitness per tick, final heights, missed and applied commands."""
+    """A trial's fitness, fitness per tick, final heights, missed and applied commands.
+
+    ``--drive continuous`` adds the wall time of every tick (from its snapshot to the next
+    tick's, the last to the end of its motion), the primitives the executors
+    aborted, the stuck events (robot-ticks with U1 set), the sim time and the robots the
+    team tick left out of a tick.
+    """
 
     fitness: float
     trace: list[float]
@@ -46,6 +57,12 @@ class TrialResult:
     missed: dict[int, int]
     seconds: float
     commands: list[list[int]]
+    holds: int = 0
+    tick_wall: list[float] = field(default_factory=list)
+    primitives_aborted: int = 0
+    stuck_events: int = 0
+    sim_seconds: float = 0.0
+    robots_late: int = 0
 
 
 @dataclass(frozen=True)
@@ -64,6 +81,25 @@ class TrialSpec:
     blade_driver: bool
     record: str | None
     perception: str
+    supervisor: str = "internal"
+    occlude: str = ""
+    drive: str = "grid"
+
+
+LOST_TIMEOUT = 1.5
+"""Seconds of pose stamps (1.5 ticks) after which the trial's supervisor stops a silent robot:
+more than one tick, since the poses of one tick arrive one after another."""
+LOST_GRACE = 2.0
+"""Further seconds (2 ticks) before a lost robot is disabled for the rest of the trial."""
+
+
+def _supervisor_params(robots: int, armed: bool) -> dict:
+    return {
+        "robots": robots,
+        "lost_timeout": LOST_TIMEOUT,
+        "lost_grace": LOST_GRACE,
+        "arm_at_start": armed,
+    }
 
 
 def _controller_args(controller_spec: str) -> list[str]:
@@ -84,6 +120,10 @@ def run_trial(
     record: str | None = None,
     perception: str = "truth",
     scenario: int = 0,
+    supervisor: str = "internal",
+    occlude: str = "",
+    drive: str = "grid",
+    exact: bool = False,
 ) -> TrialResult:
     """Run a trial through the nodes and return its result.
 
@@ -99,12 +139,21 @@ def run_trial(
         blade_driver: One ``blade_driver`` node per robot between controller and simulator.
         processes: Each node in its own process instead of one composed process.
         record: Bag directory to record every suite topic into (``ant-bag record``'s
-            recorder node on the same executor; composed mode only).
+            recorder node on the same executor, or its own process).
         perception: ``"truth"``: controllers read the simulator's poses and heights;
             ``"full"``: they read the overhead localizer's and the terrain mapper's, which
             see the simulator through its synthetic camera and laser
-            (:mod:`excavation_bringup.perception`; composed mode only).
+            (:mod:`excavation_bringup.perception`).
         scenario: Scenario index of ``seed`` (``ScenarioSet.create(..., seed)``'s i-th).
+        supervisor: ``"internal"``: the trial starts the team supervisor and arms it;
+            ``"external"``: an operator's supervisor (``ros2 run team_supervisor
+            supervisor``) must be running, and nothing moves until it is armed.
+        occlude: The sensors node's ``occlude`` (``"2:front,2:rear"`` hides robot 2 from
+            the camera; ``perception="full"`` only).
+        drive: ``"grid"``: the lockstep simulator applies each word at once; ``"continuous"``:
+            drive executors, the team tick and the ``dynamics`` simulator
+            (:mod:`excavation_bringup.continuous_trial`; composed mode only).
+        exact: ``drive="continuous"`` without slip and noise (the parity setting).
 
     Raises:
         TimeoutError: When the trial does not finish in time.
@@ -121,12 +170,16 @@ def run_trial(
     )
     if domain is None:
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
-    if record and processes:
-        raise ValueError("record: the recorder runs in the composed mode (without processes)")
     if perception not in ("truth", "full"):
         raise ValueError(f"perception = {perception!r}: expected 'truth' or 'full'")
-    if perception == "full" and processes:
-        raise ValueError("perception: full runs in the composed mode (without processes)")
+    if supervisor not in ("internal", "external"):
+        raise ValueError(f"supervisor = {supervisor!r}: expected 'internal' or 'external'")
+    if occlude and perception != "full":
+        raise ValueError("occlude: hides a robot from the camera, so needs perception 'full'")
+    if drive not in ("grid", "continuous"):
+        raise ValueError(f"drive = {drive!r}: expected 'grid' or 'continuous'")
+    if drive == "continuous" and processes:
+        raise ValueError("drive: continuous runs in the composed mode (without processes)")
     spec = TrialSpec(
         controller_spec,
         robots,
@@ -140,7 +193,14 @@ def run_trial(
         blade_driver,
         record,
         perception,
+        supervisor,
+        occlude,
+        drive,
     )
+    if drive == "continuous":
+        from excavation_bringup.continuous_trial import run_continuous
+
+        return run_continuous(ctl, spec, exact=exact)
     return _run_processes(spec) if processes else _run_composed(ctl, spec)
 
 
@@ -162,6 +222,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
     from blade_driver.driver_node import BladeDriverNode
     from blueprint_server.server_node import BlueprintServer
     from excavation_sim.sim_node import SimNode
+    from team_supervisor.supervisor_node import SupervisorNode
 
     context = Context()
     rclpy.init(context=context, domain_id=domain)
@@ -186,6 +247,14 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
                 ],
             )
             nodes.append(recorder)
+        if spec.supervisor == "internal":
+            values = _supervisor_params(robots, armed=True)
+            nodes.append(
+                SupervisorNode(
+                    context=context,
+                    parameter_overrides=[Parameter(k, value=v) for k, v in values.items()],
+                )
+            )
         nodes.append(
             BlueprintServer(
                 context=context, parameter_overrides=[Parameter("blueprint", value=blueprint)]
@@ -208,7 +277,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
         if perception == "full":
             from excavation_bringup.perception import perception_nodes
 
-            nodes += perception_nodes(context, robots, seed, sim.blueprint)
+            nodes += perception_nodes(context, robots, seed, sim.blueprint, spec.occlude)
         height_unit = sim.blueprint.height_unit
         for k in range(robots):
             nodes.append(
@@ -246,6 +315,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
             dict(sim.missed),
             time.monotonic() - started,
             list(sim.applied),
+            sim.holds,
         )
     finally:
         if recorder is not None:
@@ -257,94 +327,201 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
         rclpy.try_shutdown(context=context)
 
 
-def _run_processes(spec: TrialSpec) -> TrialResult:
-    """Every node in its own process, as separate ``ros2 run`` commands would start them."""
-    controller_spec, robots, steps, seed = spec.controller, spec.robots, spec.steps, spec.seed
-    blueprint, domain, timeout, blade_driver = (
-        spec.blueprint,
-        spec.domain,
-        spec.timeout,
-        spec.blade_driver,
-    )
-    command_timeout, scenario = spec.command_timeout, spec.scenario
+def _ros_value(value) -> str:
+    """``value`` as a ``-p name:=value`` argument (parsed as YAML by rcl)."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def process_commands(spec: TrialSpec, workdir: Path) -> dict[str, list[str]]:
+    """Each node's command line for ``spec``, in start order (name -> argv).
+
+    What separate ``ros2 run`` commands would start: the recorder first (``record``), the
+    team supervisor (armed; none when the operator runs their own), the blueprint server,
+    the simulator (writing ``workdir/result.json`` at the end), with ``perception="full"``
+    the sensors, localizer (its camera calibration written to ``workdir/camera.yaml`` now)
+    and mapper, then per robot a controller and a blade driver.
+    """
     from blueprint_server.blueprint import resolve_blueprint
 
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
-    height_unit = resolve_blueprint(blueprint).height_unit
+    bp = resolve_blueprint(spec.blueprint)
+    height_unit = bp.height_unit
+    full = spec.perception == "full"
+
+    def node(name: str, module: str, *args: str, ns: str = "", **params) -> list[str]:
+        cmd = [sys.executable, "-m", module, *args, "--ros-args", "-r", f"__node:={name}"]
+        if ns:
+            cmd += ["-r", f"__ns:={ns}"]
+        for key, value in params.items():
+            cmd += ["-p", f"{key}:={_ros_value(value)}"]
+        return cmd
+
+    commands: dict[str, list[str]] = {}
+    if spec.record:
+        commands["recorder"] = [
+            sys.executable,
+            "-m",
+            "excavation_bags.cli",
+            "record",
+            "--out",
+            str(spec.record),
+            "--height-unit",
+            repr(float(height_unit)),
+        ]
+    if spec.supervisor == "internal":
+        commands["supervisor"] = node(
+            "supervisor",
+            "team_supervisor.supervisor_node",
+            **_supervisor_params(spec.robots, armed=True),
+        )
+    commands["server"] = node("server", "blueprint_server.server_node", blueprint=spec.blueprint)
+    commands["sim"] = node(
+        "sim",
+        "excavation_sim.sim_node",
+        blueprint=spec.blueprint,
+        robots=spec.robots,
+        steps=spec.steps,
+        seed=spec.seed,
+        scenario=spec.scenario,
+        command_timeout=float(spec.command_timeout),
+        blade_driver=spec.blade_driver,
+        result_file=str(Path(workdir) / "result.json"),
+        **({"truth_prefix": "/truth"} if full else {}),
+    )
+    if full:
+        from excavation_bringup.perception import perception_parameters
+
+        values = perception_parameters(
+            spec.robots, spec.seed, bp, str(Path(workdir) / "camera.yaml"), spec.occlude
+        )
+        commands["sensors"] = node("sensors", "excavation_sim.sensors_node", **values["sensors"])
+        commands["localizer"] = node(
+            "localizer", "overhead_localizer.localizer_node", **values["localizer"]
+        )
+        commands["mapper"] = node("mapper", "terrain_mapper.mapper_node", **values["mapper"])
+    for k in range(spec.robots):
+        commands[f"controller_{k}"] = node(
+            "controller",
+            "ant_controller.controller_node",
+            *_controller_args(spec.controller),
+            ns=f"/robot_{k}",
+            robot_id=k,
+            robots=spec.robots,
+            height_unit=float(height_unit),
+            lockstep=True,
+        )
+        if spec.blade_driver:
+            commands[f"blade_driver_{k}"] = node(
+                "blade_driver", "blade_driver.driver_node", ns=f"/robot_{k}", backend="sim"
+            )
+    return commands
+
+
+class TrialProcesses:
+    """A trial's nodes as processes: start, watch, kill and restart them, read the result.
+
+    ``ant-trial --processes`` starts them all and waits for the simulator; the fault tests
+    (``tests/faults.py``) and ``ant-soak`` also kill and restart single nodes. Each node's
+    output goes to ``workdir/NAME.log`` (appended across restarts).
+
+    Args:
+        spec: The trial.
+        workdir: Folder for logs, the calibration and ``result.json``.
+        env: Environment of the nodes (default: this one); ``ROS_DOMAIN_ID`` is the spec's.
+    """
+
+    def __init__(self, spec: TrialSpec, workdir: str | Path, env: dict | None = None) -> None:
+        self.spec = spec
+        self.workdir = Path(workdir)
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.commands = process_commands(spec, self.workdir)
+        self.env = dict(env if env is not None else os.environ, ROS_DOMAIN_ID=str(spec.domain))
+        self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.result_file = self.workdir / "result.json"
+
+    def log(self, name: str) -> Path:
+        """The log file of node ``name``."""
+        return self.workdir / f"{name}.log"
+
+    def start(self, name: str | None = None, command: list[str] | None = None, **popen) -> None:
+        """Start node ``name`` (default: every node, in order), with ``command`` if given."""
+        if name is None:
+            for n in self.commands:
+                self.start(n)
+            return
+        cmd = command or self.commands[name]
+        with open(self.log(name), "ab") as out:
+            self.procs[name] = subprocess.Popen(
+                cmd, env=self.env, stdout=out, stderr=subprocess.STDOUT, **popen
+            )
+
+    def kill(self, name: str, sig: int = signal.SIGKILL) -> int:
+        """Send ``sig`` to node ``name``, wait for it and forget it; returns its exit code."""
+        proc = self.procs.pop(name)
+        if proc.poll() is None:
+            proc.send_signal(sig)
+        return proc.wait()
+
+    def check(self) -> None:
+        """Raise when a node exited by itself with an error.
+
+        Raises:
+            RuntimeError: Naming the node, its exit code and the end of its log.
+        """
+        for name, proc in self.procs.items():
+            if proc.poll() is not None and proc.returncode != 0:
+                log = _tail(self.log(name))
+                raise RuntimeError(f"{name} exited with {proc.returncode}:\n{log}")
+
+    @property
+    def finished(self) -> bool:
+        """The simulator ended (after its last tick, or by a failure)."""
+        sim = self.procs.get("sim")
+        return sim is not None and sim.poll() is not None
+
+    def wait(self, timeout: float, started: float | None = None) -> dict:
+        """Wait for the simulator to end and return its result (``result.json``).
+
+        Raises:
+            TimeoutError: Not finished within ``timeout`` seconds of ``started``.
+            RuntimeError: A node failed, or the simulator wrote no result.
+        """
+        started = time.monotonic() if started is None else started
+        while not self.finished:
+            if time.monotonic() - started > timeout:
+                raise TimeoutError(f"trial did not finish within {timeout} s")
+            self.check()
+            time.sleep(0.1)
+        sim = self.procs["sim"]
+        if sim.returncode != 0 or not self.result_file.exists():
+            raise RuntimeError(f"sim exited with {sim.returncode}:\n{_tail(self.log('sim'))}")
+        return json.loads(self.result_file.read_text())
+
+    def stop(self) -> None:
+        """Stop every node as Ctrl-C would; the recorder last, so that the bag is complete."""
+        recorder = {n: p for n, p in self.procs.items() if n == "recorder"}
+        _stop({n: p for n, p in self.procs.items() if n != "recorder"})
+        _stop(recorder)
+        self.procs.clear()
+
+    def __enter__(self) -> TrialProcesses:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
+def _run_processes(spec: TrialSpec) -> TrialResult:
+    """Every node in its own process, as separate ``ros2 run`` commands would start them."""
     started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="ant-trial-") as tmp:
-        result_file = Path(tmp) / "result.json"
-
-        def node(name: str, module: str, *args: str) -> list[str]:
-            return [sys.executable, "-m", module, *args, "--ros-args", "-r", f"__node:={name}"]
-
-        commands = {
-            "server": node("server", "blueprint_server.server_node")
-            + ["-p", f"blueprint:={blueprint}"],
-            "sim": node("sim", "excavation_sim.sim_node")
-            + [
-                "-p",
-                f"blueprint:={blueprint}",
-                "-p",
-                f"robots:={robots}",
-                "-p",
-                f"steps:={steps}",
-                "-p",
-                f"seed:={seed}",
-                "-p",
-                f"scenario:={scenario}",
-                "-p",
-                f"command_timeout:={float(command_timeout)!r}",
-                "-p",
-                f"blade_driver:={str(blade_driver).lower()}",
-                "-p",
-                f"result_file:={result_file}",
-            ],
-        }
-        for k in range(robots):
-            commands[f"controller_{k}"] = node(
-                "controller", "ant_controller.controller_node", *_controller_args(controller_spec)
-            ) + [
-                "-r",
-                f"__ns:=/robot_{k}",
-                "-p",
-                f"robot_id:={k}",
-                "-p",
-                f"robots:={robots}",
-                "-p",
-                f"height_unit:={float(height_unit)!r}",
-                "-p",
-                "lockstep:=true",
-            ]
-            if blade_driver:
-                commands[f"blade_driver_{k}"] = node("blade_driver", "blade_driver.driver_node") + [
-                    "-r",
-                    f"__ns:=/robot_{k}",
-                    "-p",
-                    "backend:=sim",
-                ]
-        procs: dict[str, tuple[subprocess.Popen, Path]] = {}
-        try:
-            for name, cmd in commands.items():
-                log = Path(tmp) / f"{name}.log"
-                with open(log, "wb") as out:
-                    procs[name] = (
-                        subprocess.Popen(cmd, env=env, stdout=out, stderr=subprocess.STDOUT),
-                        log,
-                    )
-            sim = procs["sim"][0]
-            while sim.poll() is None:
-                if time.monotonic() - started > timeout:
-                    raise TimeoutError(f"trial did not finish within {timeout} s")
-                for name, (proc, log) in procs.items():
-                    if proc.poll() is not None and proc.returncode != 0:
-                        raise RuntimeError(f"{name} exited with {proc.returncode}:\n{_tail(log)}")
-                time.sleep(0.1)
-            if sim.returncode != 0 or not result_file.exists():
-                raise RuntimeError(f"sim exited with {sim.returncode}:\n{_tail(procs['sim'][1])}")
-            data = json.loads(result_file.read_text())
-        finally:
-            _stop(procs)
+        with TrialProcesses(spec, tmp) as trial:
+            trial.start()
+            data = trial.wait(spec.timeout, started)
     return TrialResult(
         data["fitness"],
         data["trace"],
@@ -352,6 +529,7 @@ def _run_processes(spec: TrialSpec) -> TrialResult:
         {int(k): v for k, v in data["missed"].items()},
         time.monotonic() - started,
         data["commands"],
+        data.get("holds", 0),
     )
 
 
@@ -359,13 +537,13 @@ def _tail(log: Path, lines: int = 20) -> str:
     return "\n".join(log.read_text(errors="replace").splitlines()[-lines:])
 
 
-def _stop(procs: dict) -> None:
+def _stop(procs: dict[str, subprocess.Popen]) -> None:
     """SIGINT every node still running (as Ctrl-C would), then kill what is left."""
-    for proc, _ in procs.values():
+    for proc in procs.values():
         if proc.poll() is None:
             proc.send_signal(signal.SIGINT)
     deadline = time.monotonic() + 10.0
-    for proc, _ in procs.values():
+    for proc in procs.values():
         try:
             proc.wait(timeout=max(0.1, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
@@ -426,6 +604,28 @@ def main(argv: list[str] | None = None) -> int:
         default="truth",
         help="full: controllers see the sim only through the camera+localizer, laser+mapper",
     )
+    p.add_argument(
+        "--supervisor",
+        choices=("internal", "external"),
+        default="internal",
+        help="internal: start the team supervisor armed; external: wait for an operator's "
+        "(ant-operator arm)",
+    )
+    p.add_argument(
+        "--occlude",
+        default="",
+        metavar="K:front,K:rear",
+        help="hide LEDs from the camera (--perception full), e.g. 2:front,2:rear",
+    )
+    p.add_argument(
+        "--drive",
+        choices=("grid", "continuous"),
+        default="grid",
+        help="continuous: drive executors, team tick and the continuous-motion simulator",
+    )
+    p.add_argument(
+        "--no-slip", action="store_true", help="--drive continuous without slip and noise"
+    )
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     from excavation_common.errors import FieldError
@@ -443,15 +643,34 @@ def main(argv: list[str] | None = None) -> int:
             record=args.record,
             perception=args.perception,
             scenario=args.scenario,
+            supervisor=args.supervisor,
+            occlude=args.occlude,
             command_timeout=args.command_timeout or (30.0 if args.perception == "full" else 2.0),
+            drive=args.drive,
+            exact=args.no_slip,
         )
     except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
         print(f"ant-trial: error: {exc}", file=sys.stderr)
         return 2
+    extra = {}
+    if args.drive == "continuous":
+        extra = {
+            "wall_per_tick": result.tick_wall,
+            "primitives_aborted": result.primitives_aborted,
+            "stuck_events": result.stuck_events,
+            "sim_seconds": result.sim_seconds,
+            "robots_late": result.robots_late,
+        }
     if args.json:
         print(
             json.dumps(
-                {"fitness": result.fitness, "missed": result.missed, "seconds": result.seconds}
+                {
+                    "fitness": result.fitness,
+                    "missed": result.missed,
+                    "seconds": result.seconds,
+                    "holds": result.holds,
+                }
+                | extra
             )
         )
     else:

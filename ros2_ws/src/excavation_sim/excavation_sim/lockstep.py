@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ant_controller.readings import PROFILE_NAMES
 from excavation_common.params import param
 
 
@@ -24,6 +25,12 @@ class SimParams:
 
     blueprint: str = param(
         "default", "blueprint: default, default:D, landing-pad or a file", read_only=True
+    )
+    profile: str = param(
+        "v1",
+        "world readings of the paper: v1 or paper (excavation_sim.rules.WORLD_PROFILES)",
+        choices=PROFILE_NAMES,
+        read_only=True,
     )
     robots: int = param(4, "team size", low=1, high=64)
     steps: int = param(300, "ticks to simulate", low=1, high=10_000_000)
@@ -41,6 +48,9 @@ class SimParams:
     blade_driver: bool = param(False, "blades follow blade_driver set-points")
     truth_prefix: str = param("", "prefix of the true poses and heights (perception: full)")
     result_file: str = param("", "JSON file written at the end (empty: none)")
+    supervised: bool = param(
+        True, "apply ticks only while the team supervisor's heartbeat says armed"
+    )
 
 
 class Action(enum.Enum):
@@ -56,10 +66,12 @@ class TickInputs:
     """What one tick collected, ready to apply.
 
     Attributes:
-        masks: One behaviour word per robot (0 for a robot that did not answer).
-        missing: Robots whose word did not come in time.
-        setpoints: Robot -> blade set-point (blade-driver mode).
-        missing_setpoints: Robots whose set-point did not come in time.
+        masks: One behaviour word per robot (0 for a robot that did not answer or is
+            absent).
+        missing: Robots whose word did not come in time (absent robots are not missing).
+        setpoints: Robot -> blade set-point (blade-driver mode): the one sent under an open
+            gate, else the held one (home) where only that came.
+        missing_setpoints: Robots present whose set-point did not come in time.
     """
 
     masks: np.ndarray
@@ -87,6 +99,7 @@ class TickClock:
         tick: Current tick.
         finished: ``steps`` ticks are done.
         held: True while someone holds the clock (a paused team): no tick is applied.
+        absent: Robots not waited for (disabled by the supervisor): they idle.
     """
 
     robots: int
@@ -100,6 +113,8 @@ class TickClock:
     held: bool = False
     commands: dict[int, int] = field(default_factory=dict)
     setpoints: dict[int, float] = field(default_factory=dict)
+    held_setpoints: dict[int, float] = field(default_factory=dict)
+    absent: set[int] = field(default_factory=set)
     ready_since: float | None = None
     wait_started: float | None = None
 
@@ -125,16 +140,33 @@ class TickClock:
         if self.started and not self.finished and 0 <= robot < self.robots:
             self.commands.setdefault(robot, int(mask) & 0xFFF)
 
-    def on_setpoint(self, robot: int, value: float) -> None:
-        """A blade driver's set-point for the current tick (the first one counts)."""
-        if self.started and not self.finished and 0 <= robot < self.robots:
+    def on_setpoint(self, robot: int, value: float, held: bool = False) -> None:
+        """A blade driver's set-point for the current tick.
+
+        The first one sent under an open gate counts. One sent under a closed gate
+        (``held``: blade home on e-stop, pause, disable, lost heartbeat) withdraws it until
+        the driver sends the tick's own set-point again; only if none comes does the held
+        one apply when the tick times out.
+        """
+        if not (self.started and not self.finished and 0 <= robot < self.robots):
+            return
+        if held:
+            self.held_setpoints[robot] = float(value)
+            self.setpoints.pop(robot, None)
+        else:
+            self.held_setpoints.pop(robot, None)
             self.setpoints.setdefault(robot, float(value))
 
+    def present(self) -> list[int]:
+        """Robots waited for this tick (not absent)."""
+        return [k for k in range(self.robots) if k not in self.absent]
+
     def complete(self) -> bool:
-        """Every robot's word (and set-point) of the current tick is in."""
-        if len(self.commands) < self.robots:
+        """Every present robot's word (and set-point) of the current tick is in."""
+        present = self.present()
+        if any(k not in self.commands for k in present):
             return False
-        return not self.blade_driver or len(self.setpoints) >= self.robots
+        return not self.blade_driver or all(k in self.setpoints for k in present)
 
     def poll(self, now: float, team_present: bool) -> Action:
         """What to do at ``now``; ``team_present``: every robot's nodes are connected."""
@@ -158,14 +190,18 @@ class TickClock:
 
     def take(self) -> TickInputs:
         """The current tick's inputs (missing words are 0); advances to the next tick."""
-        masks = np.array([self.commands.get(k, 0) for k in range(self.robots)], dtype=np.int64)
-        missing = [k for k in range(self.robots) if k not in self.commands]
-        missing_sp = (
-            [k for k in range(self.robots) if k not in self.setpoints] if self.blade_driver else []
+        present = self.present()
+        masks = np.array(
+            [self.commands.get(k, 0) if k in present else 0 for k in range(self.robots)],
+            dtype=np.int64,
         )
-        out = TickInputs(masks, missing, dict(self.setpoints), missing_sp)
+        missing = [k for k in present if k not in self.commands]
+        setpoints = self.held_setpoints | self.setpoints
+        missing_sp = [k for k in present if k not in setpoints] if self.blade_driver else []
+        out = TickInputs(masks, missing, setpoints, missing_sp)
         self.commands.clear()
         self.setpoints.clear()
+        self.held_setpoints.clear()
         self.tick += 1
         if self.tick >= self.steps:
             self.finished = True

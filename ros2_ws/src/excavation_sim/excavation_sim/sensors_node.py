@@ -25,12 +25,18 @@ its centre (:meth:`CameraParams.for_site`, :meth:`LaserParams.for_site`); camera
 ``scan_period`` (0.01 s); ``reliable`` (false: sensor-data QoS; true: reliable with
 ``queue`` depth, which the lockstep trial uses so that no scan of a sweep is lost),
 ``queue`` (200).
+
+Faults, settable at runtime (``tests/test_faults.py``): ``paused`` (no camera frames while
+true), ``laser_paused`` (no laser sweeps while true), ``frame_period`` (at least this many
+wall-clock seconds between frames: 0.2 is a 5 Hz camera), ``dropout`` and ``occlude``. A
+frame or sweep held back goes out when the fault ends, showing the latest truth.
 """
 
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
@@ -85,7 +91,13 @@ class SensorsParams:
     light: float = param(0.25, "ambient light level", low=0.0, high=1.0)
     noise: float = param(3.0, "pixel noise (std, grey levels)", low=0.0, high=255.0)
     glare: float = param(1.5, "glare strength", low=0.0, high=100.0)
-    dropout: float = param(0.0, "share of frames lost", low=0.0, high=1.0)
+    dropout: float = param(
+        0.0,
+        "probability an LED is missing from a frame (settable at runtime)",
+        low=0.0,
+        high=1.0,
+        read_only=False,
+    )
     k1: float = param(-0.08, "radial lens distortion", low=-1.0, high=1.0)
     occlude: str = param(
         "", "LEDs hidden from the camera: K:front,K:rear (settable at runtime)", read_only=False
@@ -95,6 +107,19 @@ class SensorsParams:
     sweep_scans: int = param(64, "scans per laser sweep", low=1, high=100_000)
     scan_period: float = param(0.01, "s of sim time between scans", low=1e-6, high=60.0)
     reliable: bool = param(False, "reliable QoS for frames and scans (bags, tests)")
+    paused: bool = param(
+        False, "no camera frames while true (settable at runtime)", read_only=False
+    )
+    laser_paused: bool = param(
+        False, "no laser sweeps while true (settable at runtime)", read_only=False
+    )
+    frame_period: float = param(
+        0.0,
+        "min wall-clock s between frames, 0: none (settable at runtime)",
+        low=0.0,
+        high=3600.0,
+        read_only=False,
+    )
     queue: int = param(200, "queue depth with reliable QoS", low=1, high=100_000)
 
     def check(self) -> None:
@@ -147,6 +172,10 @@ class SensorsNode(Node):
         self.poses: dict[int, tuple[tuple[int, int], tuple[float, float, float]]] = {}
         self.heights: tuple[tuple[int, int], np.ndarray] | None = None
         self.last: tuple[int, int] | None = None
+        self.ready: tuple | None = None  # (stamp, heights, views, anchors) to send
+        self.camera_done: tuple[int, int] | None = None
+        self.laser_done: tuple[int, int] | None = None
+        self.frame_time = -float("inf")  # time.monotonic() of the last frame
         self.frames = 0
         self.problem = ""
 
@@ -165,11 +194,16 @@ class SensorsNode(Node):
         self.create_subscription(Image, f"{prefix}/worksite/height_map", self.on_heights, LATCHED)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(1.0, self.publish_diagnostics)
+        self.create_timer(0.01, self.send_ready)  # what a fault held back, once it ends
 
     def on_params(self, params: SensorsParams) -> None:
-        """Runtime changes: only ``occlude`` (hide or show LEDs) is not read-only."""
+        """Runtime changes: the fault knobs, ``occlude`` and ``dropout``."""
         self.params = params
         self.hidden = parse_occlude(params.occlude)
+        if params.dropout != self.camera_params.dropout:
+            self.camera_params = replace(self.camera_params, dropout=params.dropout)
+            self.camera = None  # rebuilt with the new dropout at the next frame
+        self.send_ready()
 
     def publish_diagnostics(self) -> None:
         """OK while frames and sweeps go out; WARN with the last skipped input."""
@@ -207,10 +241,10 @@ class SensorsNode(Node):
         if any(k not in self.poses or self.poses[k][0] != key for k in range(self.n)):
             return
         self.last = key
-        self.render(stamp, self.heights[1].astype(np.float64))
+        self.prepare(stamp, self.heights[1].astype(np.float64))
 
-    def render(self, stamp: TimeMsg, heights: np.ndarray) -> None:
-        """Publish one camera frame and one laser sweep of this instant."""
+    def prepare(self, stamp: TimeMsg, heights: np.ndarray) -> None:
+        """Make this instant the one to render; send what no fault holds back."""
         rows, cols = heights.shape
         if (rows, cols) != (self.rows, self.cols):
             self.problem = (
@@ -219,10 +253,7 @@ class SensorsNode(Node):
             )
             self.get_logger().error(self.problem, throttle_duration_sec=5.0)
             return
-        if self.camera is None:
-            self.camera = OverheadCamera(
-                self.camera_params, default_beacons(), rows, cols, self.cell_size
-            )
+        if self.laser is None:
             self.laser = OverheadLaser(self.laser_params, self.cell_size)
         views, anchors = [], []
         for k in range(self.n):
@@ -231,8 +262,34 @@ class SensorsNode(Node):
             anchors.append((r, c))
             block = heights[max(r, 0) : r + 2, max(c, 0) : c + 2]
             views.append(RobotView(x, y, yaw, float(block.mean()) if block.size else 0.0))
-        image, _ = self.camera.render(views, heights, self.rng, self.hidden)
-        self.image_pub.publish(frame_to_message(image, Image(), stamp=stamp))
+        self.ready = (stamp, heights, views, anchors)
+        self.send_ready()
+
+    def send_ready(self) -> None:
+        """Publish the ready instant's frame and sweep unless a fault holds them back."""
+        if self.ready is None:
+            return
+        stamp, heights, views, anchors = self.ready
+        key = (stamp.sec, stamp.nanosec)
+        p = self.params
+        now = time.monotonic()
+        if self.camera_done != key and not p.paused and now - self.frame_time >= p.frame_period:
+            if self.camera is None:
+                self.camera = OverheadCamera(
+                    self.camera_params, default_beacons(), self.rows, self.cols, self.cell_size
+                )
+            image, _ = self.camera.render(views, heights, self.rng, self.hidden)
+            self.image_pub.publish(frame_to_message(image, Image(), stamp=stamp))
+            self.camera_done, self.frame_time = key, now
+        if self.laser_done != key and not p.laser_paused:
+            self.sweep(stamp, heights, anchors)
+            self.laser_done = key
+        if self.camera_done == key and self.laser_done == key:
+            self.ready = None
+            self.frames += 1
+
+    def sweep(self, stamp: TimeMsg, heights: np.ndarray, anchors: list) -> None:
+        """Publish one laser sweep of this instant."""
         lp = self.laser_params
         surface = surface_with_robots(heights, np.array(anchors), lp.robot_height)
         for i, (pan, tilt, ranges) in enumerate(self.laser.sweep(surface, self.rng)):
@@ -251,7 +308,6 @@ class SensorsNode(Node):
             scan.range_max = lp.range_max
             scan.ranges = ranges.tolist()
             self.scan_pub.publish(scan)
-        self.frames += 1
 
 
 def main(args: list[str] | None = None) -> int:

@@ -18,8 +18,10 @@ what lets a controller pair the unstamped ``stuck`` flag with its tick. After ``
 ticks the node publishes the final state and fitness and stops stepping (``finished``).
 
 Parameters: ``blueprint`` (``default``, ``default:D``, ``landing-pad`` or a file),
-``robots`` (4), ``steps`` (300), ``seed`` (0), ``scenario`` (0, the index within ``seed``),
-``dt`` (1.0 s of sim time per tick),
+``profile`` (``v1`` or ``paper``: the world's readings of the paper,
+:data:`excavation_sim.rules.WORLD_PROFILES`, as ``ant-eval --profile``), ``robots`` (4),
+``steps`` (300), ``seed`` (0), ``scenario`` (0, the index within ``seed``), ``dt`` (1.0 s
+of sim time per tick),
 ``command_timeout`` (1.0 s), ``first_command_timeout`` (30.0 s: tick 0 waits longer, while
 controllers load their compiled kernels), ``startup_period`` (0.5 s),
 ``diagnostics_period`` (1.0 s), ``blade_driver`` (false), ``result_file`` (JSON written at
@@ -32,6 +34,14 @@ then sets each blade to the driver's set-point (nearest setting).
 ``PREFIX/worksite/height_map``, for the perception nodes to stand in (``--perception full``
 of ``ant-trial``: the ``sensors`` node renders camera and laser from them); tick 0 then also
 waits for a subscriber of each truth pose.
+
+Oversight (``supervised``, true by default; DESIGN.md "Operator oversight"): the node
+applies a tick only while the team is armed (``/team/heartbeat`` younger than the deadman
+and saying ``armed``, no e-stop latched on ``/team/estop``); otherwise it holds the tick,
+keeping the words and set-points already in, so a paused trial ends as an unpaused one
+does. A robot disabled on ``/robot_k/enabled`` is absent: it is not waited for and idles.
+A blade set-point marked :data:`excavation_common.safety.HELD` (sent under a closed gate)
+does not complete a tick; it applies only to an absent robot or when the tick times out.
 """
 
 from __future__ import annotations
@@ -47,7 +57,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, Imu, JointState
-from std_msgs.msg import Bool, Float32, UInt16
+from std_msgs.msg import Bool, Float32, Header, UInt16
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ant_controller.layout import (
@@ -58,16 +68,23 @@ from ant_controller.layout import (
 )
 from ant_controller.sensing import blade_volume, is_tilted_down
 from blueprint_server.blueprint import resolve_blueprint
-from excavation_common.constants import BladeGeometry
+from excavation_common.constants import MAX_LOAD, BladeGeometry
 from excavation_common.files import write_text_atomic
 from excavation_common.messages import blade_joint, grid_to_image, pose_message
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
+from excavation_common.safety import (
+    ENABLED_TOPIC,
+    ESTOP_TOPIC,
+    HEARTBEAT_TOPIC,
+    HELD,
+    MotionGate,
+)
 from excavation_sim.lockstep import Action, SimParams, TickClock, TickInputs
+from excavation_sim.rules import V1_RULES, WORLD_PROFILES, WorldRules
 from excavation_sim.world import (
     BLADE,
     COL,
     HEADING,
-    MAX_LOAD,
     ROW,
     STUCK,
     World,
@@ -82,10 +99,15 @@ TILT_PITCH = 0.2
 """Pitch (rad, nose down) the simulated IMU reports when R1 holds."""
 
 
-def scenario_world(blueprint_spec: str, robots: int, seed: int, index: int = 0):
-    """Scenario ``index`` of ``seed`` (index 0: the world ``ant-eval --seed`` starts from)."""
-    bp = resolve_blueprint(blueprint_spec)
-    world = World.scenario(bp.zones, bp.goal, robots, seed, index)
+def scenario_world(
+    blueprint_spec: str, robots: int, seed: int, index: int = 0, rules: WorldRules = V1_RULES
+):
+    """Scenario ``index`` of ``seed`` (index 0: the world ``ant-eval --seed`` starts from).
+
+    ``rules``: the world's readings (``WORLD_PROFILES[profile]``), as ``ant-eval --profile``.
+    """
+    bp = resolve_blueprint(blueprint_spec, fitted=rules.fitted_site)
+    world = World.scenario(bp.zones, bp.goal, robots, seed, index, rules)
     return bp, world
 
 
@@ -102,7 +124,9 @@ class SimNode(Node):
         self.blade_driver = p.blade_driver
         self.result_file = p.result_file
         self.truth_prefix = p.truth_prefix.rstrip("/")
-        self.blueprint, self.world = scenario_world(p.blueprint, p.robots, p.seed, p.scenario)
+        self.blueprint, self.world = scenario_world(
+            p.blueprint, p.robots, p.seed, p.scenario, WORLD_PROFILES[p.profile]
+        )
         self.clock = TickClock.from_params(p)
         self.geometry = BladeGeometry()
         self.missed_servo: dict[int, int] = {k: 0 for k in range(self.n)}
@@ -144,6 +168,20 @@ class SimNode(Node):
         self.markers_pub = self.create_publisher(MarkerArray, "/worksite/markers", 10)
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        # The team's gate (the robots' own state is per robot: ``clock.absent``).
+        self.team = MotionGate(active=True, enabled=True)
+        self.hold_reason: str | None = None
+        self.holds = 0
+        if p.supervised:
+            self.create_subscription(Bool, ESTOP_TOPIC, self.on_estop, LATCHED)
+            self.create_subscription(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
+            for k in range(self.n):
+                self.create_subscription(
+                    Bool,
+                    f"/robot_{k}/{ENABLED_TOPIC}",
+                    lambda m, k=k: self.on_enabled(k, m),
+                    LATCHED,
+                )
         self.create_timer(0.001, self.step)
         self.create_timer(p.diagnostics_period, self.report_state)
 
@@ -246,16 +284,48 @@ class SimNode(Node):
         if "blade" in msg.name and len(msg.position) > msg.name.index("blade"):
             value = float(msg.position[list(msg.name).index("blade")])
             if math.isfinite(value):
-                self.clock.on_setpoint(k, value)
+                self.clock.on_setpoint(k, value, held=msg.header.frame_id == HELD)
 
     def on_command(self, k: int, msg: UInt16) -> None:
         """A robot's behaviour mask for the current tick (the first one counts)."""
         self.clock.on_command(k, msg.data)
 
+    def on_estop(self, msg: Bool) -> None:
+        """``/team/estop`` changed."""
+        self.team.on_estop(msg.data)
+
+    def on_heartbeat(self, msg: Header) -> None:
+        """A team heartbeat (``frame_id`` = team state)."""
+        self.team.on_heartbeat(msg.frame_id, self._seconds())
+
+    def on_enabled(self, k: int, msg: Bool) -> None:
+        """Robot ``k`` enabled (waited for) or disabled (absent, idles)."""
+        if msg.data:
+            self.clock.absent.discard(k)
+        else:
+            self.clock.absent.add(k)
+        self.report(f"robot {k} {'enabled' if msg.data else 'disabled: absent, idles'}")
+
+    def apply_team_state(self) -> None:
+        """Hold the tick clock while the team is not armed (supervised only)."""
+        if not self.params.supervised:
+            return
+        now = self._seconds()
+        reason = self.team.reason(now)
+        if reason != self.hold_reason:
+            self.hold_reason = reason
+            if reason is not None:
+                self.holds += 1
+            self.report(
+                f"tick {self.tick} held: {reason}" if reason else f"tick {self.tick}: armed"
+            )
+        self.clock.hold(reason is not None, now)
+
     def step(self) -> None:
         """Ask the tick clock what to do (runs every millisecond)."""
         if self.finished:
             return
+        self.apply_team_state()
         present = not self.clock.started and self.controllers_present()
         action = self.clock.poll(self._seconds(), present)
         if action is Action.PUBLISH_FIRST:
@@ -290,6 +360,7 @@ class SimNode(Node):
             "missed": {str(k): v for k, v in self.missed.items()},
             "missed_blade_setpoints": {str(k): v for k, v in self.missed_servo.items()},
             "commands": self.applied,
+            "holds": self.holds,
         }
 
     def write_result(self, path: str) -> None:
@@ -320,6 +391,8 @@ class SimNode(Node):
             self.report(f"finished {self.steps} ticks, fitness {self.world.fitness():.4f}")
         elif not self.clock.started:
             self.report("waiting for every robot's controller to join")
+        elif self.hold_reason is not None:
+            self.report(f"tick {self.tick} held: {self.hold_reason}")
         else:
             self.report(f"stepping: tick {self.tick} of {self.steps}")
 
@@ -327,6 +400,8 @@ class SimNode(Node):
         """One diagnostics status for the simulator (WARN once a robot has missed a tick)."""
         missed = sum(self.missed.values())
         values = {"tick": self.tick, "fitness": f"{self.world.fitness():.6f}"}
+        if self.params.supervised:
+            values |= {"team": self.hold_reason or "armed", "absent": sorted(self.clock.absent)}
         values.update({f"robot_{k}_missed": v for k, v in self.missed.items()})
         if self.blade_driver:
             values.update(

@@ -9,8 +9,11 @@ cells and carries a blade across the two cells in front of it. One timestep:
    running its selected behaviours in Table 2 order (``apply_behaviours``).
 
 Soil moves only through ``try_forward`` and only between two cells, so the total is
-conserved exactly. ``docs/world-model.md`` states every rule and the choices taken where
-the paper is silent.
+conserved exactly. The readings of the paper the model can take (soil fill, push
+capacity, climbing, H1's frame, where robots start) are the switches of
+:class:`excavation_sim.rules.WorldRules`, packed into the ``params`` array the kernels
+take. ``docs/world-model.md`` states every rule and the choices taken where the paper is
+silent.
 
 State lives in plain arrays so that numba kernels (and later the batched evaluator) can
 run whole episodes without Python in the loop:
@@ -19,6 +22,7 @@ run whole episodes without Python in the loop:
 * ``robots``: ``int64 [n, ROBOT_FIELDS]`` per-robot state (columns ``ROW`` .. ``STUCK``).
 * ``active``: ``bool [n]`` robots taking part (a disabled robot is invisible and idle).
 * ``rng``: ``uint64 [1]`` xorshift64* state for the random turn.
+* ``params``: ``int64 [N_PACKED]`` the packed :class:`~excavation_sim.rules.WorldRules`.
 * ``occupancy``: ``int16 [rows, cols]`` which active robot stands on each cell (``k + 1``,
   0 free), derived from ``robots`` and ``active`` (:func:`occupancy`). The moves read it
   instead of scanning every robot and keep it up to date; :func:`apply_all` builds it per
@@ -53,7 +57,6 @@ from ant_controller.layout import (
 from ant_controller.memory import next_memory
 from ant_controller.sensing import (
     FORWARD,
-    MAX_LOAD,
     blade_offset,
     blade_volume,
     front_cell,
@@ -63,47 +66,21 @@ from ant_controller.sensing import (
     rear_wheel,
     sense,
 )
+from excavation_common.constants import ZONE_DIG, ZONE_DUMP
+from excavation_sim.rules import (
+    DEFAULT_RULES,
+    P_H1,
+    P_NORMAL_CLIMB,
+    P_NORMAL_LOAD,
+    P_SOIL_FILL,
+    P_THROTTLE_CLIMB,
+    P_THROTTLE_LOAD,
+    WorldRules,
+)
 
 # Robot state columns. The first three are the pose (row, col, heading).
 ROW, COL, HEADING, BLADE, MEMORY, STUCK = range(6)
 ROBOT_FIELDS = 6
-
-NORMAL_LOAD = 12
-"""Soil units a robot can push in the default drive mode."""
-THROTTLE_LOAD = MAX_LOAD
-"""Soil units a robot can push in high-power mode (Throttle Up): the paper's 24."""
-NORMAL_CLIMB = 1
-"""Highest step (soil units) the wheels climb in the default drive mode."""
-THROTTLE_CLIMB = 2
-"""Highest step the wheels climb in high-power mode."""
-
-
-@dataclass(frozen=True)
-class WorldParams:
-    """Physical parameters of the robot model.
-
-    Attributes:
-        normal_load: Push capacity without throttle-up, soil units.
-        throttle_load: Push capacity with throttle-up, soil units.
-        normal_climb: Largest upward step the wheels take without throttle-up.
-        throttle_climb: Largest upward step with throttle-up.
-    """
-
-    normal_load: int = NORMAL_LOAD
-    throttle_load: int = THROTTLE_LOAD
-    normal_climb: int = NORMAL_CLIMB
-    throttle_climb: int = THROTTLE_CLIMB
-
-    def as_array(self) -> np.ndarray:
-        """Pack for the numba kernels: ``[normal_load, throttle_load, normal_climb, ...]``."""
-        return np.array(
-            [self.normal_load, self.throttle_load, self.normal_climb, self.throttle_climb],
-            dtype=np.int64,
-        )
-
-
-DEFAULT_PARAMS = WorldParams()
-
 
 # --- random numbers ------------------------------------------------------------------------
 
@@ -159,6 +136,19 @@ def occupied(occ, k, r, c):
 
 
 @nb.njit(cache=True, inline="always")
+def fill_amount(deficit, spare):
+    """Soil that fills a blade cell ``deficit`` units below the cutting level (``soil_fill``).
+
+    ``spare``: soil of the cell ahead above the cutting level (may be negative). The fill
+    is what the paper's equation asks for, bounded by what lies above the cutting level
+    ahead: the blade never digs that cell below its edge to fill the one behind.
+    """
+    if spare <= 0:
+        return 0
+    return deficit if deficit < spare else spare
+
+
+@nb.njit(cache=True, inline="always")
 def try_forward(heights, robots, occ, k, throttle, params):
     """Move robot k one cell forward, pushing or cutting soil with the blade.
 
@@ -167,8 +157,10 @@ def try_forward(heights, robots, occ, k, throttle, params):
 
     * cutting level ``t_i = h(W_i) + b_h * eps`` where ``eps = 0`` when the blade holds no
       soil and ``b_h >= 0``, else 1;
-    * soil above the cutting level in B~_i moves into B_i; B~_i is left at ``t_i``
-      (never raised: the blade cannot pull soil backwards);
+    * soil above the cutting level in B~_i moves into B_i; B~_i is left at ``t_i``;
+    * a B~_i below ``t_i``: left alone (rule ``soil_fill`` off, ``v1``), or raised toward
+      ``t_i`` with soil from B_i above ``t_i`` (``soil_fill`` on, ``paper``: the paper's
+      equation, bounded so that B_i never drops below the cutting level);
     * the front wheels then stand on the old blade cells.
 
     The move is refused (robot stuck, nothing changes) when the new footprint leaves the
@@ -188,8 +180,9 @@ def try_forward(heights, robots, occ, k, throttle, params):
     cols = heights.shape[1]
     fr = FORWARD[h, 0]
     fc = FORWARD[h, 1]
-    capacity = params[1] if throttle else params[0]
-    climb = params[3] if throttle else params[2]
+    capacity = params[P_THROTTLE_LOAD] if throttle else params[P_NORMAL_LOAD]
+    climb = params[P_THROTTLE_CLIMB] if throttle else params[P_NORMAL_CLIMB]
+    fill = params[P_SOIL_FILL] != 0
     blade = robots[k, BLADE]
     engaged = blade != BLADE_HOME
     # New footprint cells are the old blade cells.
@@ -214,7 +207,7 @@ def try_forward(heights, robots, occ, k, throttle, params):
             target = heights[wr, wc] + bh * eps
             moved = heights[br, bc] - target
             if moved < 0:
-                moved = 0
+                moved = -fill_amount(-moved, heights[br + fr, bc + fc] - target) if fill else 0
             # Soil against the blade after the move, above the new cutting level.
             pile = heights[br + fr, bc + fc] + moved - (heights[br, bc] - moved) - bh
             if pile > 0:
@@ -258,7 +251,7 @@ def try_backward(heights, robots, occ, k, throttle, params):
     h = robots[k, HEADING]
     rows = heights.shape[0]
     cols = heights.shape[1]
-    climb = params[3] if throttle else params[2]
+    climb = params[P_THROTTLE_CLIMB] if throttle else params[P_NORMAL_CLIMB]
     for i in range(2):
         rr, rc = rear_wheel(row, col, h, i)
         nr = rr - FORWARD[h, 0]
@@ -286,11 +279,13 @@ def _robot_word(robots, k):
 
 
 @nb.njit(cache=True, inline="always")
-def apply_behaviours(heights, robots, active, occ, k, mask, rng, params):
+def step_robot(heights, robots, active, occ, k, mask, rng, params):
     """Run robot k's selected behaviours (bit mask) in Table 2 order.
 
     U1 (stuck) becomes 1 when any move attempted this timestep was refused and 0
     otherwise. Blade and memory commands apply in table order, so the last one wins.
+    ``occ``: the occupancy grid of ``robots`` and ``active`` (:func:`occupancy`), kept up
+    to date.
 
     Returns:
         False when the world is exactly as before (no move made, robot k's state
@@ -301,12 +296,7 @@ def apply_behaviours(heights, robots, active, occ, k, mask, rng, params):
     throttle = (mask >> THROTTLE_UP) & 1 == 1
     stuck = 0
     changed = (mask >> RANDOM_TURN) & 1 == 1  # the random turn draws from the generator
-    before = (
-        robots[k, HEADING]
-        | robots[k, BLADE] << 8
-        | robots[k, MEMORY] << 16
-        | robots[k, STUCK] << 24
-    )
+    before = _robot_word(robots, k)
     if (mask >> MOVE_FORWARD) & 1:
         if try_forward(heights, robots, occ, k, throttle, params):
             changed = True
@@ -336,17 +326,23 @@ def apply_behaviours(heights, robots, active, occ, k, mask, rng, params):
         robots[k, BLADE] = BLADE_HOME
     robots[k, MEMORY] = next_memory(robots[k, MEMORY], mask)
     robots[k, STUCK] = stuck
-    after = (
-        robots[k, HEADING]
-        | robots[k, BLADE] << 8
-        | robots[k, MEMORY] << 16
-        | robots[k, STUCK] << 24
-    )
-    return changed or after != before
+    return changed or _robot_word(robots, k) != before
+
+
+@nb.njit(cache=True)
+def apply_behaviours(heights, robots, active, k, mask, rng, params):
+    """:func:`step_robot` for one robot, with the occupancy grid built for the call.
+
+    Returns:
+        False when nothing changed.
+    """
+    occ = np.empty(heights.shape, dtype=np.int16)
+    occupancy(robots, active, occ)
+    return step_robot(heights, robots, active, occ, k, mask, rng, params)
 
 
 @nb.njit(cache=True, inline="always")
-def sense_robot(heights, zones, goal, robots, active, k, out):
+def sense_robot(heights, zones, goal, robots, active, k, out, params):
     """Sensor vector of robot k from the world state (simulator side of ``sense``)."""
     row = robots[k, ROW]
     col = robots[k, COL]
@@ -365,14 +361,15 @@ def sense_robot(heights, zones, goal, robots, active, k, out):
         is_tilted_down(heights, row, col, h),
         robots[k, MEMORY],
         out,
+        params[P_H1],
     )
 
 
 @nb.njit(cache=True, _nrt=False)
-def sense_all(heights, zones, goal, robots, active, out):
+def sense_all(heights, zones, goal, robots, active, out, params):
     """Sensor vectors of every robot from one snapshot, ``out[n_robots, 14]``."""
     for k in range(robots.shape[0]):
-        sense_robot(heights, zones, goal, robots, active, k, out[k])
+        sense_robot(heights, zones, goal, robots, active, k, out[k], params)
 
 
 @nb.njit(cache=True, _nrt=False)
@@ -385,7 +382,7 @@ def step_robots(heights, robots, active, occ, masks, rng, params):
     """
     changed = False
     for k in range(robots.shape[0]):
-        if apply_behaviours(heights, robots, active, occ, k, masks[k], rng, params):
+        if step_robot(heights, robots, active, occ, k, masks[k], rng, params):
             changed = True
     return changed
 
@@ -428,7 +425,11 @@ class PlacementError(ValueError):
 
 
 def place_robots(
-    shape: tuple[int, int], n_robots: int, rng: np.random.Generator, max_tries: int = 10_000
+    shape: tuple[int, int],
+    n_robots: int,
+    rng: np.random.Generator,
+    max_tries: int = 10_000,
+    worksite: np.ndarray | None = None,
 ) -> np.ndarray:
     """Random non-overlapping 2 x 2 footprints with random headings.
 
@@ -436,7 +437,9 @@ def place_robots(
         shape: Grid ``(rows, cols)``.
         n_robots: Number of robots.
         rng: Source of randomness.
-        max_tries: Rejection-sampling budget.
+        max_tries: Rejection-sampling budget (placement anywhere).
+        worksite: Blueprint zones: place on the worksite instead
+            (:func:`place_in_worksite`); ``None``: anywhere on the grid (``v1``).
 
     Returns:
         ``int64 [n_robots, ROBOT_FIELDS]`` robot states: blade home, memory 0, not stuck.
@@ -447,6 +450,8 @@ def place_robots(
     rows, cols = shape
     if rows < 2 or cols < 2:
         raise PlacementError(f"grid {rows} x {cols} is smaller than one robot (2 x 2)")
+    if worksite is not None:
+        return place_in_worksite(worksite, n_robots, rng)
     robots = np.zeros((n_robots, ROBOT_FIELDS), dtype=np.int64)
     taken = np.zeros(shape, dtype=bool)
     for k in range(n_robots):
@@ -467,24 +472,80 @@ def place_robots(
     return robots
 
 
+def _free_anchors(allowed: np.ndarray, taken: np.ndarray) -> np.ndarray:
+    """Flat indices of the anchors whose 2 x 2 footprint lies in ``allowed`` and is free."""
+    ok = allowed & ~taken
+    fits = ok[:-1, :-1] & ok[1:, :-1] & ok[:-1, 1:] & ok[1:, 1:]
+    return np.flatnonzero(fits)
+
+
+def place_in_worksite(zones: np.ndarray, n_robots: int, rng: np.random.Generator) -> np.ndarray:
+    """Robots "initialized at random positions on the worksite" (paper, 4.3; ``worksite``).
+
+    Each robot in turn takes an anchor drawn uniformly from the free footprints that lie
+    wholly inside the dig area; when none is left, inside the dig area and its dump band;
+    then anywhere on the grid. Headings are uniform.
+
+    Raises:
+        PlacementError: When no free footprint is left on the grid.
+    """
+    zones = np.asarray(zones)
+    rows, cols = zones.shape
+    tiers = (
+        zones == ZONE_DIG,
+        (zones == ZONE_DIG) | (zones == ZONE_DUMP),
+        np.ones_like(zones, bool),
+    )
+    robots = np.zeros((n_robots, ROBOT_FIELDS), dtype=np.int64)
+    taken = np.zeros(zones.shape, dtype=bool)
+    for k in range(n_robots):
+        for allowed in tiers:
+            free = _free_anchors(allowed, taken)
+            if free.size:
+                break
+        else:
+            raise PlacementError(
+                f"could not place robot {k + 1} of {n_robots} on a {rows} x {cols} grid"
+            )
+        r, c = divmod(int(free[int(rng.integers(0, free.size))]), cols - 1)
+        taken[r : r + 2, c : c + 2] = True
+        robots[k, ROW] = r
+        robots[k, COL] = c
+        robots[k, HEADING] = int(rng.integers(0, 4))
+        robots[k, BLADE] = BLADE_HOME
+    return robots
+
+
 def scenario_start(
-    shape: tuple[int, int], n_robots: int, active_robots: int, seed: int, index: int
+    shape: tuple[int, int],
+    n_robots: int,
+    active_robots: int,
+    seed: int,
+    index: int,
+    worksite: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """Placements, active flags and random-turn state of scenario ``index`` of ``seed``.
 
     The one definition of a seeded scenario, shared by the offline evaluator and the
     simulator node: scenario i draws from ``SeedSequence(seed).spawn(...)[i]``, whose
-    randomness does not depend on how many scenarios are spawned.
+    randomness does not depend on how many scenarios are spawned. ``worksite``: the
+    blueprint's zones to place robots on the worksite (rule ``placement = "worksite"``),
+    ``None`` to place them anywhere.
 
     Returns:
         ``(robots [n_robots, ROBOT_FIELDS], active [n_robots], rng_state)``.
     """
     child = np.random.SeedSequence(seed, spawn_key=(index,))
     rng = np.random.default_rng(child)
-    robots = place_robots(shape, n_robots, rng)
+    robots = place_robots(shape, n_robots, rng, worksite=worksite)
     active = np.zeros(n_robots, dtype=np.bool_)
     active[:active_robots] = True
     return robots, active, int(seed_state(int(rng.integers(0, 2**63)))[0])
+
+
+def placement_zones(rules: WorldRules, zones: np.ndarray) -> np.ndarray | None:
+    """What :func:`scenario_start` takes as ``worksite`` under ``rules``."""
+    return zones if rules.placement == "worksite" else None
 
 
 class WorldArrays(NamedTuple):
@@ -510,7 +571,7 @@ class World:
         robots: Robot states, ``int64 [n, ROBOT_FIELDS]``.
         active: Robots taking part, ``bool [n]``.
         rng: xorshift64* state, ``uint64 [1]``.
-        params: Packed :class:`WorldParams`.
+        params: Packed :class:`~excavation_sim.rules.WorldRules`.
     """
 
     heights: np.ndarray
@@ -528,12 +589,12 @@ class World:
         goal: np.ndarray,
         n_robots: int,
         rng: np.random.Generator,
-        params: WorldParams = DEFAULT_PARAMS,
+        rules: WorldRules = DEFAULT_RULES,
         heights: np.ndarray | None = None,
     ) -> World:
         """A flat (or given) terrain with robots placed at random by ``rng``."""
         shape = zones.shape
-        robots = place_robots(shape, n_robots, rng)
+        robots = place_robots(shape, n_robots, rng, worksite=placement_zones(rules, zones))
         return cls(
             heights=(
                 np.zeros(shape, dtype=np.int32)
@@ -545,7 +606,7 @@ class World:
             robots=robots,
             active=np.ones(n_robots, dtype=np.bool_),
             rng=seed_state(int(rng.integers(0, 2**63))),
-            params=params.as_array(),
+            params=rules.as_array(),
         )
 
     @classmethod
@@ -556,10 +617,12 @@ class World:
         n_robots: int,
         seed: int,
         index: int = 0,
-        params: WorldParams = DEFAULT_PARAMS,
+        rules: WorldRules = DEFAULT_RULES,
     ) -> World:
         """Scenario ``index`` of ``seed`` on a flat site (see :func:`scenario_start`)."""
-        robots, active, rng_state = scenario_start(zones.shape, n_robots, n_robots, seed, index)
+        robots, active, rng_state = scenario_start(
+            zones.shape, n_robots, n_robots, seed, index, placement_zones(rules, zones)
+        )
         return cls(
             heights=np.zeros(zones.shape, dtype=np.int32),
             zones=np.ascontiguousarray(zones, dtype=np.uint8),
@@ -567,7 +630,7 @@ class World:
             robots=robots,
             active=active,
             rng=np.array([rng_state], dtype=np.uint64),
-            params=params.as_array(),
+            params=rules.as_array(),
         )
 
     @property
@@ -584,7 +647,7 @@ class World:
     def sense(self) -> np.ndarray:
         """Sensor vectors of all robots from the current snapshot, ``int64 [n, 14]``."""
         out = np.zeros((self.n_robots, N_SENSORS), dtype=np.int64)
-        sense_all(self.heights, self.zones, self.goal, self.robots, self.active, out)
+        sense_all(self.heights, self.zones, self.goal, self.robots, self.active, out, self.params)
         return out
 
     def step(self, masks: np.ndarray) -> None:

@@ -2,7 +2,9 @@
 
 :func:`step_reference` does what :func:`excavation_sim.world.apply_all` does to a copy of
 the state, the slow way: Python integers, the heading tables, every blade equation spelled
-out once per blade column, the random turn's xorshift64* in Python arithmetic. The
+out once per blade column (with and without the ``soil_fill`` switch of
+:class:`excavation_sim.rules.WorldRules`), the random turn's xorshift64* in Python
+arithmetic. The
 tests hold the numba kernels to it on random states and whole random episodes
 (``tests/test_world_reference.py``), as :func:`ant_controller.tissue.decide_reference`
 does for the network. :func:`sense_all_reference` is the simulator's side of
@@ -46,6 +48,14 @@ from ant_controller.sensing_reference import (
     tilted_down_reference,
     under_other_robot,
 )
+from excavation_sim.rules import (
+    P_H1,
+    P_NORMAL_CLIMB,
+    P_NORMAL_LOAD,
+    P_SOIL_FILL,
+    P_THROTTLE_CLIMB,
+    P_THROTTLE_LOAD,
+)
 from excavation_sim.world import BLADE, HEADING, MEMORY, STUCK
 
 _MASK64 = (1 << 64) - 1
@@ -60,7 +70,7 @@ def xorshift_reference(state: int) -> tuple[int, int]:
     return x, (x * 0x2545F4914F6CDD1D) & _MASK64
 
 
-def _forward(heights, robots, active, k: int, capacity: int, climb: int) -> bool:
+def _forward(heights, robots, active, k: int, capacity: int, climb: int, fill: bool) -> bool:
     pose = robots[k]
     h = int(pose[HEADING])
     step = (int(FORWARD[h, 0]), int(FORWARD[h, 1]))
@@ -84,7 +94,14 @@ def _forward(heights, robots, active, k: int, capacity: int, climb: int) -> bool
         for i in range(2):
             b, w, n = blade_cells[i], wheels[i], beyond[i]
             cut = int(heights[w]) + bh * eps  # the cutting level t_i
-            moved[i] = max(0, int(heights[b]) - cut)
+            moved[i] = int(heights[b]) - cut  # the paper's equation: B~_i is left at t_i
+            if moved[i] < 0 and not fill:
+                moved[i] = 0  # v1: a cell below the cutting level is left alone
+            elif moved[i] < 0:
+                # soil_fill: B~_i is raised toward t_i with soil from B_i, but only with
+                # soil that lies above the cutting level there
+                spare = max(0, int(heights[n]) - cut)
+                moved[i] = -min(-moved[i], spare)
             left = int(heights[b]) - moved[i]
             load += max(0, int(heights[n]) + moved[i] - left - bh)
             if left - int(heights[w]) > climb:
@@ -95,7 +112,7 @@ def _forward(heights, robots, active, k: int, capacity: int, climb: int) -> bool
         for b, w in zip(blade_cells, wheels, strict=True):
             if int(heights[b]) - int(heights[w]) > climb:
                 return False
-    if engaged:  # soil moves from each old blade cell into the cell beyond it
+    if engaged:  # soil moves from each old blade cell into the cell beyond it (or back)
         for i in range(2):
             heights[blade_cells[i]] -= moved[i]
             heights[beyond[i]] += moved[i]
@@ -128,11 +145,13 @@ def step_reference(heights, robots, active, masks, rng_state: int, params):
         active: Robots taking part.
         masks: One behaviour mask per robot.
         rng_state: The xorshift64* state (``World.rng[0]``).
-        params: Packed world parameters (``WorldParams.as_array``).
+        params: Packed world rules (``WorldRules.as_array``).
     """
     heights = np.array(heights, copy=True)
     robots = np.array(robots, copy=True)
-    normal_load, throttle_load, normal_climb, throttle_climb = (int(p) for p in params)
+    normal_load, throttle_load = int(params[P_NORMAL_LOAD]), int(params[P_THROTTLE_LOAD])
+    normal_climb, throttle_climb = int(params[P_NORMAL_CLIMB]), int(params[P_THROTTLE_CLIMB])
+    fill = bool(params[P_SOIL_FILL])
     state = int(rng_state)
     for k in range(len(robots)):
         if not active[k]:
@@ -143,7 +162,10 @@ def step_reference(heights, robots, active, masks, rng_state: int, params):
         capacity = throttle_load if throttle else normal_load
         climb = throttle_climb if throttle else normal_climb
         stuck = False
-        if fires[MOVE_FORWARD] and not _forward(heights, robots, active, k, capacity, climb):
+        forward_ok = not fires[MOVE_FORWARD] or _forward(
+            heights, robots, active, k, capacity, climb, fill
+        )
+        if not forward_ok:
             stuck = True
         if fires[MOVE_BACKWARD] and not _backward(heights, robots, active, k, climb):
             stuck = True
@@ -167,8 +189,12 @@ def step_reference(heights, robots, active, masks, rng_state: int, params):
     return heights, robots, state
 
 
-def sense_all_reference(heights, zones, goal, robots, active) -> np.ndarray:
-    """Every robot's sensor vector from the world state, ``int64 [n, 14]``."""
+def sense_all_reference(heights, zones, goal, robots, active, params=None) -> np.ndarray:
+    """Every robot's sensor vector from the world state, ``int64 [n, 14]``.
+
+    ``params``: packed world rules (only H1's frame matters here); ``None``: ``v1``'s.
+    """
+    h1_frame = 0 if params is None else int(params[P_H1])
     rows = []
     for k in range(len(robots)):
         pose = robots[k]
@@ -186,6 +212,7 @@ def sense_all_reference(heights, zones, goal, robots, active) -> np.ndarray:
                 bool(pose[STUCK]),
                 tilted_down_reference(heights, pose),
                 bool(pose[MEMORY]),
+                h1_frame,
             )
         )
     return np.array(rows, dtype=np.int64).reshape(len(robots), -1)

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from excavation_common.params import param
 from overhead_localizer.beacons import Beacons
 from overhead_localizer.camera_model import CameraModel
 from overhead_localizer.errors import ImageError
@@ -63,19 +64,28 @@ class LocalizerParams:
         min_pixel_variance: Floor of a centroid's variance, pixels squared.
     """
 
-    min_value: int = 110
-    min_saturation: int = 60
-    min_area: int = 3
-    max_area: int = 500
-    hue_tolerance: float = 12.0
-    spacing_tolerance: float = 0.12
-    gate: float = 0.6
-    max_coast: int = 3
-    max_coast_time: float = 0.5
-    coast_sigma: float = 0.02
-    max_sigma: float = 0.08
-    ground_sigma: float = 0.05
-    min_pixel_variance: float = 0.02
+    min_value: int = param(110, "brightest channel of a beacon pixel (0..255)", low=0, high=255)
+    min_saturation: int = param(60, "saturation of a beacon pixel (0..255)", low=0, high=255)
+    min_area: int = param(3, "smallest blob, pixels", low=1, high=100000)
+    max_area: int = param(500, "largest blob, pixels (bigger: glare)", low=1, high=10000000)
+    hue_tolerance: float = param(
+        12.0, "hue distance to a table colour (0..180)", low=0.0, high=90.0
+    )
+    spacing_tolerance: float = param(
+        0.12, "LED distance deviation, fraction of the spacing", low=0.0, high=1.0
+    )
+    gate: float = param(0.6, "largest jump of a track between frames, m", low=0.0, high=100.0)
+    max_coast: int = param(3, "frames a robot keeps its last pose unseen", low=0, high=1000)
+    max_coast_time: float = param(0.5, "seconds a robot keeps its last pose", low=0.0, high=60.0)
+    coast_sigma: float = param(0.02, "position sigma added per coasted frame, m", low=0.0)
+    max_sigma: float = param(0.08, "poses less certain than this (m) are not sent", low=0.0)
+    ground_sigma: float = param(0.05, "soil height sigma without a height map, m", low=0.0)
+    min_pixel_variance: float = param(0.02, "floor of a centroid variance, px^2", low=0.0)
+
+    def check(self) -> None:
+        """Blob area limits in order."""
+        if self.min_area > self.max_area:
+            raise ValueError(f"min_area {self.min_area} > max_area {self.max_area}")
 
 
 @dataclass(frozen=True)

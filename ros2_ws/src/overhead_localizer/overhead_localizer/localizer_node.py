@@ -1,41 +1,57 @@
 """``ros2 run overhead_localizer localizer``: robot poses from the overhead camera's LEDs.
 
-Subscribes ``/overhead/image_raw`` (sensor_msgs/Image ``bgr8``) and, with
-``use_height_map``, ``/worksite/height_map`` + ``/worksite/map_info`` (the soil height
-under a robot sets the plane of its LEDs). Publishes for every robot k < ``robots`` it is
-sure of ``/robot_k/pose`` (PoseWithCovarianceStamped in ``map``, stamped with the frame's
-stamp, covariance from the detection) and, every ``diagnostics_period``, ``/diagnostics``:
-one status per robot (OK seen, WARN coasting / lost / ambiguous, ERROR when two robots
-share LED colours) and one for the camera (ERROR on a missing calibration or a frame of the
-wrong encoding or size). Bad input never stops the node and never produces a pose.
+Subscribes ``image_topic`` (``/overhead/image_raw``: sensor_msgs/Image in bgr8, rgb8, mono8
+or an 8-bit Bayer encoding; with ``compressed``, sensor_msgs/CompressedImage jpeg or png,
+conventionally ``/overhead/image_raw/compressed``) with queue depth 1 (the newest frame
+only), with ``camera_info_topic`` the driver's sensor_msgs/CameraInfo (its K and D replace
+the calibration file's intrinsics; frames wait for the first one), and, with
+``use_height_map``, ``/worksite/height_map`` + ``/worksite/map_info`` (the soil height under
+a robot sets the plane of its LEDs). Publishes for every robot k < ``robots`` it is sure of
+``/robot_k/pose`` (PoseWithCovarianceStamped in ``map``, stamped with the frame's stamp,
+covariance from the detection); with ``annotated_period`` > 0,
+``/overhead/image_annotated`` (CompressedImage jpeg: detected LEDs and poses drawn); and,
+every ``diagnostics_period``, ``/diagnostics``: the camera's status, named after the node
+(``/localizer``; ERROR on a frame of the wrong encoding or size, a bad CameraInfo, or
+colourless mono8 frames), and one per robot (``/localizer: robot_k``; OK seen, WARN
+coasting / lost / ambiguous, ERROR when two robots share LED colours). Bad input never
+stops the node and never produces a pose.
 
-Parameters: ``calibration`` (YAML written by ``calibrate``; empty: the simulator's camera,
-``config/camera_sim.yaml``), ``beacons`` (LED table; empty: ``config/beacons.yaml``),
-``robots`` (4), ``use_height_map`` (true), ``reliable`` (false: sensor-data QoS for the
-image; true: reliable, depth 10), ``diagnostics_period`` (1.0 s), and every field of
-:class:`overhead_localizer.localize.LocalizerParams` (defaults in ``config/localizer.yaml``).
+The node refuses to start (one line on stderr, exit code 2) without ``calibration``, or
+with a calibration or LED table file it cannot use: it never falls back to another camera.
+
+Parameters: :class:`overhead_localizer.params.LocalizerNodeParams` (topics, files, QoS)
+and :class:`overhead_localizer.localize.LocalizerParams` (detection, pairing, tracking),
+declared with descriptors and ranges; every default is in ``config/localizer.yaml``.
 """
 
 from __future__ import annotations
 
 import math
 import sys
-from dataclasses import fields
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from sensor_msgs.msg import Image
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 
 from excavation_common.errors import FieldError
 from excavation_common.messages import MessageError, image_to_grid
-from excavation_common.ros import LATCHED, spin_node
+from excavation_common.params import ParameterError
+from excavation_common.ros import LATCHED, LATEST_FRAME, declare_params, diagnostics, spin_node
+from overhead_localizer.annotate import annotate
 from overhead_localizer.beacons import CONFIG_DIR, load_beacons
+from overhead_localizer.camera_info import with_camera_info
 from overhead_localizer.camera_model import load_model
-from overhead_localizer.images import frame_from_message
+from overhead_localizer.errors import LocalizerConfigError
+from overhead_localizer.images import (
+    COLOURLESS,
+    frame_from_compressed,
+    frame_from_message,
+    frame_to_compressed,
+)
 from overhead_localizer.localize import (
     COASTING,
     DUPLICATE,
@@ -43,7 +59,12 @@ from overhead_localizer.localize import (
     Localizer,
     LocalizerParams,
     RobotEstimate,
+    check_image,
 )
+from overhead_localizer.params import LocalizerNodeParams
+
+ANNOTATED_TOPIC = "/overhead/image_annotated"
+"""The annotated camera frame (CompressedImage jpeg)."""
 
 UNESTIMATED = 1e6
 """Variance of the axes a pose does not estimate (z, roll, pitch), as in docs/interfaces.md."""
@@ -67,53 +88,85 @@ def pose_with_covariance(estimate: RobotEstimate, stamp) -> PoseWithCovarianceSt
 
 
 class LocalizerNode(Node):
-    """Thin ROS plumbing around :class:`overhead_localizer.localize.Localizer`."""
+    """Thin ROS plumbing around :class:`overhead_localizer.localize.Localizer`.
+
+    Raises:
+        excavation_common.params.ParameterError: A bad parameter, or no ``calibration``.
+        overhead_localizer.errors.LocalizerConfigError: The calibration or LED table file
+            cannot be used (the node refuses to start: ``spin_node`` exits with code 2).
+    """
 
     def __init__(self, **kwargs) -> None:
         super().__init__("localizer", **kwargs)
-        p = self.declare_parameter
-        self.n = int(p("robots", 4).value)
-        self.use_height_map = bool(p("use_height_map", True).value)
-        calibration = str(p("calibration", "").value) or str(CONFIG_DIR / "camera_sim.yaml")
-        beacons_file = str(p("beacons", "").value) or str(CONFIG_DIR / "beacons.yaml")
-        values = {}
-        for f in fields(LocalizerParams):
-            default = getattr(LocalizerParams(), f.name)
-            values[f.name] = type(default)(p(f.name, default).value)
-        self.params = LocalizerParams(**values)
-        period = float(p("diagnostics_period", 1.0).value)
-        reliable = bool(p("reliable", False).value)
+        self.config = declare_params(self, LocalizerNodeParams)
+        self.params = declare_params(self, LocalizerParams)
+        c = self.config
+        if not c.calibration:
+            raise ParameterError(
+                self.get_fully_qualified_name(),
+                "calibration",
+                "",
+                "required: the camera calibration YAML (`ros2 run overhead_localizer calibrate`)",
+            )
+        self.n = c.robots
+        self.use_height_map = c.use_height_map
+        self.file_model = load_model(c.calibration)
+        beacons = load_beacons(c.beacons or str(CONFIG_DIR / "beacons.yaml"))
+        try:
+            self.localizer = Localizer(self.file_model, beacons, self.n, self.params)
+        except ValueError as exc:
+            raise LocalizerConfigError(
+                c.beacons or "beacons.yaml", "robots", self.n, str(exc)
+            ) from None
 
         self.camera_error: str | None = None
         self.image_error: str | None = None
-        self.localizer: Localizer | None = None
         self.estimates: list[RobotEstimate] = []
+        self.blobs: list = []
         self.frames = 0
         self.heights: np.ndarray | None = None
         self.cell_size: float | None = None
-        try:
-            self.localizer = Localizer(
-                load_model(calibration), load_beacons(beacons_file), self.n, self.params
-            )
-        except (FieldError, ValueError) as exc:
-            self.camera_error = str(exc)
-            self.get_logger().error(f"localizer not ready: {exc}")
+        self.info_received = not c.camera_info_topic
+        self.encoding = ""
+        self.last_annotated = -math.inf
 
         self.pose_pubs = [
             self.create_publisher(PoseWithCovarianceStamped, f"/robot_{k}/pose", 10)
             for k in range(self.n)
         ]
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        qos = (
-            QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-            if reliable
-            else qos_profile_sensor_data
+        self.annotated_pub = (
+            self.create_publisher(CompressedImage, ANNOTATED_TOPIC, 1)
+            if c.annotated_period > 0
+            else None
         )
-        self.create_subscription(Image, "/overhead/image_raw", self.on_image, qos)
+        qos = (
+            QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+            if c.reliable
+            else LATEST_FRAME
+        )
+        if c.compressed:
+            self.create_subscription(CompressedImage, c.image_topic, self.on_compressed, qos)
+        else:
+            self.create_subscription(Image, c.image_topic, self.on_image, qos)
+        if c.camera_info_topic:
+            self.create_subscription(CameraInfo, c.camera_info_topic, self.on_camera_info, qos)
         if self.use_height_map:
             self.create_subscription(Image, "/worksite/height_map", self.on_heights, LATCHED)
             self.create_subscription(MapMetaData, "/worksite/map_info", self.on_info, LATCHED)
-        self.create_timer(period, self.publish_diagnostics)
+        self.create_timer(c.diagnostics_period, self.publish_diagnostics)
+
+    def on_camera_info(self, msg: CameraInfo) -> None:
+        """The driver's intrinsics replace the file's (the file keeps the camera's pose)."""
+        try:
+            model = with_camera_info(self.file_model, msg, self.config.camera_info_topic)
+        except FieldError as exc:
+            self.camera_error = str(exc)
+            self.get_logger().warning(self.camera_error, throttle_duration_sec=5.0)
+            return
+        self.camera_error = None
+        self.info_received = True
+        self.localizer.model = model
 
     def on_info(self, msg: MapMetaData) -> None:
         """Cell size of the worksite."""
@@ -127,14 +180,29 @@ class LocalizerNode(Node):
             self.get_logger().warning(str(exc), throttle_duration_sec=5.0)
 
     def on_image(self, msg: Image) -> None:
-        """One frame: poses of the robots the localizer is sure of."""
-        if self.localizer is None:
+        """One raw frame."""
+        self.encoding = msg.encoding
+        self.process(msg, lambda: frame_from_message(msg, self.config.image_topic))
+
+    def on_compressed(self, msg: CompressedImage) -> None:
+        """One jpeg or png frame."""
+        self.encoding = msg.format
+        self.process(msg, lambda: frame_from_compressed(msg, self.config.image_topic))
+
+    def process(self, msg, decode) -> None:
+        """Decode a frame and publish the poses of the robots the localizer is sure of."""
+        if not self.info_received:
+            self.image_error = f"waiting for {self.config.camera_info_topic}: frame skipped"
             return
         try:
-            frame = frame_from_message(msg)
+            frame = decode()
+            check_image(frame, self.localizer.model, self.config.image_topic)
             heights = self.heights if self.cell_size is not None else None
             stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-            self.estimates = self.localizer.update(frame, heights, self.cell_size or 0.25, stamp)
+            self.blobs = self.localizer.detect(frame)
+            self.estimates = self.localizer.associate(
+                self.blobs, heights, self.cell_size or 0.25, stamp
+            )
         except FieldError as exc:
             self.image_error = str(exc)
             self.get_logger().warning(self.image_error, throttle_duration_sec=5.0)
@@ -144,19 +212,34 @@ class LocalizerNode(Node):
         for k, estimate in enumerate(self.estimates):
             if estimate.reportable:
                 self.pose_pubs[k].publish(pose_with_covariance(estimate, msg.header.stamp))
+        if self.annotated_pub is not None:
+            now = self.get_clock().now().nanoseconds * 1e-9
+            if now - self.last_annotated >= self.config.annotated_period:
+                self.last_annotated = now
+                image = annotate(frame, self.blobs, self.estimates, self.localizer)
+                out = frame_to_compressed(
+                    image, CompressedImage(), "jpeg", 80, stamp=msg.header.stamp
+                )
+                self.annotated_pub.publish(out)
 
-    def statuses(self) -> list[DiagnosticStatus]:
-        """Camera status plus one per robot."""
-        camera = DiagnosticStatus(name="localizer: camera", hardware_id="overhead_camera")
+    def camera_status(self) -> tuple[bytes, str]:
+        """The camera's level and message."""
         if self.camera_error or self.image_error:
-            camera.level = DiagnosticStatus.ERROR
-            camera.message = self.camera_error or self.image_error
-        else:
-            camera.level = DiagnosticStatus.OK
-            camera.message = f"{self.frames} frames"
-        out = [camera]
+            return DiagnosticStatus.ERROR, self.camera_error or self.image_error
+        if self.encoding in COLOURLESS:
+            return DiagnosticStatus.ERROR, (
+                f"{self.encoding} frames carry no colour: the LED pairs cannot be told apart "
+                "(set the camera to a colour or Bayer encoding)"
+            )
+        return DiagnosticStatus.OK, f"{self.frames} frames"
+
+    def robot_statuses(self) -> list[DiagnosticStatus]:
+        """One status per robot, named ``<node>: robot_k``."""
+        out = []
         for k in range(self.n):
-            s = DiagnosticStatus(name=f"localizer: robot_{k}", hardware_id=f"robot_{k}")
+            s = DiagnosticStatus(
+                name=f"{self.get_fully_qualified_name()}: robot_{k}", hardware_id=f"robot_{k}"
+            )
             if k < len(self.estimates):
                 e = self.estimates[k]
                 s.level = {
@@ -173,14 +256,16 @@ class LocalizerNode(Node):
                     ]
             else:
                 s.level = DiagnosticStatus.WARN
-                s.message = "no frame yet" if self.localizer else "localizer not ready"
+                s.message = "no frame yet"
             out.append(s)
         return out
 
     def publish_diagnostics(self) -> None:
-        """Publish the statuses now."""
-        msg = DiagnosticArray(status=self.statuses())
-        msg.header.stamp = self.get_clock().now().to_msg()
+        """The camera's status (named after the node) and one per robot."""
+        level, message = self.camera_status()
+        values = {"frames": self.frames, "encoding": self.encoding or "none yet"}
+        msg = diagnostics(self, level, message, values, hardware_id="overhead_camera")
+        msg.status += self.robot_statuses()
         self.diag_pub.publish(msg)
 
 

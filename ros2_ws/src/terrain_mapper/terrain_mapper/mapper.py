@@ -15,9 +15,10 @@ read (one value per cell, metres, NaN unknown):
 3. **Fuse**: a cell measured again within ``change_threshold`` of its map value is
    averaged with it (up to ``max_count`` sweeps' weight); one that moved further (soil was
    dug or dumped) takes the new value. Cells not measured in a sweep (under a robot, in a
-   beam's shadow) keep their value; cells never measured hold ``prior_height`` (NaN:
-   unknown; the closed-loop trial uses 0, a level site surveyed before the robots enter).
-4. **Under the robots** (optional, ``robot_height``): the laser cannot see the cells a
+   beam's shadow) keep their value; cells never measured are NaN (unknown), or with
+   ``prior_known`` hold ``prior_height`` (the closed-loop trial and the dome use 0: a level
+   site surveyed before the robots enter).
+4. **Under the robots** (optional, ``robot_height`` > 0): the laser cannot see the cells a
    robot stands on, but it sees the robot's body; the median height of the returns on its
    top, less ``robot_height``, is taken as the soil under it for every footprint cell that
    disagrees with its map value by more than ``change_threshold``.
@@ -32,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from excavation_common.params import param
 from terrain_mapper.errors import MapperError
 from terrain_mapper.geometry import beam_directions
 
@@ -47,31 +49,51 @@ class MapperParams:
         mount_x: Laser pan/tilt centre, metres east.
         mount_y: Laser pan/tilt centre, metres north.
         mount_z: Laser pan/tilt centre, metres up.
+        pan_offset: Mount yaw error, radians (:mod:`terrain_mapper.geometry`).
+        tilt_offset: Mount pitch error about the east axis, radians.
+        roll_offset: Mount roll error about the north axis, radians.
         edge_margin: Points closer than this fraction of a cell to its border are dropped.
         min_returns: Points a cell needs in a sweep to be measured.
         robot_margin: Points this close (metres) to a robot's footprint are dropped.
         change_threshold: A new value further than this (metres) from the map replaces it.
         max_count: Most sweeps averaged into a cell.
-        prior_height: Value of never-measured cells (NaN = unknown).
-        robot_height: A robot's body top above the soil it stands on (metres); when set,
+        prior_known: Never-measured cells hold ``prior_height`` (else NaN, unknown).
+        prior_height: Value of never-measured cells with ``prior_known`` (metres).
+        robot_height: A robot's body top above the soil it stands on (metres); when > 0,
             the footprint cells that disagree with "body top - robot_height" by more than
-            ``change_threshold`` take that value (NaN: cells under robots keep the last
+            ``change_threshold`` take that value (0: cells under robots keep the last
             value seen).
     """
 
-    rows: int = 16
-    cols: int = 16
-    cell_size: float = 0.25
-    mount_x: float = 2.0
-    mount_y: float = 2.0
-    mount_z: float = 4.0
-    edge_margin: float = 0.12
-    min_returns: int = 3
-    robot_margin: float = 0.06
-    change_threshold: float = 0.02
-    max_count: int = 8
-    prior_height: float = math.nan
-    robot_height: float = math.nan
+    rows: int = param(16, "worksite rows", low=1, high=4096)
+    cols: int = param(16, "worksite columns", low=1, high=4096)
+    cell_size: float = param(0.25, "metres per cell", low=1e-3, high=100.0)
+    mount_x: float = param(2.0, "laser pan/tilt centre in map, m east")
+    mount_y: float = param(2.0, "laser pan/tilt centre in map, m north")
+    mount_z: float = param(4.0, "laser pan/tilt centre in map, m up", low=1e-3)
+    pan_offset: float = param(0.0, "mount yaw error, rad", low=-0.5, high=0.5)
+    tilt_offset: float = param(0.0, "mount pitch error (about east), rad", low=-0.5, high=0.5)
+    roll_offset: float = param(0.0, "mount roll error (about north), rad", low=-0.5, high=0.5)
+    edge_margin: float = param(
+        0.12, "fraction of a cell: returns nearer a border are dropped", low=0.0, high=0.49
+    )
+    min_returns: int = param(3, "returns a cell needs in a sweep", low=1, high=100000)
+    robot_margin: float = param(0.06, "m around a robot's footprint", low=0.0)
+    change_threshold: float = param(0.02, "m; a bigger change replaces a cell's value", low=0.0)
+    max_count: int = param(8, "sweeps averaged into a cell at most", low=1, high=100000)
+    prior_known: bool = param(False, "never-measured cells hold prior_height (else NaN)")
+    prior_height: float = param(0.0, "m, value of never-measured cells with prior_known")
+    robot_height: float = param(0.0, "m, body top above the soil (0: not used)", low=0.0)
+
+    @property
+    def prior(self) -> float:
+        """The value of never-measured cells (NaN: unknown)."""
+        return self.prior_height if self.prior_known else math.nan
+
+    @property
+    def offsets(self) -> tuple[float, float, float]:
+        """``(pan_offset, tilt_offset, roll_offset)``."""
+        return (self.pan_offset, self.tilt_offset, self.roll_offset)
 
 
 @dataclass(frozen=True)
@@ -103,7 +125,7 @@ class TerrainMapper:
     def __init__(self, params: MapperParams | None = None) -> None:
         """An empty map (``prior_height`` everywhere)."""
         self.params = p = params or MapperParams()
-        self.heights = np.full((p.rows, p.cols), p.prior_height, dtype=np.float64)
+        self.heights = np.full((p.rows, p.cols), p.prior, dtype=np.float64)
         self.counts = np.zeros((p.rows, p.cols), dtype=np.int64)
         self.mount = np.array([p.mount_x, p.mount_y, p.mount_z])
         self._points: list[np.ndarray] = []
@@ -125,6 +147,7 @@ class TerrainMapper:
         Returns:
             The number of valid returns (0 for a scan with none).
         """
+        p = self.params
         r = np.asarray(ranges, dtype=np.float64)
         angles = angle_min + angle_increment * np.arange(len(r))
         with np.errstate(invalid="ignore"):
@@ -132,7 +155,7 @@ class TerrainMapper:
         self.invalid += int(len(r) - ok.sum())
         self.scans += 1
         if ok.any():
-            dirs = beam_directions(pan, tilt, angles[ok])
+            dirs = beam_directions(pan, tilt, angles[ok], p.offsets)
             self._points.append(self.mount + r[ok, None] * dirs)
         return int(ok.sum())
 
@@ -156,7 +179,7 @@ class TerrainMapper:
             on_robot = (along <= half) & (across <= half)
             keep &= ~on_robot
             top = (along <= 0.8 * p.cell_size) & (across <= 0.8 * p.cell_size)
-            if math.isfinite(p.robot_height) and top.sum() >= p.min_returns:
+            if p.robot_height > 0 and top.sum() >= p.min_returns:
                 bodies.append((x, y, float(np.median(pts[top, 2])) - p.robot_height))
         masked = int((~keep).sum())
         u = pts[:, 0] / p.cell_size

@@ -1,50 +1,61 @@
 """``ros2 run terrain_mapper mapper``: the worksite height map from the overhead laser.
 
-Subscribes ``/worksite/scan`` (sensor_msgs/LaserScan) and ``/worksite/laser_mount/joint_states``
-(sensor_msgs/JointState with joints ``laser_pan``, ``laser_tilt``, radians; a scan is paired
-with the mount state of the same stamp) and every robot's ``/robot_k/pose`` (k <
-``robots``; their footprints are masked). Every ``sweep_scans`` scans it bins and fuses the
-sweep (:class:`terrain_mapper.mapper.TerrainMapper`) and publishes ``/worksite/height_map``
+Subscribes ``scan_topic`` (``/worksite/scan``, sensor_msgs/LaserScan), ``mount_topic``
+(``/worksite/laser_mount/joint_states``, sensor_msgs/JointState with joints ``laser_pan``,
+``laser_tilt``, radians) and every robot's ``/robot_k/pose`` (k < ``robots``; their
+footprints are masked). Each scan is projected with the mount's angles at the scan's own
+stamp, interpolated between the mount states that bracket it
+(:class:`terrain_mapper.mount_sync.MountSync`): the laser and the mount are separate
+drivers and never stamp alike. A scan waits up to ``mount_wait`` for a later mount state; a
+scan no pair of states brackets (or across a gap wider than ``mount_max_gap``) is dropped,
+counted (``unbracketed_scans``) and reported as a WARN on ``/diagnostics``. The mount's
+orientation errors (``pan_offset``, ``tilt_offset``, ``roll_offset``; fitted by
+``calibrate_mount``) are applied to every beam.
+
+Every ``sweep_scans`` scans it bins and fuses the sweep
+(:class:`terrain_mapper.mapper.TerrainMapper`) and publishes ``/worksite/height_map``
 (sensor_msgs/Image 32FC1, one pixel per cell, metres, NaN unknown, latched QoS) stamped
-with the sweep's first scan, and, with ``publish_map_info``, ``/worksite/map_info``.
+with the sweep's first scan. ``/worksite/map_info`` is the blueprint server's: the mapper
+publishes it only with ``publish_map_info`` (off by default; for a mapper run alone).
 
 A scan that turns the tilt back against the sweep's direction ends a sweep early (one of
 its scans was lost), so the count never drifts out of step. A sweep is fused once every
-robot's pose is at least as new as the sweep's first scan (so
-the masks are where the robots were), or ``pose_wait`` seconds after its last scan with the
-poses it has. A scan with no valid return, a malformed scan or mount state, or a sweep that
-measured no cell is reported on ``/diagnostics`` (``mapper``, WARN or ERROR) and publishes
-nothing; the node keeps running.
+robot's pose is at least as new as the sweep's first scan (so the masks are where the
+robots were), or ``pose_wait`` seconds after its last scan with the poses it has. A scan
+with no valid return, a malformed scan or mount state, or a sweep that measured no cell is
+reported on ``/diagnostics`` (status ``/mapper``, WARN or ERROR) and publishes nothing; the node
+keeps running.
 
-Parameters: every field of :class:`terrain_mapper.mapper.MapperParams` (grid, mount,
-estimation; ``config/mapper.yaml``), ``robots`` (4), ``sweep_scans`` (64),
-``pose_wait`` (0.5 s), ``publish_map_info`` (true), ``reliable`` (false: sensor-data QoS
-for scans; true: reliable with ``queue`` depth), ``queue`` (200),
-``diagnostics_period`` (1.0 s).
+Parameters: :class:`terrain_mapper.params.MapperNodeParams` (topics, sweeps, mount
+synchronisation, QoS) and :class:`terrain_mapper.mapper.MapperParams` (grid, mount,
+estimation), declared with descriptors and ranges; every default is in
+``config/mapper.yaml``.
 """
 
 from __future__ import annotations
 
+import bisect
 import math
 import sys
 import time
-from dataclasses import fields
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, JointState, LaserScan
 
 from excavation_common.messages import grid_to_image, map_info
-from excavation_common.ros import LATCHED, spin_node
+from excavation_common.ros import LATCHED, SENSOR_DATA, declare_params, diagnostics, spin_node
 from terrain_mapper.errors import MapperError
 from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, yaw_of
 from terrain_mapper.mapper import MapperParams, TerrainMapper, scan_ranges_check
+from terrain_mapper.mount_sync import MISS, WAIT, MountSync
+from terrain_mapper.params import MapperNodeParams
 
-SCAN_TOPIC = "/worksite/scan"
-MOUNT_TOPIC = "/worksite/laser_mount/joint_states"
+SCAN_TOPIC = MapperNodeParams().scan_topic
+MOUNT_TOPIC = MapperNodeParams().mount_topic
 
 
 def mount_angles(msg: JointState, topic: str = MOUNT_TOPIC) -> tuple[float, float]:
@@ -70,28 +81,31 @@ def _key(stamp) -> tuple[int, int]:
     return (int(stamp.sec), int(stamp.nanosec))
 
 
+def _ns(stamp) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
 class MapperNode(Node):
-    """Thin ROS plumbing around :class:`TerrainMapper`."""
+    """Thin ROS plumbing around :class:`TerrainMapper`.
+
+    Raises:
+        excavation_common.params.ParameterError: A bad parameter value.
+    """
 
     def __init__(self, **kwargs) -> None:
         super().__init__("mapper", **kwargs)
-        p = self.declare_parameter
-        values = {}
-        for f in fields(MapperParams):
-            default = getattr(MapperParams(), f.name)
-            values[f.name] = type(default)(p(f.name, default).value)
-        self.params = MapperParams(**values)
-        self.n = int(p("robots", 4).value)
-        self.sweep_scans = int(p("sweep_scans", 64).value)
-        self.pose_wait = float(p("pose_wait", 0.5).value)
-        publish_info = bool(p("publish_map_info", True).value)
-        reliable = bool(p("reliable", False).value)
-        queue = int(p("queue", 200).value)
-        period = float(p("diagnostics_period", 1.0).value)
+        self.config = c = declare_params(self, MapperNodeParams)
+        self.params = declare_params(self, MapperParams)
+        self.n = c.robots
+        self.sweep_scans = c.sweep_scans
+        self.pose_wait = c.pose_wait
+        self.scan_topic = c.scan_topic
 
         self.core = TerrainMapper(self.params)
-        self.scans: dict[tuple[int, int], LaserScan] = {}
-        self.mounts: dict[tuple[int, int], tuple[float, float]] = {}
+        self.sync = MountSync(int(c.mount_max_gap * 1e9), keep=max(8 * c.sweep_scans, 64))
+        self.scans: list[tuple[int, float, LaserScan]] = []  # (stamp ns, arrival, scan)
+        self.unbracketed = 0
+        self.unbracketed_seen = 0
         self.poses: dict[int, tuple[tuple[int, int], tuple[float, float, float]]] = {}
         self.in_sweep = 0
         self.last_tilt: float | None = None
@@ -106,17 +120,17 @@ class MapperNode(Node):
         self.map_pub = self.create_publisher(Image, "/worksite/height_map", LATCHED)
         self.info_pub = (
             self.create_publisher(MapMetaData, "/worksite/map_info", LATCHED)
-            if publish_info
+            if c.publish_map_info
             else None
         )
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         qos = (
-            QoSProfile(depth=queue, reliability=ReliabilityPolicy.RELIABLE)
-            if reliable
-            else qos_profile_sensor_data
+            QoSProfile(depth=c.queue, reliability=ReliabilityPolicy.RELIABLE)
+            if c.reliable
+            else SENSOR_DATA
         )
-        self.create_subscription(LaserScan, SCAN_TOPIC, self.on_scan, qos)
-        self.create_subscription(JointState, MOUNT_TOPIC, self.on_mount, qos)
+        self.create_subscription(LaserScan, c.scan_topic, self.on_scan, qos)
+        self.create_subscription(JointState, c.mount_topic, self.on_mount, qos)
         for k in range(self.n):
             self.create_subscription(
                 PoseWithCovarianceStamped,
@@ -129,7 +143,7 @@ class MapperNode(Node):
                 map_info(self.params.rows, self.params.cols, self.params.cell_size)
             )
         self.create_timer(0.05, self.check_pending)
-        self.create_timer(period, self.publish_diagnostics)
+        self.create_timer(c.diagnostics_period, self.publish_diagnostics)
 
     # --- inputs -----------------------------------------------------------------------------
 
@@ -141,16 +155,19 @@ class MapperNode(Node):
     def on_mount(self, msg: JointState) -> None:
         """The mount's pan and tilt at a stamp."""
         try:
-            self.mounts[_key(msg.header.stamp)] = mount_angles(msg)
+            pan, tilt = mount_angles(msg, self.config.mount_topic)
         except MapperError as exc:
             self.problem("mount", DiagnosticStatus.ERROR, str(exc))
             return
         self.problems.pop("mount", None)
+        self.sync.add(_ns(msg.header.stamp), pan, tilt)
         self.match()
 
     def on_scan(self, msg: LaserScan) -> None:
-        """A scan, kept until its mount state arrives."""
-        self.scans[_key(msg.header.stamp)] = msg
+        """A scan, kept until the mount states around its stamp have arrived."""
+        bisect.insort(
+            self.scans, (_ns(msg.header.stamp), time.monotonic(), msg), key=lambda e: e[0]
+        )
         self.match()
 
     def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
@@ -165,12 +182,30 @@ class MapperNode(Node):
     # --- scans and sweeps -------------------------------------------------------------------
 
     def match(self) -> None:
-        """Integrate every scan whose mount state has arrived, in stamp order."""
-        for key in sorted(set(self.scans) & set(self.mounts)):
-            self.integrate(self.scans.pop(key), *self.mounts.pop(key))
-        for store in (self.scans, self.mounts):  # unmatched leftovers never grow unbounded
-            for key in sorted(store)[: max(len(store) - 4 * self.sweep_scans, 0)]:
-                del store[key]
+        """Integrate, in stamp order, every scan whose mount angles are known now.
+
+        A scan still waiting for a later mount state holds back the scans after it, unless
+        it has waited ``mount_wait``; a scan no states bracket is dropped and counted.
+        """
+        now = time.monotonic()
+        while self.scans:
+            stamp, arrived, msg = self.scans[0]
+            found = self.sync.lookup(stamp)
+            if found.status == WAIT and now - arrived < self.config.mount_wait:
+                break
+            self.scans.pop(0)
+            if found.status == WAIT:
+                found = found.__class__(MISS, reason="no mount state after it arrived")
+            if found.status == MISS:
+                self.unbracketed += 1
+                self.problem(
+                    "mount_sync",
+                    DiagnosticStatus.WARN,
+                    f"{self.unbracketed} scans dropped: no mount state brackets their stamp "
+                    f"(last: {found.reason})",
+                )
+                continue
+            self.integrate(msg, found.pan, found.tilt)
 
     def integrate(self, msg: LaserScan, pan: float, tilt: float) -> None:
         """Project one scan; after ``sweep_scans`` scans, the sweep waits for poses."""
@@ -178,11 +213,15 @@ class MapperNode(Node):
             self.fuse()  # a new sweep began: the last one goes with the poses there are
         try:
             scan_ranges_check(
-                len(msg.ranges), msg.angle_min, msg.angle_max, msg.angle_increment, SCAN_TOPIC
+                len(msg.ranges),
+                msg.angle_min,
+                msg.angle_max,
+                msg.angle_increment,
+                self.scan_topic,
             )
             if not (0 <= msg.range_min < msg.range_max):
                 raise MapperError(
-                    SCAN_TOPIC, "range_min/range_max", (msg.range_min, msg.range_max), "bad"
+                    self.scan_topic, "range_min/range_max", (msg.range_min, msg.range_max), "bad"
                 )
         except MapperError as exc:
             self.problem("scan", DiagnosticStatus.ERROR, str(exc))
@@ -218,19 +257,24 @@ class MapperNode(Node):
             self.problem(
                 "scan",
                 DiagnosticStatus.WARN,
-                f"{SCAN_TOPIC}: scan at tilt {tilt:.3f} rad has no valid return",
+                f"{self.scan_topic}: scan at tilt {tilt:.3f} rad has no valid return",
             )
         else:
             self.problems.pop("scan", None)
         self.in_sweep += 1
         if self.in_sweep >= self.sweep_scans:
             self.problems.pop("sweep_size", None)
+            if self.unbracketed == self.unbracketed_seen:  # a whole sweep without a miss
+                self.problems.pop("mount_sync", None)
+            self.unbracketed_seen = self.unbracketed
             self.in_sweep = 0
             self.pending = (self.sweep_stamp, time.monotonic())
             self.check_pending()
 
     def check_pending(self) -> None:
         """Fuse the finished sweep once the poses are current (or ``pose_wait`` passed)."""
+        if self.scans:
+            self.match()  # scans whose mount state never came are dropped after mount_wait
         if self.pending is None:
             return
         stamp, finished = self.pending
@@ -265,23 +309,19 @@ class MapperNode(Node):
         self.published += 1
 
     def publish_diagnostics(self) -> None:
-        """``mapper``: OK with sweep figures, or the worst recorded problem."""
-        status = DiagnosticStatus(name="mapper", hardware_id="overhead_laser")
+        """The node's status: OK with sweep figures, or the worst recorded problem."""
         if self.problems:
-            status.level = max(level for level, _ in self.problems.values())
-            status.message = "; ".join(text for _, text in self.problems.values())
+            level = max(level for level, _ in self.problems.values())
+            message = "; ".join(text for _, text in self.problems.values())
         else:
-            status.level = DiagnosticStatus.OK
-            status.message = f"{self.published} maps published"
+            level, message = DiagnosticStatus.OK, f"{self.published} maps published"
+        values = {}
         if self.last_stats is not None:
-            s = self.last_stats
-            status.values = [
-                KeyValue(key=name, value=str(getattr(s, name)))
-                for name in ("points", "invalid", "masked", "measured")
-            ] + [KeyValue(key="short_sweeps", value=str(self.short_sweeps))]
-        msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self.diag_pub.publish(msg)
+            values = {
+                n: getattr(self.last_stats, n) for n in ("points", "invalid", "masked", "measured")
+            }
+        values.update(short_sweeps=self.short_sweeps, unbracketed_scans=self.unbracketed)
+        self.diag_pub.publish(diagnostics(self, level, message, values, "overhead_laser"))
 
 
 def main(args: list[str] | None = None) -> int:

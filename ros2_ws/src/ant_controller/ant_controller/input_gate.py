@@ -1,0 +1,217 @@
+"""What a controller node may act on: input freshness and the lockstep decision (no rclpy).
+
+:class:`InputGate` holds the latest decoded inputs of one robot's controller (poses, height
+map, blade joint state, stuck flag, blueprint, cell size) with the time each arrived and
+the stamp it carried, plus which robots the supervisor has enabled (``/robot_j/enabled``).
+It answers two questions for the node:
+
+* :meth:`InputGate.missing`: why the controller cannot act now (a missing or stale input,
+  an own pose off the worksite, unknown terrain around the robot), or ``None``;
+* :meth:`InputGate.lockstep_ready`: in lockstep mode (``ant-trial``), whether every input of
+  one simulator tick is in (same stamp, newer than the last tick decided, plus a stuck flag
+  received since), so that the node decides exactly once per tick.
+
+Disabled robots are absent (DESIGN.md "Operator oversight"): their poses are neither needed
+nor fresh-checked, and :meth:`InputGate.active` leaves them out of the sensor vector (the
+core's ``active`` mask), so one robot the localiser loses no longer freezes the team. A
+robot never heard of on ``enabled`` counts as enabled (a team without a supervisor).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ant_controller.readings import PROFILE_NAMES
+from excavation_common.params import param
+
+UNKNOWN = np.iinfo(np.int32).min
+"""Height-map value of a cell with no measurement (NaN in the message)."""
+
+Stamp = tuple[int, int]
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """Parameters of the controller node (``config/controller.yaml``)."""
+
+    robot_id: int = param(0, "this robot's index in the team", low=0, high=63)
+    robots: int = param(1, "team size: poses of /robot_0 .. /robot_{robots-1}", low=1, high=64)
+    height_unit: float = param(0.05, "m per soil unit (the blueprint's)", low=1e-6, high=100.0)
+    pose_timeout: float = param(1.0, "s: older poses are stale (hold still)", low=1e-3, high=3600.0)
+    map_timeout: float = param(5.0, "s: older height map is stale", low=1e-3, high=3600.0)
+    joint_timeout: float = param(1.0, "s: blade joint state and stuck flag", low=1e-3, high=3600.0)
+    rate: float = param(10.0, "Hz decisions (fresh-input mode)", low=0.1, high=1000.0)
+    lockstep: bool = param(False, "one decision per simulator tick (ant-trial)")
+    blade_depth: float = param(0.02, "m, must match the blade driver", low=1e-6, high=10.0)
+    blade_home: float = param(0.10, "m, must match the blade driver", low=1e-6, high=10.0)
+    max_force: float = param(10.0, "N of a full blade", low=1e-6, high=1e6)
+    profile: str = param(
+        "v1",
+        "readings of the paper (H1 frame, hand-coded rules): v1 or paper, as the simulator's",
+        choices=PROFILE_NAMES,
+    )
+
+    def check(self) -> None:
+        """Rules across fields: the robot is one of the team; home above depth."""
+        if self.robot_id >= self.robots:
+            raise ValueError(
+                f"robot_id = {self.robot_id} is outside the team of {self.robots} "
+                f"(0..{self.robots - 1})"
+            )
+        if self.blade_home <= self.blade_depth:
+            raise ValueError(f"blade_home = {self.blade_home}: must be above blade_depth")
+
+
+@dataclass
+class InputGate:
+    """The freshness gate and lockstep barrier of one robot's controller.
+
+    Times (``now``) are seconds on the node's clock; stamps are ``(sec, nanosec)`` of the
+    messages' headers.
+
+    Attributes:
+        robot_id: This robot.
+        robots: Team size.
+        pose_timeout: Seconds after which a pose is stale.
+        map_timeout: Seconds after which the height map is stale.
+        joint_timeout: Seconds after which the joint state and the stuck flag are stale.
+        lockstep: Stamps, not ages, say what is fresh (one decision per tick).
+    """
+
+    robot_id: int
+    robots: int
+    pose_timeout: float = 1.0
+    map_timeout: float = 5.0
+    joint_timeout: float = 1.0
+    lockstep: bool = False
+    poses: dict[int, tuple[float, tuple[int, int, int]]] = field(default_factory=dict)
+    heights: tuple[float, np.ndarray] | None = None
+    joint: tuple[float, tuple[int, int]] | None = None
+    stuck: tuple[float, bool] | None = None
+    zones: np.ndarray | None = None
+    goal: np.ndarray | None = None
+    cell_size: float | None = None
+    enabled: dict[int, bool] = field(default_factory=dict)
+    stamps: dict[str, Stamp] = field(default_factory=dict)
+    fresh_stuck: int = 0
+    decided_stamp: Stamp | None = None
+    went_back: bool = False
+
+    @classmethod
+    def from_params(cls, p: ControllerParams) -> InputGate:
+        """The gate of a node with parameters ``p``."""
+        return cls(p.robot_id, p.robots, p.pose_timeout, p.map_timeout, p.joint_timeout, p.lockstep)
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def on_pose(self, j: int, now: float, pose: tuple[int, int, int], stamp: Stamp) -> None:
+        """Robot ``j``'s pose on the grid ``(row, col, heading)``."""
+        self.poses[j] = (now, tuple(int(v) for v in pose))
+        self.stamps[f"pose{j}"] = stamp
+
+    def on_heights(self, now: float, heights: np.ndarray, stamp: Stamp) -> None:
+        """The height map in soil units (:data:`UNKNOWN` where unmeasured)."""
+        self.heights = (now, heights)
+        self.stamps["heights"] = stamp
+
+    def on_joint(self, now: float, blade: tuple[int, int], stamp: Stamp) -> None:
+        """The blade's ``(B1 code, load volume)``."""
+        self.joint = (now, blade)
+        self.stamps["joint"] = stamp
+
+    def on_stuck(self, now: float, stuck: bool) -> None:
+        """U1 as the robot reports it (unstamped: paired with the tick by arrival)."""
+        self.stuck = (now, bool(stuck))
+        self.fresh_stuck += 1
+
+    def on_enabled(self, j: int, enabled: bool) -> None:
+        """Robot ``j`` enabled or disabled by the supervisor."""
+        self.enabled[j] = bool(enabled)
+
+    # --- questions --------------------------------------------------------------------------
+
+    def is_enabled(self, j: int) -> bool:
+        """Robot ``j`` takes part (never heard of: yes)."""
+        return self.enabled.get(j, True)
+
+    def active(self) -> np.ndarray:
+        """The ``active`` mask of the controller core: enabled robots."""
+        return np.array([self.is_enabled(j) for j in range(self.robots)], dtype=np.bool_)
+
+    def _age(self, arrived: float, now: float) -> float:
+        return 0.0 if self.lockstep else now - arrived
+
+    def missing(self, now: float) -> str | None:
+        """Why the controller cannot act at ``now``, or ``None`` when every input is fresh."""
+        if self.cell_size is None:
+            return "no /worksite/map_info"
+        if self.zones is None or self.goal is None:
+            return "no blueprint (/blueprint/zones, /blueprint/goal)"
+        if self.goal.shape != self.zones.shape:
+            return "blueprint goal and zones differ in size"
+        if not self.is_enabled(self.robot_id):
+            return "this robot is disabled (supervisor)"
+        for j in range(self.robots):
+            if not self.is_enabled(j):
+                continue
+            name = "own pose" if j == self.robot_id else f"pose of robot {j}"
+            if j not in self.poses:
+                return f"no {name}"
+            age = self._age(self.poses[j][0], now)
+            if age > self.pose_timeout:
+                return f"{name} is stale ({age:.2f} s)"
+        for name, value, limit in (
+            ("height map", self.heights, self.map_timeout),
+            ("blade joint state", self.joint, self.joint_timeout),
+            ("stuck flag", self.stuck, self.joint_timeout),
+        ):
+            if value is None:
+                return f"no {name}"
+            age = self._age(value[0], now)
+            if age > limit:
+                return f"{name} is stale ({age:.2f} s)"
+        if self.heights[1].shape != self.zones.shape:
+            return "height map and blueprint differ in size"
+        row, col, _ = self.poses[self.robot_id][1]
+        rows, cols = self.zones.shape
+        if not (0 <= row < rows - 1 and 0 <= col < cols - 1):
+            return f"own pose ({row}, {col}) is off the {rows} x {cols} worksite"
+        window = self.heights[1][max(row - 2, 0) : row + 4, max(col - 2, 0) : col + 4]
+        if (window == UNKNOWN).any():
+            return "unknown terrain around the robot"
+        return None
+
+    def lockstep_ready(self, now: float) -> bool:
+        """Every input of a new tick is in: decide it now (the tick is then marked decided).
+
+        A tick's inputs are the poses of every enabled robot, the height map and the joint
+        state stamped with the same time, newer than the last tick decided, plus a stuck
+        flag received since then. A complete set OLDER than the last tick decided means
+        the simulator's clock went back (it was restarted): that is decided too, as the first
+        tick of a new trial, and :attr:`went_back` says so (the node clears M1).
+        """
+        self.went_back = False
+        keys = [f"pose{j}" for j in range(self.robots) if self.is_enabled(j)]
+        stamps = {self.stamps.get(k) for k in keys + ["heights", "joint"]}
+        if len(stamps) != 1 or None in stamps or self.fresh_stuck == 0:
+            return False
+        (stamp,) = stamps
+        if self.decided_stamp is not None and stamp == self.decided_stamp:
+            return False
+        went_back = self.decided_stamp is not None and stamp < self.decided_stamp
+        if self.missing(now) is not None:
+            return False  # not ready (e.g. no blueprint yet): decided when it arrives
+        self.went_back = went_back
+        self.decided_stamp = stamp
+        self.fresh_stuck = 0
+        return True
+
+    def pose_array(self) -> np.ndarray:
+        """``[robots, 3]`` poses; an absent robot without a pose is ``(0, 0, 0)``."""
+        out = np.zeros((self.robots, 3), dtype=np.int64)
+        for j, (_, pose) in self.poses.items():
+            if 0 <= j < self.robots:
+                out[j] = pose
+        return out

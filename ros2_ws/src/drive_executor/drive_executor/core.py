@@ -1,0 +1,292 @@
+"""The drive executor's logic without ROS: a behaviour word as a queue of motion primitives.
+
+A goal (one tick's word, :class:`~drive_executor.goals.DriveGoal`) becomes primitives in
+Table 2 order (the world model's order, ``excavation_sim.world.apply_behaviours``):
+
+1. Move Forward: :class:`~drive_executor.primitives.DriveCells` ``+1``;
+2. Move Backward: ``DriveCells(-1)``;
+3. Random Turn, Turn Right, Turn Left: their net rotation as quarter turns (right is
+   ``+1``, a net half turn is two right turns, opposite turns cancel). Turns never fail in
+   the world model and touch no soil, so the net rotation ends where the three would.
+
+Throttle Up raises the speed limits of the goal's primitives. Blade and memory behaviours
+are not the executor's (the blade driver and the controller own them).
+
+A primitive that fails (time allowance, no progress: the robot is blocked or stalled)
+stops the robot; a failed drive is followed by a settle back to the centre of the cell
+the robot stands on, and the goal goes on with its remaining primitives, as the world
+model goes on after a refused move. The goal then ends ``ABORTED`` and the robot reports
+``stuck`` (U1); otherwise ``SUCCEEDED`` and not stuck.
+
+Safety (DESIGN.md, "Operator oversight and safety"): every twist passes
+:class:`excavation_common.safety.MotionGate`; a closed gate (not active, e-stop, pause,
+disable, heartbeat lost) or a pose older than ``pose_timeout`` by its stamp gives a zero
+twist at once and aborts the goal; nothing moves until a new goal arrives with the gate
+open. A drive override (``drive/override``) wins over the goal while younger than
+``override_timeout`` (the goal aborts: the operator has taken the robot), clamped to the
+throttle limits; the gate still wins over the override.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ant_controller.layout import (
+    MOVE_BACKWARD,
+    MOVE_FORWARD,
+    RANDOM_TURN,
+    THROTTLE_UP,
+    TURN_LEFT,
+    TURN_RIGHT,
+)
+from drive_executor.errors import GoalError
+from drive_executor.goals import ABORTED, EXECUTING, LEFT, RIGHT, SUCCEEDED, DriveGoal
+from drive_executor.params import ExecutorParams
+from drive_executor.primitives import (
+    STOP,
+    DriveCells,
+    Limits,
+    Pose2D,
+    Primitive,
+    Status,
+    Turn,
+    Twist2D,
+)
+from excavation_common.safety import MotionGate
+
+MOTION_BITS = sum(1 << b for b in (MOVE_FORWARD, MOVE_BACKWARD, RANDOM_TURN, TURN_RIGHT, TURN_LEFT))
+"""The behaviours the executor carries out (Table 2, 2-6)."""
+
+
+def plan(word: int, turn: int) -> list[tuple[str, int]]:
+    """The primitives of a word: ``("drive", cells)`` and ``("turn", direction)`` steps.
+
+    Args:
+        word: Behaviour word (12 bits).
+        turn: Direction of the random turn if the word has one: ``RIGHT`` or ``LEFT``.
+
+    Raises:
+        GoalError: A word beyond 12 bits, or a random turn without a direction.
+    """
+    if not 0 <= word <= 0xFFF:
+        raise GoalError("<goal>", "word", word, "must be a 12-bit behaviour word")
+    steps: list[tuple[str, int]] = []
+    if (word >> MOVE_FORWARD) & 1:
+        steps.append(("drive", 1))
+    if (word >> MOVE_BACKWARD) & 1:
+        steps.append(("drive", -1))
+    quarter = 0
+    if (word >> RANDOM_TURN) & 1:
+        if turn not in (RIGHT, LEFT):
+            raise GoalError("<goal>", "turn", turn, "a random turn needs a direction")
+        quarter += turn
+    quarter += (word >> TURN_RIGHT) & 1
+    quarter -= (word >> TURN_LEFT) & 1
+    quarter %= 4
+    steps += {0: [], 1: [("turn", RIGHT)], 2: [("turn", RIGHT)] * 2, 3: [("turn", LEFT)]}[quarter]
+    return steps
+
+
+@dataclass
+class Counters:
+    """What the executor has done (for ``/diagnostics`` and the trial's result)."""
+
+    goals: int = 0
+    goals_aborted: int = 0
+    primitives: int = 0
+    primitives_aborted: int = 0
+    cycles: int = 0
+    last_failure: str = ""
+    failures: list[str] = field(default_factory=list)
+
+
+class DriveExecutorCore:
+    """One robot's executor: goals in, twists and statuses out (pure, no ``rclpy``).
+
+    Feed it poses (:meth:`on_pose`, which returns the twist of this control step), goals
+    (:meth:`submit`), overrides (:meth:`on_override`) and the gate's inputs (through
+    :attr:`gate`); call :meth:`check` from the safety loop and after every gate change.
+    Status changes collect in :attr:`events` as ``("status", goal, code, stuck)``;
+    ``("throttle", on)`` announces the power mode of the goal starting. Times are seconds
+    on one clock (the pose stamps' clock: sim time in CI).
+    """
+
+    def __init__(self, params: ExecutorParams, gate: MotionGate | None = None) -> None:
+        self.params = params
+        self.gate = gate if gate is not None else MotionGate(deadman=params.deadman)
+        self.rng = np.random.default_rng(params.seed)
+        self.goal: DriveGoal | None = None
+        self.queue: deque[tuple[str, int]] = deque()
+        self.current: Primitive | None = None
+        self.limits = Limits.of(params, False)
+        self.goal_failures: list[str] = []
+        self.pose: Pose2D | None = None
+        self.pose_stamp: float | None = None
+        self.override: tuple[Twist2D, float] | None = None
+        self.events: list[tuple] = []
+        self.counters = Counters()
+        self.stop_reason: str | None = "no goal yet"
+        self.free_ticks = 0
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def submit(self, goal: DriveGoal, now: float) -> None:
+        """Start a goal (a running one is aborted first: superseded)."""
+        if self.goal is not None:
+            self.abort(f"superseded by tick {goal.tick}")
+        turn = goal.turn
+        if (goal.word >> RANDOM_TURN) & 1 and turn == 0:
+            turn = RIGHT if self.rng.integers(0, 2) else LEFT
+        try:
+            steps = plan(goal.word, turn)
+        except GoalError as exc:
+            self.goal = goal
+            self.counters.goals += 1
+            self.goal_failures = [str(exc)]
+            self._finish()
+            return
+        self.goal = goal
+        self.counters.goals += 1
+        self.queue = deque(steps)
+        self.current = None
+        self.goal_failures = []
+        throttle = bool((goal.word >> THROTTLE_UP) & 1)
+        self.limits = Limits.of(self.params, throttle)
+        self.events.append(("throttle", throttle))
+        self.events.append(("status", goal, EXECUTING, False))
+        if not self.queue:
+            self._finish()
+            return
+        why = self.gate.reason(now)
+        if why is not None:
+            self.abort(why)
+
+    def on_word(self, word: int, now: float) -> None:
+        """Free mode: run a behaviour word when idle (a word while busy is dropped)."""
+        if self.goal is None:
+            self.free_ticks += 1
+            self.submit(DriveGoal(self.free_ticks, int(word) & 0xFFFF), now)
+
+    def on_override(self, twist: Twist2D, now: float) -> None:
+        """An operator's twist (``drive/override``)."""
+        if math.isfinite(twist.linear) and math.isfinite(twist.angular):
+            self.override = (twist, now)
+
+    def on_pose(self, pose: Pose2D, stamp: float, now: float) -> Twist2D:
+        """A new pose (stamped ``stamp``): one control step; returns the twist to send."""
+        self.counters.cycles += 1
+        self.pose, self.pose_stamp = pose, stamp
+        forced = self.check(now)
+        if forced is not None:
+            return forced
+        if self.goal is None:
+            return STOP
+        while True:
+            if self.current is None:
+                if not self.queue:
+                    self._finish()
+                    return STOP
+                kind, arg = self.queue.popleft()
+                cls = DriveCells if kind == "drive" else Turn
+                self.current = cls(arg, self.params, self.limits)
+                self.counters.primitives += 1
+                try:
+                    self.current.on_run(pose, stamp)
+                except GoalError as exc:
+                    self.abort(str(exc))
+                    return STOP
+            status, twist = self.current.on_cycle_update(pose, stamp)
+            if status is Status.RUNNING:
+                return twist
+            if status is Status.FAILED:
+                self.counters.primitives_aborted += 1
+                self.counters.last_failure = self.current.failure
+                self.goal_failures.append(self.current.failure)
+                if isinstance(self.current, DriveCells) and self.current.cells != 0:
+                    self.queue.appendleft(("drive", 0))
+                self.current = None
+                return STOP
+            self.current = None  # succeeded: start the next primitive on this pose
+
+    def check(self, now: float) -> Twist2D | None:
+        """The safety check: the twist to force now, or ``None`` when the loop may act.
+
+        Runs in the safety loop (>= 20 Hz) and at once after every gate input. A closed
+        gate gives zero; a fresh override, clamped, when the gate is open; a stale pose
+        zero. A running goal is aborted in each case.
+        """
+        why = self.gate.reason(now)
+        if why is not None:
+            self.stop_reason = why
+            if self.goal is not None:
+                self.abort(why)
+            return STOP
+        if self.override is not None and now - self.override[1] <= self.params.override_timeout:
+            if self.goal is not None:
+                self.abort("drive override in charge")
+            self.stop_reason = "drive override in charge"
+            return self.clamp(self.override[0])
+        if self.goal is not None:
+            stale = self.stale(now)
+            if stale is not None:
+                self.abort(stale)
+                return STOP
+        elif self.stale(now) is not None:
+            return STOP
+        self.stop_reason = None
+        return None
+
+    # --- helpers ------------------------------------------------------------------------------
+
+    def stale(self, now: float) -> str | None:
+        """Why the pose cannot be used at ``now`` (none yet, or older than the limit)."""
+        if self.pose_stamp is None:
+            return "no pose yet"
+        age = now - self.pose_stamp
+        if age > self.params.pose_timeout:
+            return f"pose stale ({age:.2f} s old)"
+        return None
+
+    def clamp(self, twist: Twist2D) -> Twist2D:
+        """An override clamped to the throttle-up limits."""
+        v, w = self.params.throttle_speed, self.params.throttle_turn_rate
+        return Twist2D(max(-v, min(v, twist.linear)), max(-w, min(w, twist.angular)))
+
+    def abort(self, why: str) -> None:
+        """Stop the running goal: zero twist, goal aborted, robot stuck."""
+        if self.goal is None:
+            return
+        if self.current is not None:
+            self.counters.primitives_aborted += 1
+        self.counters.last_failure = why
+        self.goal_failures.append(why)
+        self.current = None
+        self.queue.clear()
+        self._finish()
+
+    def _finish(self) -> None:
+        goal, failed = self.goal, bool(self.goal_failures)
+        if goal is None:
+            return
+        if failed:
+            self.counters.goals_aborted += 1
+            self.counters.failures.append(f"tick {goal.tick}: " + "; ".join(self.goal_failures))
+            del self.counters.failures[:-20]
+        self.events.append(("status", goal, ABORTED if failed else SUCCEEDED, failed))
+        self.goal = None
+        self.current = None
+        self.queue.clear()
+
+    def drain(self) -> list[tuple]:
+        """The events since the last call."""
+        out, self.events = self.events, []
+        return out
+
+    @property
+    def busy(self) -> bool:
+        """True while a goal runs."""
+        return self.goal is not None

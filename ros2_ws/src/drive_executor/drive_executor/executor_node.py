@@ -1,0 +1,281 @@
+r"""``ros2 run drive_executor executor``: one robot's drive executor, a lifecycle node.
+
+Run one per robot in its namespace, then configure and activate it (nothing moves before)::
+
+    ros2 run drive_executor executor --ros-args -r __ns:=/robot_0 \\
+        --params-file config/executor.yaml -p cell_size:=0.25
+
+Subscribes (relative names resolve in the robot's namespace): ``pose``
+(PoseWithCovarianceStamped in ``map``; parameter ``pose_topic``) which closes the loop: each
+pose runs one control step and is answered by one ``cmd_vel``; ``drive/goal``
+(action_msgs/GoalInfo, :mod:`drive_executor.goals`: the team tick's word for a tick);
+``behaviour`` (std_msgs/UInt16, ``mode: free`` only); ``drive/override`` (TwistStamped, the
+operator's drive); ``/team/estop`` (Bool, latched), ``/team/heartbeat`` (Header, team state in
+``frame_id``), ``enabled`` (Bool, latched).
+
+Publishes: ``cmd_vel`` (geometry_msgs/TwistStamped, frame ``robot_k/base_link``, stamped
+with the pose it answers), ``drive/status`` (action_msgs/GoalStatus, the goal's tick
+stamp), ``stuck`` (std_msgs/Bool, U1, once per goal), ``drive/throttle`` (Bool, latched:
+the power mode of the running goal, for the base) and ``/diagnostics``.
+
+Lifecycle (ros2/demos ``lifecycle_py``): ``on_configure`` builds the core, publishers,
+subscriptions and timers; ``on_activate`` opens the gate's ``active`` input and starts
+publishing; ``on_deactivate`` sends a zero twist, aborts the goal and stops publishing.
+The safety loop (``rate`` Hz on the node clock) and every e-stop, heartbeat, enable and
+override message run :meth:`DriveExecutorCore.check` at once, so a stop reaches
+``cmd_vel`` without waiting for the next pose.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+from action_msgs.msg import GoalInfo, GoalStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from std_msgs.msg import Bool, Header, UInt16
+
+from drive_executor.core import DriveExecutorCore
+from drive_executor.errors import GoalError
+from drive_executor.goals import TERMINAL, goal_from_message, status_message
+from drive_executor.params import ExecutorParams
+from drive_executor.primitives import Pose2D, Twist2D
+from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
+from excavation_common.safety import ENABLED_TOPIC, ESTOP_TOPIC, HEARTBEAT_TOPIC, MotionGate
+
+
+def _seconds(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def pose_of(msg: PoseWithCovarianceStamped) -> Pose2D:
+    """Centre and yaw of a pose message.
+
+    Raises:
+        GoalError: A frame other than ``map``.
+    """
+    if msg.header.frame_id != "map":
+        raise GoalError("pose", "header.frame_id", msg.header.frame_id, "expected 'map'")
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+    return Pose2D(p.x, p.y, yaw)
+
+
+class ExecutorNode(LifecycleNode):
+    """Thin lifecycle plumbing around :class:`DriveExecutorCore`."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("executor", **kwargs)
+        self.params = declare_params(self, ExecutorParams)
+        self.frame = f"{self.get_namespace().strip('/') or 'robot'}/base_link"
+        self.gate = MotionGate(deadman=self.params.deadman)
+        self.core = DriveExecutorCore(self.params, self.gate)
+        self.errors: dict[str, str] = {}
+        self._entities: list = []
+        self.cmd_pub = None
+
+    # --- lifecycle --------------------------------------------------------------------------
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Allocate publishers, subscriptions and timers (nothing is published yet)."""
+        self.core = DriveExecutorCore(self.params, self.gate)
+        lp = self.create_lifecycle_publisher
+        self.cmd_pub = lp(TwistStamped, "cmd_vel", 10)
+        self.status_pub = lp(GoalStatus, "drive/status", 10)
+        self.stuck_pub = lp(Bool, "stuck", 10)
+        self.throttle_pub = lp(Bool, "drive/throttle", LATCHED)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        sub = self.create_subscription
+        self._entities = [
+            self.diag_pub,
+            sub(PoseWithCovarianceStamped, self.params.pose_topic, self.on_pose, 10),
+            sub(GoalInfo, "drive/goal", self.on_goal, 10),
+            sub(UInt16, "behaviour", self.on_behaviour, 10),
+            sub(TwistStamped, "drive/override", self.on_override, 10),
+            sub(Bool, ESTOP_TOPIC, self.on_estop, LATCHED),
+            sub(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10),
+            sub(Bool, ENABLED_TOPIC, self.on_enabled, LATCHED),
+            self.create_timer(1.0 / self.params.rate, self.enforce),
+            self.create_timer(1.0, self.publish_diagnostics),
+        ]
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Start publishing; the gate's ``active`` input opens."""
+        result = super().on_activate(state)
+        self.gate.active = True
+        self.publish_diagnostics()
+        return result
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Zero twist, abort the goal, stop publishing."""
+        self.gate.active = False
+        self.enforce()
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Release what ``on_configure`` allocated."""
+        self._release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Stop and release everything."""
+        self.gate.active = False
+        if self.cmd_pub is not None:
+            self.enforce()
+        self._release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _release(self) -> None:
+        for entity in self._entities:
+            if hasattr(entity, "cancel"):
+                entity.cancel()
+                self.destroy_timer(entity)
+            elif hasattr(entity, "publish"):
+                self.destroy_publisher(entity)
+            else:
+                self.destroy_subscription(entity)
+        self._entities = []
+        for pub in (self.cmd_pub, self.status_pub, self.stuck_pub, self.throttle_pub):
+            if pub is not None:
+                self.destroy_lifecycle_publisher(pub)
+        self.cmd_pub = None
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def on_pose(self, msg: PoseWithCovarianceStamped) -> None:
+        """One control step on a new pose; answered by one ``cmd_vel`` with its stamp."""
+        try:
+            pose = pose_of(msg)
+        except GoalError as exc:
+            self.errors["pose"] = str(exc)
+            return
+        self.errors.pop("pose", None)
+        twist = self.core.on_pose(pose, _seconds(msg.header.stamp), self._now())
+        self.publish_twist(twist, msg.header.stamp)
+        self.publish_events()
+
+    def on_goal(self, msg: GoalInfo) -> None:
+        """The team tick's word for this robot."""
+        try:
+            goal = goal_from_message(msg)
+        except GoalError as exc:
+            self.errors["drive/goal"] = str(exc)
+            self.get_logger().error(str(exc))
+            self.status_pub.publish(GoalStatus(goal_info=msg, status=GoalStatus.STATUS_ABORTED))
+            self.stuck_pub.publish(Bool(data=True))
+            return
+        self.errors.pop("drive/goal", None)
+        self.core.submit(goal, self._now())
+        self.publish_events()
+        self.enforce()
+
+    def on_behaviour(self, msg: UInt16) -> None:
+        """``mode: free``: the controller's word, run when idle."""
+        if self.params.mode == "free":
+            self.core.on_word(int(msg.data), self._now())
+            self.publish_events()
+
+    def on_override(self, msg: TwistStamped) -> None:
+        """The operator's drive: in charge while fresh."""
+        self.core.on_override(Twist2D(msg.twist.linear.x, msg.twist.angular.z), self._now())
+        self.enforce()
+
+    def on_estop(self, msg: Bool) -> None:
+        """``/team/estop``: stop at once when latched."""
+        self.gate.on_estop(msg.data)
+        self.enforce()
+
+    def on_heartbeat(self, msg: Header) -> None:
+        """``/team/heartbeat``: the team state."""
+        self.gate.on_heartbeat(msg.frame_id, self._now())
+        self.enforce()
+
+    def on_enabled(self, msg: Bool) -> None:
+        """``enabled``: this robot may move."""
+        self.gate.on_enabled(msg.data)
+        self.enforce()
+
+    # --- outputs ----------------------------------------------------------------------------
+
+    def enforce(self) -> None:
+        """The safety check: publish the forced twist (zero, or the override) if any."""
+        if self.cmd_pub is None:
+            return
+        twist = self.core.check(self._now())
+        if twist is not None:
+            self.publish_twist(twist, self.get_clock().now().to_msg())
+        self.publish_events()
+
+    def publish_twist(self, twist: Twist2D, stamp) -> None:
+        """``cmd_vel`` in the robot's body frame."""
+        msg = TwistStamped()
+        msg.header.stamp = stamp
+        msg.header.frame_id = self.frame
+        msg.twist.linear.x = float(twist.linear)
+        msg.twist.angular.z = float(twist.angular)
+        self.cmd_pub.publish(msg)
+
+    def publish_events(self) -> None:
+        """Statuses, U1 and the power mode the core reported."""
+        for event in self.core.drain():
+            if event[0] == "throttle":
+                self.throttle_pub.publish(Bool(data=event[1]))
+                continue
+            _, goal, code, stuck = event
+            self.status_pub.publish(status_message(goal, code))
+            if code in TERMINAL:
+                self.stuck_pub.publish(Bool(data=bool(stuck)))
+
+    def publish_diagnostics(self) -> None:
+        """OK while driving or ready; WARN while stopped (with why); ERROR on bad input."""
+        c = self.core.counters
+        if self.errors:
+            level, message = DiagnosticStatus.ERROR, "; ".join(self.errors.values())
+        elif self.core.stop_reason is not None:
+            level, message = DiagnosticStatus.WARN, f"stopped: {self.core.stop_reason}"
+        else:
+            level = DiagnosticStatus.OK
+            message = f"driving tick {self.core.goal.tick}" if self.core.busy else "ready"
+        self.diag_pub.publish(
+            diagnostics(
+                self,
+                level,
+                message,
+                {
+                    "goals": c.goals,
+                    "goals_aborted": c.goals_aborted,
+                    "primitives": c.primitives,
+                    "primitives_aborted": c.primitives_aborted,
+                    "control_cycles": c.cycles,
+                    "last_failure": c.last_failure,
+                    "active": self.gate.active,
+                },
+                hardware_id=self.frame.split("/")[0],
+            )
+        )
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run drive_executor executor`` (configured and activated at start).
+
+    There is no lifecycle manager in this environment: the program configures and activates
+    its node itself; the gate still keeps the robot still until the team is armed.
+    """
+
+    def make() -> ExecutorNode:
+        node = ExecutorNode()
+        node.trigger_configure()
+        node.trigger_activate()
+        return node
+
+    return spin_node(make, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

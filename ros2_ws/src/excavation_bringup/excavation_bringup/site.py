@@ -1,0 +1,902 @@
+"""The site file (``format: ant-site/1``): one YAML file that describes a dome (paper, 6).
+
+A site file names everything the node suite needs to run in one dome: the worksite
+(blueprint, grid, cell size, soil unit), the overhead camera (image topic and encoding,
+CameraInfo topic, calibration file, LED table), the overhead laser (scan and mount topics,
+mount position and orientation offsets), the robots (name, LED pair, blade backend and port,
+drive topic, controller genome) and the network (ROS domain, discovery range). Every node's
+parameters are generated from it by one function per node (:func:`server_params`,
+:func:`localizer_params`, ...), so a value such as the soil unit is written once.
+
+:func:`load_site` reads and checks a file; :func:`check_site` returns every problem it
+finds (each a :class:`SiteError` naming file, field and value), which is what
+``ant-dome check SITE`` prints. Paths in the file are relative to the file. An annotated
+example is ``config/site_dome.yaml``; ``docs/dome.md`` is the walkthrough.
+
+Pure module (PyYAML, numpy and the node packages' pure loaders), no ``rclpy``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from excavation_common.errors import FieldError
+from excavation_common.loaders import parse_yaml, read_text_bounded
+
+FORMAT = "ant-site/1"
+
+RAW_ENCODINGS = (
+    "bgr8",
+    "rgb8",
+    "mono8",
+    "bayer_rggb8",
+    "bayer_bggr8",
+    "bayer_gbrg8",
+    "bayer_grbg8",
+)
+"""``sensor_msgs/Image`` encodings the localizer decodes."""
+
+COMPRESSED_FORMATS = ("jpeg", "png")
+"""``sensor_msgs/CompressedImage`` formats the localizer decodes."""
+
+BACKENDS = ("sim", "serial")
+"""Blade driver backends (``blade_driver``'s ``backend`` parameter)."""
+
+DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "OFF", "SYSTEM_DEFAULT")
+"""Values of ``ROS_AUTOMATIC_DISCOVERY_RANGE``."""
+
+MAX_DOMAIN = 232
+"""Largest ROS domain id rmw accepts (0..101 leave the ephemeral port range alone)."""
+
+SIMULATED = "simulated"
+"""``camera.calibration`` value for ``--sim``: the simulator's camera, calibrated at
+bring-up from surveyed marks exactly as ``ant-trial --perception full`` does."""
+
+HAND_CODED = "hand-coded"
+"""``robots[k].genome`` value for the paper's hand-coded controller."""
+
+MAP_INFO_OWNER = "server"
+"""The one node that publishes ``/worksite/map_info`` in a site: the blueprint server."""
+
+_TOPIC = re.compile(r"^/?[A-Za-z_~{][A-Za-z0-9_/{}~]*$")
+
+
+class SiteError(FieldError):
+    """A site file that cannot be used: ``file: field = value: reason``."""
+
+
+def safe_load_unique(text: str, path: str) -> Any:
+    """YAML ``text`` parsed safely (``excavation_common.loaders.parse_yaml``).
+
+    A repeated key, an alias or a syntax error is a :class:`SiteError`.
+    """
+    return parse_yaml(text, path, SiteError)
+
+
+# --- the model --------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Worksite:
+    """The grid the robots dig: blueprint spec (or absolute file), its size and units."""
+
+    blueprint: str = "default"
+    rows: int = 16
+    cols: int = 16
+    cell_size: float = 0.25
+    soil_unit: float = 0.05
+    prior_height: float | None = 0.0
+
+
+@dataclass(frozen=True)
+class Camera:
+    """The overhead camera's topics and calibration (files absolute, or ``SIMULATED``)."""
+
+    image_topic: str = "/overhead/image_raw"
+    encoding: str = "bgr8"
+    camera_info_topic: str = ""
+    calibration: str = ""
+    beacons: str = ""
+
+    @property
+    def compressed(self) -> bool:
+        """True when frames arrive as ``sensor_msgs/CompressedImage``."""
+        return self.encoding in COMPRESSED_FORMATS
+
+
+@dataclass(frozen=True)
+class Laser:
+    """The overhead laser: topics, pan/tilt centre in ``map`` and orientation offsets."""
+
+    scan_topic: str = "/worksite/scan"
+    mount_state_topic: str = "/worksite/laser_mount/joint_states"
+    mount: tuple[float, float, float] = (2.0, 2.0, 4.0)
+    pan_offset: float = 0.0
+    tilt_offset: float = 0.0
+    roll_offset: float = 0.0
+    sweep_scans: int = 64
+    robot_height: float = 0.2
+
+
+@dataclass(frozen=True)
+class Robot:
+    """One robot: ``robot_k``, its LED pair, blade backend and port, drive topic, genome."""
+
+    name: str
+    leds: tuple[str, str]
+    backend: str = "sim"
+    port: str = ""
+    drive_topic: str = ""
+    genome: str = HAND_CODED
+
+
+@dataclass(frozen=True)
+class Network:
+    """ROS domain id and discovery range of every process of the site."""
+
+    domain: int = 0
+    discovery_range: str = "LOCALHOST"
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """What ``ant-dome up --sim`` simulates: scenario seed and index, ticks, tick timeouts.
+
+    ``first_command_timeout`` is tick 0's: every node's first frame, sweep and decision
+    (numba kernels compiling) can take a loaded machine well over a minute.
+    """
+
+    seed: int = 0
+    scenario: int = 0
+    ticks: int = 300
+    command_timeout: float = 30.0
+    first_command_timeout: float = 180.0
+
+
+@dataclass(frozen=True)
+class Site:
+    """A parsed site file (see the module docstring)."""
+
+    path: str
+    worksite: Worksite
+    camera: Camera
+    laser: Laser
+    robots: tuple[Robot, ...]
+    network: Network
+    sim: SimSettings = field(default_factory=SimSettings)
+    overrides: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    @property
+    def n_robots(self) -> int:
+        """Team size."""
+        return len(self.robots)
+
+
+# --- reading ----------------------------------------------------------------------------------
+
+
+class _Reader:
+    """Reads typed fields out of the YAML tree, collecting errors instead of stopping."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self.errors: list[SiteError] = []
+        self.base = Path(path).resolve().parent
+
+    def error(self, where: str, value: object, reason: str) -> None:
+        self.errors.append(SiteError(self.path, where, value, reason))
+
+    def section(self, doc: dict, key: str, allowed: set[str], required: bool = True) -> dict:
+        value = doc.get(key)
+        if value is None:
+            if required:
+                self.error(key, None, "missing section")
+            return {}
+        if not isinstance(value, dict):
+            self.error(key, value, "expected a mapping")
+            return {}
+        for extra in sorted(set(value) - allowed):
+            self.error(f"{key}.{extra}", value[extra], f"unknown key (known: {sorted(allowed)})")
+        return value
+
+    def number(self, sec, where, key, default, low=None, high=None, integer=False, positive=False):
+        value = sec.get(key, default)
+        kind = "an integer" if integer else "a number"
+        ok = not isinstance(value, bool) and isinstance(value, int if integer else (int, float))
+        if not ok or not math.isfinite(value):
+            self.error(f"{where}.{key}", value, f"expected {kind}")
+            return default
+        if positive and value <= 0:
+            self.error(f"{where}.{key}", value, "must be > 0")
+            return default
+        if (low is not None and value < low) or (high is not None and value > high):
+            self.error(f"{where}.{key}", value, f"must be in {low} .. {high}")
+            return default
+        return int(value) if integer else float(value)
+
+    def text(self, sec, where, key, default, choices=None, topic=False):
+        value = sec.get(key, default)
+        if not isinstance(value, str):
+            self.error(f"{where}.{key}", value, "expected a string")
+            return default
+        if choices is not None and value not in choices:
+            self.error(f"{where}.{key}", value, f"must be one of {', '.join(choices)}")
+            return default
+        if topic and value and not _TOPIC.match(value):
+            self.error(f"{where}.{key}", value, "is not a valid ROS topic name")
+            return default
+        return value
+
+    def file(self, value: str) -> str:
+        """A path relative to the site file, made absolute."""
+        return str((self.base / value).resolve())
+
+
+def _worksite(r: _Reader, doc: dict) -> Worksite:
+    keys = {"blueprint", "rows", "cols", "cell_size", "soil_unit", "prior_height"}
+    s = r.section(doc, "worksite", keys)
+    d = Worksite()
+    bp = r.text(s, "worksite", "blueprint", d.blueprint)
+    if bp not in ("default", "landing-pad") and not bp.startswith("default:"):
+        bp = r.file(bp)
+    return Worksite(
+        bp,
+        r.number(s, "worksite", "rows", d.rows, integer=True, positive=True),
+        r.number(s, "worksite", "cols", d.cols, integer=True, positive=True),
+        r.number(s, "worksite", "cell_size", d.cell_size, positive=True),
+        r.number(s, "worksite", "soil_unit", d.soil_unit, positive=True),
+        None
+        if s.get("prior_height", 0.0) is None
+        else r.number(s, "worksite", "prior_height", 0.0),
+    )
+
+
+def _camera(r: _Reader, doc: dict) -> Camera:
+    keys = {"image_topic", "encoding", "camera_info_topic", "calibration", "beacons"}
+    s = r.section(doc, "camera", keys)
+    d = Camera()
+    encoding = r.text(s, "camera", "encoding", d.encoding, RAW_ENCODINGS + COMPRESSED_FORMATS)
+    calibration = r.text(s, "camera", "calibration", d.calibration)
+    if calibration and calibration != SIMULATED:
+        calibration = r.file(calibration)
+    beacons = r.text(s, "camera", "beacons", d.beacons)
+    return Camera(
+        r.text(s, "camera", "image_topic", d.image_topic, topic=True),
+        encoding,
+        r.text(s, "camera", "camera_info_topic", d.camera_info_topic, topic=True),
+        calibration,
+        r.file(beacons) if beacons else "",
+    )
+
+
+def _laser(r: _Reader, doc: dict) -> Laser:
+    keys = {"scan_topic", "mount_state_topic", "mount", "offsets", "sweep_scans", "robot_height"}
+    s = r.section(doc, "laser", keys)
+    d = Laser()
+    mount = s.get("mount", list(d.mount))
+    ok = isinstance(mount, list) and len(mount) == 3
+    ok = ok and all(isinstance(v, int | float) and not isinstance(v, bool) for v in mount)
+    if not ok or not all(math.isfinite(v) for v in mount):
+        r.error("laser.mount", mount, "expected [x, y, z] in map, metres")
+        mount = list(d.mount)
+    elif mount[2] <= 0:
+        r.error("laser.mount", mount, "z (height above the floor) must be > 0")
+    off = s.get("offsets", {})
+    if not isinstance(off, dict):
+        r.error("laser.offsets", off, "expected a mapping {pan, tilt, roll} (radians)")
+        off = {}
+    for extra in sorted(set(off) - {"pan", "tilt", "roll"}):
+        r.error(f"laser.offsets.{extra}", off[extra], "unknown key (known: pan, tilt, roll)")
+    lim = 0.5
+    return Laser(
+        r.text(s, "laser", "scan_topic", d.scan_topic, topic=True),
+        r.text(s, "laser", "mount_state_topic", d.mount_state_topic, topic=True),
+        tuple(float(v) for v in mount),
+        r.number(off, "laser.offsets", "pan", 0.0, -lim, lim),
+        r.number(off, "laser.offsets", "tilt", 0.0, -lim, lim),
+        r.number(off, "laser.offsets", "roll", 0.0, -lim, lim),
+        r.number(s, "laser", "sweep_scans", d.sweep_scans, 2, 10000, integer=True),
+        r.number(s, "laser", "robot_height", d.robot_height, positive=True),
+    )
+
+
+def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
+    entries = doc.get("robots")
+    if not isinstance(entries, list) or not entries:
+        r.error("robots", entries, "expected a non-empty list of robots")
+        return ()
+    out = []
+    keys = {"name", "leds", "blade", "drive_topic", "genome"}
+    for k, entry in enumerate(entries):
+        where = f"robots[{k}]"
+        if not isinstance(entry, dict):
+            r.error(where, entry, "expected a mapping")
+            continue
+        for extra in sorted(set(entry) - keys):
+            r.error(f"{where}.{extra}", entry[extra], f"unknown key (known: {sorted(keys)})")
+        name = r.text(entry, where, "name", f"robot_{k}")
+        if name != f"robot_{k}":
+            r.error(f"{where}.name", name, f"robots are named by their index: expected robot_{k}")
+        leds = entry.get("leds")
+        pair = isinstance(leds, list) and len(leds) == 2
+        if not (pair and all(isinstance(c, str) for c in leds)):
+            r.error(f"{where}.leds", leds, "expected [front colour, rear colour]")
+            leds = ["?", "?"]
+        elif leds[0] == leds[1]:
+            r.error(f"{where}.leds", leds, "front and rear need different colours")
+        blade = entry.get("blade", {})
+        if not isinstance(blade, dict):
+            r.error(f"{where}.blade", blade, "expected a mapping {backend, port}")
+            blade = {}
+        for extra in sorted(set(blade) - {"backend", "port"}):
+            r.error(f"{where}.blade.{extra}", blade[extra], "unknown key (known: backend, port)")
+        backend = r.text(blade, f"{where}.blade", "backend", "sim", BACKENDS)
+        port = r.text(blade, f"{where}.blade", "port", "")
+        if backend == "serial" and not port:
+            r.error(f"{where}.blade.port", port, "the serial backend needs the board's port")
+        genome = r.text(entry, where, "genome", HAND_CODED)
+        out.append(
+            Robot(
+                name,
+                (leds[0], leds[1]),
+                backend,
+                port,
+                r.text(entry, where, "drive_topic", f"/{name}/cmd_vel", topic=True),
+                genome if genome == HAND_CODED else r.file(genome),
+            )
+        )
+    return tuple(out)
+
+
+def _network(r: _Reader, doc: dict) -> Network:
+    s = r.section(doc, "network", {"domain", "discovery_range"})
+    d = Network()
+    return Network(
+        r.number(s, "network", "domain", d.domain, 0, MAX_DOMAIN, integer=True),
+        r.text(s, "network", "discovery_range", d.discovery_range, DISCOVERY_RANGES),
+    )
+
+
+def _sim(r: _Reader, doc: dict) -> SimSettings:
+    keys = {"seed", "scenario", "ticks", "command_timeout", "first_command_timeout"}
+    s = r.section(doc, "sim", keys, required=False)
+    d = SimSettings()
+    return SimSettings(
+        r.number(s, "sim", "seed", d.seed, 0, 2**31 - 1, integer=True),
+        r.number(s, "sim", "scenario", d.scenario, 0, 2**31 - 1, integer=True),
+        r.number(s, "sim", "ticks", d.ticks, 1, 10**7, integer=True),
+        r.number(s, "sim", "command_timeout", d.command_timeout, positive=True),
+        r.number(s, "sim", "first_command_timeout", d.first_command_timeout, positive=True),
+    )
+
+
+def _overrides(r: _Reader, doc: dict) -> dict[str, dict[str, Any]]:
+    raw = doc.get("overrides", {})
+    if not isinstance(raw, dict):
+        r.error("overrides", raw, "expected a mapping node -> {parameter: value}")
+        return {}
+    out = {}
+    for node, values in raw.items():
+        if node not in OVERRIDABLE:
+            r.error(f"overrides.{node}", values, f"unknown node (known: {sorted(OVERRIDABLE)})")
+            continue
+        if not isinstance(values, dict):
+            r.error(f"overrides.{node}", values, "expected a mapping parameter: value")
+            continue
+        known = node_parameter_names(node)
+        for name, value in values.items():
+            if name not in known:
+                r.error(f"overrides.{node}.{name}", value, f"{node} has no such parameter")
+        out[node] = dict(values)
+    return out
+
+
+def parse_site(text: str, path: str) -> tuple[Site | None, list[SiteError]]:
+    """Parse a site file's text; returns the site (``None`` if unusable) and every error."""
+    try:
+        doc = safe_load_unique(text, path)
+    except SiteError as exc:
+        return None, [exc]
+    if not isinstance(doc, dict):
+        return None, [SiteError(path, "<root>", type(doc).__name__, "expected a mapping")]
+    r = _Reader(path)
+    if doc.get("format") != FORMAT:
+        r.error("format", doc.get("format"), f"expected {FORMAT!r}")
+    known = {"format", "name", "worksite", "camera", "laser", "robots", "network", "sim"}
+    known.add("overrides")
+    for extra in sorted(set(doc) - known):
+        r.error(extra, doc[extra], f"unknown section (known: {sorted(known)})")
+    site = Site(
+        path,
+        _worksite(r, doc),
+        _camera(r, doc),
+        _laser(r, doc),
+        _robots(r, doc),
+        _network(r, doc),
+        _sim(r, doc),
+        _overrides(r, doc),
+    )
+    return site, r.errors
+
+
+# --- consistency ------------------------------------------------------------------------------
+
+
+def _beacon_table(site: Site):
+    from overhead_localizer.beacons import CONFIG_DIR, load_beacons
+
+    return load_beacons(site.camera.beacons or CONFIG_DIR / "beacons.yaml")
+
+
+def consistency(site: Site, sim: bool = False) -> list[SiteError]:
+    """Every inconsistency of a parsed site (across sections and against the files it names).
+
+    Args:
+        site: The parsed site.
+        sim: Checked for ``ant-dome up --sim`` (the simulator's camera and laser).
+    """
+    from blueprint_server.blueprint import resolve_blueprint
+
+    errors: list[SiteError] = []
+
+    def err(where: str, value: object, reason: str) -> None:
+        errors.append(SiteError(site.path, where, value, reason))
+
+    w = site.worksite
+    try:
+        bp = resolve_blueprint(w.blueprint)
+    except FieldError as exc:
+        err("worksite.blueprint", w.blueprint, f"cannot be loaded: {exc}")
+        bp = None
+    if bp is not None:
+        rows, cols = bp.shape
+        if (w.rows, w.cols) != (rows, cols):
+            err("worksite.rows/cols", [w.rows, w.cols], f"the blueprint is {rows} x {cols} cells")
+        if not math.isclose(w.cell_size, bp.cell_size, rel_tol=1e-9):
+            err("worksite.cell_size", w.cell_size, f"the blueprint's is {bp.cell_size} m")
+        if not math.isclose(w.soil_unit, bp.height_unit, rel_tol=1e-9):
+            err(
+                "worksite.soil_unit",
+                w.soil_unit,
+                f"the blueprint's height_unit is {bp.height_unit} m (the controllers' "
+                "height_unit is the soil unit: they would misread every height)",
+            )
+    errors += _check_camera(site, sim)
+    errors += _check_laser(site, sim)
+    errors += _check_robots(site, sim)
+    errors += _check_overrides(site)
+    return errors
+
+
+def _check_camera(site: Site, sim: bool) -> list[SiteError]:
+    out = []
+    c = site.camera
+
+    def err(where: str, value: object, reason: str) -> None:
+        out.append(SiteError(site.path, where, value, reason))
+
+    if not c.calibration:
+        err("camera.calibration", c.calibration, "required: the localizer needs the camera model")
+    elif c.calibration == SIMULATED:
+        if not sim:
+            err("camera.calibration", c.calibration, "only with --sim: give the dome's file")
+    else:
+        from overhead_localizer.camera_model import load_model
+
+        try:
+            load_model(c.calibration)
+        except FieldError as exc:
+            same = exc.path == c.calibration and exc.field == "file"
+            err("camera.calibration", c.calibration, exc.reason if same else str(exc))
+    if c.compressed and not c.image_topic.endswith("/compressed"):
+        err(
+            "camera.image_topic",
+            c.image_topic,
+            f"{c.encoding} frames are a CompressedImage stream, named <image topic>/compressed",
+        )
+    if not c.compressed and c.image_topic.endswith("/compressed"):
+        err("camera.encoding", c.encoding, "a .../compressed topic carries jpeg or png")
+    if sim and (c.compressed or c.encoding != "bgr8" or c.camera_info_topic):
+        err("camera", c.image_topic, "with --sim the synthetic camera sends bgr8 image_raw only")
+    if c.beacons:
+        try:
+            _beacon_table(site)
+        except FieldError as exc:
+            err("camera.beacons", c.beacons, str(exc))
+    return out
+
+
+def _check_laser(site: Site, sim: bool) -> list[SiteError]:
+    out = []
+    w, las = site.worksite, site.laser
+    x, y, z = las.mount
+    width, depth = w.cols * w.cell_size, w.rows * w.cell_size
+    if not (0 <= x <= width and 0 <= y <= depth):
+        out.append(
+            SiteError(
+                site.path,
+                "laser.mount",
+                list(las.mount),
+                f"is outside the {width} x {depth} m worksite: the laser must look down on it",
+            )
+        )
+    if sim:
+        from excavation_sim.laser import LaserParams
+
+        expected = LaserParams.for_site(w.rows, w.cols, w.cell_size)
+        if not all(
+            math.isclose(a, b, abs_tol=1e-9) for a, b in zip(las.mount, expected.mount, strict=True)
+        ):
+            out.append(
+                SiteError(
+                    site.path,
+                    "laser.mount",
+                    list(las.mount),
+                    f"the simulator's laser is at {list(expected.mount)}",
+                )
+            )
+        if (las.pan_offset, las.tilt_offset, las.roll_offset) != (0.0, 0.0, 0.0):
+            out.append(
+                SiteError(site.path, "laser.offsets", None, "the simulator's laser has none")
+            )
+        if not math.isclose(las.robot_height, expected.robot_height):
+            out.append(
+                SiteError(
+                    site.path,
+                    "laser.robot_height",
+                    las.robot_height,
+                    f"the simulator's robots are {expected.robot_height} m tall",
+                )
+            )
+    return out
+
+
+def _check_robots(site: Site, sim: bool) -> list[SiteError]:
+    out = []
+
+    def err(where: str, value: object, reason: str) -> None:
+        out.append(SiteError(site.path, where, value, reason))
+
+    try:
+        table = _beacon_table(site)
+        colours = set(table.colours)
+    except FieldError:
+        table, colours = None, set()
+    sim_pairs = ()
+    if sim:
+        from excavation_sim.camera import default_beacons
+
+        sim_pairs = default_beacons().robots
+    pairs: dict[tuple[str, str], int] = {}
+    ports: dict[str, int] = {}
+    for k, robot in enumerate(site.robots):
+        where = f"robots[{k}]"
+        for colour in robot.leds:
+            if table is not None and colour not in colours and colour != "?":
+                err(f"{where}.leds", list(robot.leds), f"{colour!r} is not in {sorted(colours)}")
+        if robot.leds in pairs:
+            err(
+                f"{where}.leds",
+                list(robot.leds),
+                f"the same pair as robots[{pairs[robot.leds]}]: the localizer cannot tell "
+                "them apart",
+            )
+        pairs.setdefault(robot.leds, k)
+        if sim and k < len(sim_pairs) and robot.leds != sim_pairs[k]:
+            err(
+                f"{where}.leds",
+                list(robot.leds),
+                f"the simulator's robot {k} carries {list(sim_pairs[k])}",
+            )
+        if robot.backend == "serial" and robot.port:
+            if robot.port in ports:
+                err(f"{where}.blade.port", robot.port, f"robots[{ports[robot.port]}] uses it too")
+            ports.setdefault(robot.port, k)
+        if robot.genome != HAND_CODED:
+            from ant_controller.genome_io import load_genome
+
+            try:
+                load_genome(robot.genome)
+            except FieldError as exc:
+                if exc.field == "<file>":
+                    err(f"{where}.genome", robot.genome, exc.reason)
+                else:
+                    err(f"{where}.genome", robot.genome, f"cannot be loaded: {exc}")
+            except OSError as exc:
+                err(f"{where}.genome", robot.genome, f"cannot be read: {exc}")
+    if sim and len(site.robots) > len(sim_pairs):
+        err("robots", len(site.robots), f"the simulator paints LEDs on {len(sim_pairs)} robots")
+    return out
+
+
+DERIVED = {
+    "server": {"blueprint": "worksite.blueprint"},
+    "localizer": {
+        "robots": "robots",
+        "calibration": "camera.calibration",
+        "beacons": "robots[k].leds",
+        "image_topic": "camera.image_topic",
+        "compressed": "camera.encoding",
+        "camera_info_topic": "camera.camera_info_topic",
+    },
+    "mapper": {
+        "robots": "robots",
+        "rows": "worksite.rows",
+        "cols": "worksite.cols",
+        "cell_size": "worksite.cell_size",
+        "mount_x": "laser.mount",
+        "mount_y": "laser.mount",
+        "mount_z": "laser.mount",
+        "pan_offset": "laser.offsets.pan",
+        "tilt_offset": "laser.offsets.tilt",
+        "roll_offset": "laser.offsets.roll",
+        "sweep_scans": "laser.sweep_scans",
+        "scan_topic": "laser.scan_topic",
+        "mount_topic": "laser.mount_state_topic",
+        "robot_height": "laser.robot_height",
+        "prior_known": "worksite.prior_height",
+        "prior_height": "worksite.prior_height",
+    },
+    "controller": {
+        "robot_id": "robots[k]",
+        "robots": "robots",
+        "height_unit": "worksite.soil_unit",
+    },
+    "blade_driver": {"backend": "robots[k].blade.backend", "port": "robots[k].blade.port"},
+    "recorder": {"out": "--record", "height_unit": "worksite.soil_unit"},
+    "supervisor": {"robots": "robots", "arm_at_start": "--sim"},
+}
+"""Per node, the parameters the site file sets (an override of one is an inconsistency)."""
+
+OVERRIDABLE = tuple(DERIVED)
+"""Nodes whose other parameters a site may set under ``overrides:``."""
+
+
+def node_parameter_names(node: str) -> set[str]:
+    """Every parameter the node declares (its dataclass, or its package's config YAML)."""
+    if node == "localizer":
+        from dataclasses import fields
+
+        from overhead_localizer.localize import LocalizerParams
+        from overhead_localizer.params import LocalizerNodeParams
+
+        return {f.name for cls in (LocalizerNodeParams, LocalizerParams) for f in fields(cls)}
+    if node == "mapper":
+        from dataclasses import fields
+
+        from terrain_mapper.mapper import MapperParams
+        from terrain_mapper.params import MapperNodeParams
+
+        return {f.name for cls in (MapperNodeParams, MapperParams) for f in fields(cls)}
+    package, config = {
+        "server": ("blueprint_server", "server.yaml"),
+        "controller": ("ant_controller", "controller.yaml"),
+        "blade_driver": ("blade_driver", "driver.yaml"),
+        "recorder": ("excavation_bags", "bag_recorder.yaml"),
+        "supervisor": ("team_supervisor", "supervisor.yaml"),
+    }[node]
+    import importlib
+
+    module = importlib.import_module(package)
+    doc = yaml.safe_load((Path(module.__file__).parents[1] / "config" / config).read_text())
+    section = next(iter(doc.values()))
+    return set(section["ros__parameters"])
+
+
+def _check_overrides(site: Site) -> list[SiteError]:
+    out = []
+    for node, values in site.overrides.items():
+        for name, value in values.items():
+            if name in DERIVED[node]:
+                out.append(
+                    SiteError(
+                        site.path,
+                        f"overrides.{node}.{name}",
+                        value,
+                        f"set by the site file's {DERIVED[node][name]}",
+                    )
+                )
+            if node != MAP_INFO_OWNER and name == "publish_map_info" and value is True:
+                out.append(
+                    SiteError(
+                        site.path,
+                        f"overrides.{node}.{name}",
+                        value,
+                        "more than one map_info publisher: the blueprint server publishes "
+                        "/worksite/map_info",
+                    )
+                )
+    return out
+
+
+def check_site(path: str | Path, sim: bool = False) -> tuple[Site | None, list[SiteError]]:
+    """Read ``path`` and return the site with every error found (empty: usable)."""
+    path = str(path)
+    try:
+        text = read_text_bounded(path, error=SiteError)
+    except SiteError as exc:
+        return None, [exc]
+    site, errors = parse_site(text, path)
+    if site is not None:
+        errors += consistency(site, sim)
+    return site, errors
+
+
+def load_site(path: str | Path, sim: bool = False) -> Site:
+    """A usable site.
+
+    Raises:
+        SiteError: The first problem :func:`check_site` finds.
+    """
+    site, errors = check_site(path, sim)
+    if errors:
+        raise errors[0]
+    return site
+
+
+# --- node parameters ----------------------------------------------------------------------
+
+
+def _merge(site: Site, node: str, params: dict[str, Any]) -> dict[str, Any]:
+    return {**params, **site.overrides.get(node, {})}
+
+
+def server_params(site: Site) -> dict[str, Any]:
+    """``blueprint_server server``: the blueprint (it alone publishes ``map_info``)."""
+    return _merge(site, "server", {"blueprint": site.worksite.blueprint})
+
+
+def sim_params(site: Site, ticks: int, result_file: str) -> dict[str, Any]:
+    """``excavation_sim sim`` for ``--sim``: truth aside under ``/truth``, blade drivers on."""
+    s = site.sim
+    return {
+        "blueprint": site.worksite.blueprint,
+        "robots": site.n_robots,
+        "steps": int(ticks),
+        "seed": s.seed,
+        "scenario": s.scenario,
+        "command_timeout": float(s.command_timeout),
+        "first_command_timeout": float(s.first_command_timeout),
+        "blade_driver": True,
+        "truth_prefix": "/truth",
+        "result_file": str(result_file),
+    }
+
+
+def sensors_params(site: Site) -> dict[str, Any]:
+    """``excavation_sim sensors`` for ``--sim``: the synthetic camera and laser of the site."""
+    w = site.worksite
+    return {
+        "robots": site.n_robots,
+        "seed": site.sim.seed,
+        "truth_prefix": "/truth",
+        "sweep_scans": site.laser.sweep_scans,
+        "cell_size": float(w.cell_size),
+        "rows": w.rows,
+        "cols": w.cols,
+        "reliable": True,
+    }
+
+
+def localizer_params(
+    site: Site, calibration: str, beacons: str, reliable: bool = False
+) -> dict[str, Any]:
+    """``overhead_localizer localizer``: camera topics, calibration and the site's LED table."""
+    c = site.camera
+    return _merge(
+        site,
+        "localizer",
+        {
+            "robots": site.n_robots,
+            "calibration": str(calibration),
+            "beacons": str(beacons),
+            "image_topic": c.image_topic,
+            "compressed": c.compressed,
+            "camera_info_topic": c.camera_info_topic,
+            "reliable": bool(reliable),
+        },
+    )
+
+
+def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
+    """``terrain_mapper mapper``: grid, mount pose and offsets; never a map_info publisher."""
+    w, las = site.worksite, site.laser
+    return _merge(
+        site,
+        "mapper",
+        {
+            "robots": site.n_robots,
+            "rows": w.rows,
+            "cols": w.cols,
+            "cell_size": float(w.cell_size),
+            "mount_x": float(las.mount[0]),
+            "mount_y": float(las.mount[1]),
+            "mount_z": float(las.mount[2]),
+            "pan_offset": float(las.pan_offset),
+            "tilt_offset": float(las.tilt_offset),
+            "roll_offset": float(las.roll_offset),
+            "sweep_scans": las.sweep_scans,
+            "scan_topic": las.scan_topic,
+            "mount_topic": las.mount_state_topic,
+            "prior_known": w.prior_height is not None,
+            "prior_height": float(w.prior_height or 0.0),
+            "robot_height": float(las.robot_height),
+            "publish_map_info": False,
+            "pose_wait": 2.0,
+            # reliable delivery repairs a lost sample within a heartbeat (seconds): wait
+            "mount_wait": 10.0 if reliable else 1.0,
+            "reliable": bool(reliable),
+        },
+    )
+
+
+def controller_params(site: Site, k: int, lockstep: bool = False) -> dict[str, Any]:
+    """``ant_controller controller`` of robot ``k`` (its genome goes on the command line)."""
+    return _merge(
+        site,
+        "controller",
+        {
+            "robot_id": k,
+            "robots": site.n_robots,
+            "height_unit": float(site.worksite.soil_unit),
+            "lockstep": bool(lockstep),
+        },
+    )
+
+
+def controller_args(site: Site, k: int) -> list[str]:
+    """The controller's command-line arguments (``--genome FILE`` or ``--hand-coded``)."""
+    genome = site.robots[k].genome
+    return ["--hand-coded"] if genome == HAND_CODED else ["--genome", genome]
+
+
+def blade_driver_params(site: Site, k: int, sim: bool = False) -> dict[str, Any]:
+    """``blade_driver driver`` of robot ``k``; with ``--sim`` the simulator is the board."""
+    robot = site.robots[k]
+    backend = "sim" if sim else robot.backend
+    params = {"backend": backend}
+    if backend == "serial":
+        params["port"] = robot.port
+    return _merge(site, "blade_driver", params)
+
+
+def supervisor_params(site: Site, sim: bool = False) -> dict[str, Any]:
+    """The team supervisor: disarmed at start in the dome, armed at start with ``--sim``.
+
+    In the dome nothing moves until the operator runs ``ant-operator arm``; a ``--sim`` run
+    is unattended, so its supervisor arms the team itself.
+    """
+    return _merge(site, "supervisor", {"robots": site.n_robots, "arm_at_start": bool(sim)})
+
+
+def recorder_params(site: Site, out: str) -> dict[str, Any]:
+    """The bag recorder: the bag directory and the soil unit stored with it."""
+    return _merge(
+        site, "recorder", {"out": str(out), "height_unit": float(site.worksite.soil_unit)}
+    )
+
+
+def beacons_document(site: Site) -> dict[str, Any]:
+    """The localizer's LED table for this site: the table's colours, the robots' pairs."""
+    table = _beacon_table(site)
+    return {
+        "height": table.height,
+        "spacing": table.spacing,
+        "radius": table.radius,
+        "colours": {name: list(bgr) for name, bgr in table.colours.items()},
+        "robots": [{"front": r.leds[0], "rear": r.leds[1]} for r in site.robots],
+    }
+
+
+def environment(site: Site, domain: int | None = None) -> dict[str, str]:
+    """``ROS_DOMAIN_ID`` and ``ROS_AUTOMATIC_DISCOVERY_RANGE`` of every process of the site."""
+    return {
+        "ROS_DOMAIN_ID": str(site.network.domain if domain is None else domain),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": site.network.discovery_range,
+    }

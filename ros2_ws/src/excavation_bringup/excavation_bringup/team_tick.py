@@ -1,0 +1,354 @@
+"""The team tick: the field's version of the simulator's lockstep, as a pure state machine.
+
+In the lockstep simulator a behaviour word is applied to the grid at once; in the dome (or
+the continuous ``dynamics`` simulator) a robot takes seconds to drive a cell. The team tick
+turns that back into ticks the controllers can run on unchanged, in their lockstep mode:
+
+1. **Snapshot.** Tick t starts once a perception snapshot taken after the motion of tick
+   t - 1 ended is in: every robot's pose, the height map and every blade state stamped at
+   or after the moment the last robot finished (``settle`` later), each blade at the
+   setting its word asked for (or ``blade_wait`` has passed). It asks for one on
+   ``/team/snapshot`` (the simulator answers; a dome's camera and laser run anyway) and asks
+   again every ``snapshot_retry`` wall seconds (wall time: rendering a frame takes wall
+   time while a simulator's clock runs on). The snapshot is republished stamped
+   ``t * tick_period`` with every robot's U1 (its executor aborted: stuck).
+2. **Words.** Every controller answers with one word (the first word after the snapshot
+   counts; ``word_timeout`` / ``first_word_timeout`` wall seconds, then a silent robot
+   idles with word 0, as in the lockstep simulator).
+3. **Motion.** Random turns are drawn for the words that have one, in robot order, from the
+   world's own random-turn stream (``excavation_sim.world.next_random`` seeded by the
+   scenario), so a random turn turns the same way as in ``ant-eval``. Robots then move in
+   robot-index order, the world model's rule: robot j waits for every robot i < j whose
+   reach (footprint grown by ``reach`` cells: every cell a move and its blade can touch in
+   one tick) overlaps its own; robots with disjoint reaches move at once, which cannot
+   change the result because their moves touch disjoint cells. A robot without a motion
+   behaviour waits for nobody and blocks nobody. A robot whose executor does not finish
+   within ``motion_limit`` seconds is reported and the tick goes on without it (stuck).
+
+Times: ``now`` is the node clock (sim time in CI), ``wall`` a monotonic wall clock for the
+controllers' answers. The node turns the returned actions into messages.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from ant_controller.layout import (
+    MOVE_BACKWARD,
+    MOVE_FORWARD,
+    RANDOM_TURN,
+    TURN_LEFT,
+    TURN_RIGHT,
+)
+from blade_driver.core import blade_setting
+from excavation_common.params import param
+from excavation_sim.world import next_random
+
+MOTION_BITS = sum(1 << b for b in (MOVE_FORWARD, MOVE_BACKWARD, RANDOM_TURN, TURN_RIGHT, TURN_LEFT))
+RIGHT, LEFT = 1, -1
+STAMP_SLACK = 1e-6
+"""Seconds: stamps are integer nanoseconds, times here floats (0.1 + 3.65 > 3.75)."""
+
+
+@dataclass(frozen=True)
+class TeamTickParams:
+    """Parameters of the team tick (the node's ROS parameters of the same names)."""
+
+    robots: int = param(4, "number of robots", low=1, high=64)
+    steps: int = param(300, "ticks to run (0: run until stopped)", low=0)
+    tick_period: float = param(1.0, "stamp spacing of the republished ticks, s", low=0.001)
+    settle: float = param(0.1, "snapshot taken at least this long after motion ended, s", low=0.0)
+    snapshot_retry: float = param(2.0, "wall s after which a new snapshot is asked for", low=0.01)
+    snapshot_limit: float = param(
+        30.0, "wall s after which an incomplete snapshot is taken as it is", low=0.01
+    )
+    blade_wait: float = param(2.0, "longest wait for blades to reach their setting, s", low=0.0)
+    motion_limit: float = param(
+        120.0, "a robot not finished this long after its goal is left out, s", low=0.1
+    )
+    word_timeout: float = param(5.0, "wall s to wait for every controller's word", low=0.01)
+    first_word_timeout: float = param(
+        60.0, "wall s to wait for the words of tick 0 (controllers compile)", low=0.01
+    )
+    reach: int = param(2, "cells around a footprint one tick's motion can touch", low=0, high=16)
+    seed: int = param(0, "scenario seed: the random-turn stream (as ant-eval --seed)", low=0)
+    scenario: int = param(0, "scenario index of the seed", low=0)
+    blueprint: str = param("default", "blueprint spec (grid size, for the random-turn stream)")
+
+
+class Phase(Enum):
+    """Where the tick is."""
+
+    WAITING = "waiting for the team"
+    SNAPSHOT = "waiting for a snapshot"
+    WORDS = "waiting for words"
+    MOTION = "robots moving"
+    FINISHED = "finished"
+
+
+@dataclass
+class Latest:
+    """The newest message of one input: its stamp (s) and what the node stored."""
+
+    stamp: float
+    value: object
+    payload: object = None
+
+
+@dataclass
+class TickRecord:
+    """What one tick did (for the trial's result)."""
+
+    tick: int
+    words: list[int]
+    turns: list[int]
+    stuck: list[bool]
+    late: list[int]
+    started_wall: float
+    motion_wall: float = 0.0
+    ended_wall: float = 0.0
+
+
+def reach_box(row: int, col: int, reach: int) -> tuple[int, int, int, int]:
+    """``(r0, r1, c0, c1)`` inclusive: the footprint at ``(row, col)`` grown by ``reach``."""
+    return row - reach, row + 1 + reach, col - reach, col + 1 + reach
+
+
+def overlap(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> bool:
+    """True when two inclusive boxes share a cell."""
+    return a[0] <= b[1] and b[0] <= a[1] and a[2] <= b[3] and b[2] <= a[3]
+
+
+def schedule(poses: list[tuple[int, int, int]], words: list[int], reach: int) -> list[set[int]]:
+    """For each robot, the robots it must wait for (lower index, overlapping reach)."""
+    moving = [bool(w & MOTION_BITS) for w in words]
+    boxes = [reach_box(r, c, reach) for r, c, _ in poses]
+    return [
+        {i for i in range(j) if moving[i] and moving[j] and overlap(boxes[i], boxes[j])}
+        for j in range(len(words))
+    ]
+
+
+def draw_turns(words: list[int], rng: np.ndarray) -> list[int]:
+    """Random-turn directions in robot order from the world's stream (advances ``rng``)."""
+    turns = []
+    for word in words:
+        if (word >> RANDOM_TURN) & 1:
+            turns.append(RIGHT if next_random(rng) >> np.uint64(63) else LEFT)
+        else:
+            turns.append(0)
+    return turns
+
+
+@dataclass
+class TeamTick:
+    """The barrier between perception, controllers and executors (pure, no ``rclpy``).
+
+    Feed it inputs (``on_*``), call :meth:`step` often; it returns actions:
+    ``("request", label, not_before)`` ask for a snapshot taken at ``not_before`` or later;
+    ``("publish", tick, stamp, snapshot)`` the snapshot of a tick (``snapshot``:
+    ``{"poses": [...], "heights": ..., "blades": [...], "stuck": [...]}``, the payloads
+    the node stored); ``("goal", robot, tick, stamp, word,
+    turn)``; ``("report", message)``; ``("finished",)``.
+    """
+
+    params: TeamTickParams
+    rng: np.ndarray
+    phase: Phase = Phase.WAITING
+    tick: int = 0
+    poses: dict[int, Latest] = field(default_factory=dict)
+    heights: Latest | None = None
+    blades: dict[int, Latest] = field(default_factory=dict)
+    words: dict[int, int] = field(default_factory=dict)
+    armed: bool = True
+    records: list[TickRecord] = field(default_factory=list)
+    stuck: list[bool] = field(default_factory=list)
+    late: list[int] = field(default_factory=list)
+    missed: list[int] = field(default_factory=list)
+    _since: float = 0.0
+    _asked: float = 0.0
+    _after: float = 0.0
+    _after_wall: float = 0.0
+    _wall: float = 0.0
+    _expected: list[int | None] = field(default_factory=list)
+    _waits: list[set[int]] = field(default_factory=list)
+    _granted: dict[int, float] = field(default_factory=dict)
+    _done: set[int] = field(default_factory=set)
+    _turns: list[int] = field(default_factory=list)
+    _final: bool = False
+
+    def __post_init__(self) -> None:
+        n = self.params.robots
+        self.stuck = [False] * n
+        self.late = [0] * n
+        self.missed = [0] * n
+        self._expected = [None] * n
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def on_pose(self, k: int, grid_pose: tuple[int, int, int], stamp: float, payload) -> None:
+        """Robot k's pose (grid anchor and heading) at ``stamp``."""
+        self.poses[k] = Latest(stamp, grid_pose, payload)
+
+    def on_heights(self, stamp: float, payload) -> None:
+        """A height map at ``stamp``."""
+        self.heights = Latest(stamp, None, payload)
+
+    def on_blade(self, k: int, setting: int, stamp: float, payload) -> None:
+        """Robot k's measured blade setting at ``stamp``."""
+        self.blades[k] = Latest(stamp, setting, payload)
+
+    def on_word(self, k: int, word: int) -> None:
+        """Robot k's controller answered (the first word of a tick counts)."""
+        if self.phase is Phase.WORDS and k not in self.words:
+            self.words[k] = int(word) & 0xFFF
+
+    def on_status(self, k: int, tick: int, terminal: bool, aborted: bool, now: float) -> None:
+        """Robot k's executor reported on its goal of ``tick``."""
+        if self.phase is Phase.MOTION and tick == self.tick and terminal and k in self._granted:
+            if k not in self._done:
+                self._done.add(k)
+                self.stuck[k] = aborted
+
+    def start(self, now: float, wall: float = 0.0) -> list[tuple]:
+        """The team is present: ask for the snapshot of tick 0."""
+        self.phase = Phase.SNAPSHOT
+        self._after, self._after_wall = now, wall
+        return self._request(wall)
+
+    # --- the state machine ----------------------------------------------------------------------
+
+    def step(self, now: float, wall: float) -> list[tuple]:
+        """Advance as far as the inputs allow."""
+        if self.phase is Phase.SNAPSHOT:
+            return self._step_snapshot(now, wall)
+        if self.phase is Phase.WORDS:
+            return self._step_words(now, wall)
+        if self.phase is Phase.MOTION:
+            return self._step_motion(now, wall)
+        return []
+
+    def _request(self, wall: float) -> list[tuple]:
+        self._asked = wall
+        return [("request", f"tick {self.tick}", self._after + self.params.settle)]
+
+    def snapshot_ready(self, now: float) -> str | None:
+        """What the snapshot still lacks (``None``: complete)."""
+        after = self._after + self.params.settle - STAMP_SLACK
+        n = self.params.robots
+        for k in range(n):
+            if k not in self.poses or self.poses[k].stamp < after:
+                return f"pose of robot {k}"
+            if k not in self.blades or self.blades[k].stamp < after:
+                return f"blade of robot {k}"
+        if self.heights is None or self.heights.stamp < after:
+            return "height map"
+        if now - self._after < self.params.blade_wait:
+            for k in range(n):
+                if self._expected[k] is not None and self.blades[k].value != self._expected[k]:
+                    return f"blade of robot {k} at its setting"
+        return None
+
+    def _step_snapshot(self, now: float, wall: float) -> list[tuple]:
+        if not self.armed:
+            return []
+        missing = self.snapshot_ready(now)
+        out: list[tuple] = []
+        if missing is not None:
+            late = wall - self._after_wall > self.params.snapshot_limit
+            if late and self._has_everything():
+                out.append(("report", f"tick {self.tick}: snapshot without a fresh {missing}"))
+            else:
+                if wall - self._asked >= self.params.snapshot_retry:
+                    out.append(("report", f"tick {self.tick}: no {missing} yet; asking again"))
+                    out += self._request(wall)
+                return out
+        if self._final:
+            self.phase = Phase.FINISHED
+            return out + [("finished",)]
+        snapshot = {
+            "poses": [self.poses[k].payload for k in range(self.params.robots)],
+            "heights": self.heights.payload,
+            "blades": [self.blades[k].payload for k in range(self.params.robots)],
+            "stuck": list(self.stuck),
+        }
+        self._grid = [self.poses[k].value for k in range(self.params.robots)]
+        self._settings = [self.blades[k].value for k in range(self.params.robots)]
+        self.phase = Phase.WORDS
+        self.words = {}
+        self._wall = wall
+        self.records.append(TickRecord(self.tick, [], [], [], [], started_wall=wall))
+        return out + [("publish", self.tick, self.tick * self.params.tick_period, snapshot)]
+
+    def _has_everything(self) -> bool:
+        n = self.params.robots
+        return (
+            self.heights is not None
+            and all(k in self.poses for k in range(n))
+            and all(k in self.blades for k in range(n))
+        )
+
+    def _step_words(self, now: float, wall: float) -> list[tuple]:
+        n = self.params.robots
+        limit = self.params.first_word_timeout if self.tick == 0 else self.params.word_timeout
+        if len(self.words) < n and wall - self._wall < limit:
+            return []
+        out: list[tuple] = []
+        silent = sorted(set(range(n)) - set(self.words))
+        for k in silent:
+            self.missed[k] += 1
+        if silent:
+            out.append(("report", f"tick {self.tick}: no word from robots {silent}; they idle"))
+        words = [self.words.get(k, 0) for k in range(n)]
+        self._turns = draw_turns(words, self.rng)
+        self._waits = schedule(self._grid, words, self.params.reach)
+        self._expected = [
+            blade_setting(words[k], self._settings[k]) if self._settings[k] is not None else None
+            for k in range(n)
+        ]
+        self._granted, self._done = {}, set()
+        self._words_list = words
+        record = self.records[-1]
+        record.words, record.turns, record.motion_wall = words, list(self._turns), wall
+        self.phase = Phase.MOTION
+        self._since = now
+        return out + self._grant(now)
+
+    def _grant(self, now: float) -> list[tuple]:
+        out = []
+        stamp = self.tick * self.params.tick_period
+        for k in range(self.params.robots):
+            if k in self._granted or not self._waits[k] <= self._done:
+                continue
+            self._granted[k] = now
+            out.append(("goal", k, self.tick, stamp, self._words_list[k], self._turns[k]))
+        return out
+
+    def _step_motion(self, now: float, wall: float) -> list[tuple]:
+        out: list[tuple] = []
+        for k, granted in self._granted.items():
+            if k not in self._done and now - granted > self.params.motion_limit:
+                self._done.add(k)
+                self.records[-1].late.append(k)
+                self.stuck[k] = True
+                self.late[k] += 1
+                out.append(
+                    (
+                        "report",
+                        f"tick {self.tick}: robot {k} did not finish within "
+                        f"{self.params.motion_limit} s; the tick goes on without it",
+                    )
+                )
+        out += self._grant(now)
+        if len(self._done) < self.params.robots:
+            return out
+        record = self.records[-1]
+        record.stuck, record.ended_wall = list(self.stuck), wall
+        self.tick += 1
+        self._final = self.params.steps > 0 and self.tick >= self.params.steps
+        self.phase = Phase.SNAPSHOT
+        self._after, self._after_wall = now, wall
+        return out + self._request(wall)

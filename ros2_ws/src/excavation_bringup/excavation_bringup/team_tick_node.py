@@ -1,0 +1,237 @@
+"""``team_tick``: the team tick as a ROS node (pure logic: :mod:`excavation_bringup.team_tick`).
+
+Reads, per robot k: ``/robot_k/pose`` (the localiser's, or the simulator's truth),
+``/robot_k/{blade_in}`` (JointState: the measured blade; ``blade/plant_state`` from
+``dynamics``), ``/robot_k/behaviour`` (the controller's word) and ``/robot_k/drive/status``;
+``/worksite/height_map`` (the mapper's, or the simulator's) and ``/team/heartbeat`` (a new
+tick starts only while the team is ``armed``).
+
+Publishes for each tick t, stamped ``t * tick_period``: ``{output_prefix}/robot_k/pose``,
+``{output_prefix}/robot_k/stuck`` (U1: the executor aborted), ``{output_prefix}/worksite/
+height_map`` (latched) and ``/robot_k/{blade_out}`` (the blade driver's ``servo_state``), so
+that a controller run with ``lockstep: true`` and remapped onto ``{output_prefix}`` decides
+once per tick, unchanged; ``/team/tick`` (Header: the tick's stamp, ``frame_id`` = t);
+``/robot_k/drive/goal`` (action_msgs/GoalInfo, :mod:`drive_executor.goals`) when robot k may
+move; ``/team/snapshot`` (Header: ``stamp`` = the earliest time the snapshot may be taken,
+``settle`` after the motion ended) to ask for a snapshot; ``/diagnostics``.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from action_msgs.msg import GoalInfo, GoalStatus
+from builtin_interfaces.msg import Time as TimeMsg
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from rclpy.node import Node
+from sensor_msgs.msg import Image, JointState
+from std_msgs.msg import Bool, Header, UInt16
+
+from blueprint_server.blueprint import resolve_blueprint
+from drive_executor.errors import GoalError
+from drive_executor.goals import ABORTED, TERMINAL, DriveGoal, goal_from_message, goal_message
+from excavation_bringup.team_tick import Phase, TeamTick, TeamTickParams
+from excavation_common.constants import BladeGeometry
+from excavation_common.messages import MessageError, blade_from_joint, pose_to_grid
+from excavation_common.params import param
+from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
+from excavation_common.safety import ARMED, HEARTBEAT_TOPIC
+from excavation_sim.world import scenario_start
+
+
+@dataclass(frozen=True)
+class TeamTickNodeParams:
+    """Topic names and start-up of the node (the barrier's parameters: TeamTickParams)."""
+
+    output_prefix: str = param("/tick", "prefix of the republished tick snapshot")
+    blade_in: str = param("blade/plant_state", "measured blade joint state, per robot")
+    blade_out: str = param("blade/servo_state", "the blade state republished per tick")
+    startup_period: float = param(0.5, "wall s the team is present before tick 0", low=0.0)
+    diagnostics_period: float = param(1.0, "wall s between diagnostics", low=0.05)
+
+
+def _seconds(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def _time(seconds: float) -> TimeMsg:
+    ns = int(round(seconds * 1e9))
+    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+class TeamTickNode(Node):
+    """Thin ROS plumbing around :class:`TeamTick`."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("team_tick", **kwargs)
+        self.params = declare_params(self, TeamTickParams)
+        self.topics = declare_params(self, TeamTickNodeParams)
+        p, t = self.params, self.topics
+        self.n = p.robots
+        self.blueprint = resolve_blueprint(p.blueprint)
+        _, _, rng_state = scenario_start(
+            self.blueprint.shape, p.robots, p.robots, p.seed, p.scenario
+        )
+        self.core = TeamTick(p, np.array([rng_state], dtype=np.uint64))
+        self.geometry = BladeGeometry()
+        self.errors: dict[str, str] = {}
+        self.ready_since: float | None = None
+        self.reports: list[str] = []
+        out = t.output_prefix.rstrip("/")
+        self.pose_pubs, self.stuck_pubs, self.blade_pubs, self.goal_pubs = [], [], [], []
+        sub = self.create_subscription
+        for k in range(self.n):
+            ns = f"/robot_{k}"
+            self.pose_pubs.append(
+                self.create_publisher(PoseWithCovarianceStamped, f"{out}{ns}/pose", 10)
+            )
+            self.stuck_pubs.append(self.create_publisher(Bool, f"{out}{ns}/stuck", 10))
+            self.blade_pubs.append(self.create_publisher(JointState, f"{ns}/{t.blade_out}", 10))
+            self.goal_pubs.append(self.create_publisher(GoalInfo, f"{ns}/drive/goal", 10))
+            sub(PoseWithCovarianceStamped, f"{ns}/pose", lambda m, k=k: self.on_pose(k, m), 10)
+            sub(JointState, f"{ns}/{t.blade_in}", lambda m, k=k: self.on_blade(k, m), 10)
+            sub(UInt16, f"{ns}/behaviour", lambda m, k=k: self.core.on_word(k, m.data), 10)
+            sub(GoalStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
+        sub(Image, "/worksite/height_map", self.on_heights, LATCHED)
+        sub(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
+        self.core.armed = False
+        self.heights_pub = self.create_publisher(Image, f"{out}/worksite/height_map", LATCHED)
+        self.tick_pub = self.create_publisher(Header, "/team/tick", 10)
+        self.request_pub = self.create_publisher(Header, "/team/snapshot", 10)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(0.002, self.poll)
+        self.create_timer(t.diagnostics_period, self.publish_diagnostics)
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def _decode(self, topic: str, decode):
+        try:
+            value = decode()
+        except (MessageError, GoalError) as exc:
+            self.errors[topic] = str(exc)
+            return None
+        self.errors.pop(topic, None)
+        return value
+
+    def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
+        """A pose of robot k (kept with its stamp)."""
+        topic = f"/robot_{k}/pose"
+        grid = self._decode(topic, lambda: pose_to_grid(msg, self.blueprint.cell_size, topic))
+        if grid is not None:
+            self.core.on_pose(k, grid, _seconds(msg.header.stamp), msg)
+
+    def on_blade(self, k: int, msg: JointState) -> None:
+        """Robot k's measured blade."""
+        topic = f"/robot_{k}/{self.topics.blade_in}"
+        blade = self._decode(topic, lambda: blade_from_joint(msg, self.geometry, topic))
+        if blade is not None:
+            self.core.on_blade(k, blade[0], _seconds(msg.header.stamp), msg)
+
+    def on_heights(self, msg: Image) -> None:
+        """A height map."""
+        self.core.on_heights(_seconds(msg.header.stamp), msg)
+
+    def on_status(self, k: int, msg: GoalStatus) -> None:
+        """Robot k's executor status."""
+        goal = self._decode(f"/robot_{k}/drive/status", lambda: goal_from_message(msg.goal_info))
+        if goal is not None:
+            self.core.on_status(
+                k, goal.tick, msg.status in TERMINAL, msg.status == ABORTED, self._now()
+            )
+
+    def on_heartbeat(self, msg: Header) -> None:
+        """The team state: ticks start only while armed."""
+        self.core.armed = msg.frame_id == ARMED
+
+    # --- the tick ---------------------------------------------------------------------------
+
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def team_present(self) -> bool:
+        """Every controller, executor and blade driver of the team is on the graph."""
+        return all(
+            self.pose_pubs[k].get_subscription_count() > 0
+            and self.goal_pubs[k].get_subscription_count() > 0
+            and self.blade_pubs[k].get_subscription_count() > 0
+            and self.count_publishers(f"/robot_{k}/behaviour") > 0
+            for k in range(self.n)
+        )
+
+    def poll(self) -> None:
+        """Start the ticks once the team is present; then run the state machine."""
+        now, wall = self._now(), time.monotonic()
+        if self.core.phase is Phase.WAITING:
+            if not self.team_present():
+                self.ready_since = None
+                return
+            if self.ready_since is None:
+                self.ready_since = wall
+            if wall - self.ready_since >= self.topics.startup_period:
+                self.execute(self.core.start(now, wall))
+            return
+        self.execute(self.core.step(now, wall))
+
+    def execute(self, actions: list[tuple]) -> None:
+        """Publish what the state machine decided."""
+        for action in actions:
+            kind = action[0]
+            if kind == "request":
+                self.request_pub.publish(Header(stamp=_time(action[2]), frame_id=action[1]))
+            elif kind == "publish":
+                self.publish_tick(action[1], _time(action[2]), action[3])
+            elif kind == "goal":
+                _, k, tick, stamp, word, turn = action
+                ns = int(round(stamp * 1e9))
+                goal = DriveGoal(tick, word, turn, k, (ns // 1_000_000_000, ns % 1_000_000_000))
+                self.goal_pubs[k].publish(goal_message(goal))
+            elif kind == "report":
+                self.reports.append(action[1])
+                self.get_logger().warning(action[1])
+                self.publish_diagnostics(action[1])
+            elif kind == "finished":
+                self.publish_diagnostics(f"finished {self.core.tick} ticks")
+
+    def publish_tick(self, tick: int, stamp: TimeMsg, snapshot: dict) -> None:
+        """Republish a snapshot stamped with its tick."""
+        self.tick_pub.publish(Header(stamp=stamp, frame_id=str(tick)))
+        heights = snapshot["heights"]
+        heights.header.stamp = stamp
+        self.heights_pub.publish(heights)
+        for k in range(self.n):
+            self.stuck_pubs[k].publish(Bool(data=bool(snapshot["stuck"][k])))
+            blade = snapshot["blades"][k]
+            blade.header.stamp = stamp
+            self.blade_pubs[k].publish(blade)
+            pose = snapshot["poses"][k]
+            pose.header.stamp = stamp
+            self.pose_pubs[k].publish(pose)
+
+    def publish_diagnostics(self, message: str | None = None) -> None:
+        """The tick, its phase, robots left out."""
+        late = sum(self.core.late)
+        level = DiagnosticStatus.WARN if (late or self.errors) else DiagnosticStatus.OK
+        text = message or f"tick {self.core.tick}: {self.core.phase.value}"
+        if self.errors:
+            text += "; " + "; ".join(self.errors.values())
+        self.diag_pub.publish(
+            diagnostics(
+                self,
+                level,
+                text,
+                {"tick": self.core.tick, "phase": self.core.phase.value, "robots_late": late},
+            )
+        )
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``team_tick`` (ends after ``steps`` ticks)."""
+    return spin_node(TeamTickNode, args, until=lambda node: node.core.phase is Phase.FINISHED)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,457 @@
+"""``ant-view``: a live view of the dome in Foxglove (foxglove-sdk WebSocket server).
+
+Subscribes to the suite's topics and serves, on ``ws://127.0.0.1:8765`` by default (open it
+in Foxglove: *Open connection* -> *Foxglove WebSocket*; the layout is
+``config/foxglove_layout.json``):
+
+==========================  ===============================  =================================
+channel                     schema                           from
+==========================  ===============================  =================================
+``/view/robots``            foxglove.SceneUpdate             ``/robot_k/pose``: a box, an arrow
+                                                             along the heading and the id
+``/view/height_map``        foxglove.Grid (``height``, m)    ``/worksite/height_map``
+``/view/blueprint``         foxglove.Grid (``goal``, m)      ``/blueprint/goal``
+``/view/height_error``      foxglove.Grid (``error``, m)     height - goal over the dig cells
+``/view/camera``            foxglove.CompressedImage         ``/overhead/image_annotated``
+                                                             (the localizer's detected LEDs)
+``/view/fitness``           JSON ``{fitness, mapped, ...}``  ``/worksite/fitness`` (simulator)
+                                                             and the fitness of the mapped
+                                                             heights against the blueprint
+``/view/diagnostics``       foxglove.Log                     ``/diagnostics`` (changes only)
+``/tf``                     foxglove.FrameTransforms         ``map`` -> ``overhead_camera``,
+                                                             ``overhead_laser``,
+                                                             ``robot_k/base_link``
+==========================  ===============================  =================================
+
+The latest robots, grids and transforms are sent again every ``--period`` seconds, so a
+client that connects late sees the site at once. The camera's and the laser's frames come
+from the site file (``--site``; ``--calibration`` for a calibration file elsewhere, e.g.
+the one ``ant-dome up --sim`` writes into its run directory). The server binds 127.0.0.1
+unless ``--host`` says otherwise. ``ant-dome up --view`` starts it.
+
+The message builders (:func:`robot_entities`, :func:`grid`, :func:`frame_transforms`,
+:func:`mapped_fitness`) are pure; :class:`ViewNode` is the ROS plumbing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from excavation_common.errors import FieldError
+
+DIG = 1
+
+
+def _stamp(sec: int, nanosec: int):
+    from foxglove.messages import Timestamp
+
+    return Timestamp(sec=int(sec), nsec=int(nanosec))
+
+
+def _quat_z(yaw: float):
+    from foxglove.messages import Quaternion
+
+    return Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+
+
+def robot_entities(poses: dict[int, tuple[float, float, float, int, int]], cell_size: float):
+    """A ``SceneUpdate``: per robot ``k`` (``x, y, yaw, sec, nanosec``) a box, arrow and id."""
+    from foxglove.messages import (
+        ArrowPrimitive,
+        Color,
+        CubePrimitive,
+        Pose,
+        SceneEntity,
+        SceneUpdate,
+        TextPrimitive,
+        Vector3,
+    )
+
+    entities = []
+    for k, (x, y, yaw, sec, nanosec) in sorted(poses.items()):
+        hue = (k * 0.27) % 1.0
+        colour = Color(r=0.9, g=0.4 + 0.5 * hue, b=0.1 + 0.6 * (1 - hue), a=0.85)
+        size = 2 * cell_size
+        body = Pose(position=Vector3(x=x, y=y, z=0.5 * cell_size), orientation=_quat_z(yaw))
+        tail = Pose(position=Vector3(x=x, y=y, z=1.05 * cell_size), orientation=_quat_z(yaw))
+        label = Pose(position=Vector3(x=x, y=y, z=1.6 * cell_size), orientation=_quat_z(0.0))
+        entities.append(
+            SceneEntity(
+                timestamp=_stamp(sec, nanosec),
+                frame_id="map",
+                id=f"robot_{k}",
+                cubes=[
+                    CubePrimitive(
+                        pose=body, size=Vector3(x=size, y=size, z=cell_size), color=colour
+                    )
+                ],
+                arrows=[
+                    ArrowPrimitive(
+                        pose=tail,
+                        shaft_length=0.8 * cell_size,
+                        shaft_diameter=0.12 * cell_size,
+                        head_length=0.4 * cell_size,
+                        head_diameter=0.3 * cell_size,
+                        color=Color(r=1.0, g=1.0, b=1.0, a=1.0),
+                    )
+                ],
+                texts=[
+                    TextPrimitive(
+                        pose=label,
+                        billboard=True,
+                        font_size=14.0,
+                        scale_invariant=True,
+                        color=Color(r=1.0, g=1.0, b=1.0, a=1.0),
+                        text=f"robot_{k}",
+                    )
+                ],
+            )
+        )
+    return SceneUpdate(entities=entities)
+
+
+def grid(values: np.ndarray, cell_size: float, field: str, stamp=(0, 0)):
+    """A ``Grid`` in ``map`` (row r at y = r * cell_size, column c at x) of float32 ``field``."""
+    from foxglove.messages import (
+        Grid,
+        PackedElementField,
+        PackedElementFieldNumericType,
+        Pose,
+        Quaternion,
+        Vector2,
+        Vector3,
+    )
+
+    arr = np.ascontiguousarray(values, dtype="<f4")
+    rows, cols = arr.shape
+    return Grid(
+        timestamp=_stamp(*stamp),
+        frame_id="map",
+        pose=Pose(
+            position=Vector3(x=0.0, y=0.0, z=0.0), orientation=Quaternion(x=0, y=0, z=0, w=1)
+        ),
+        column_count=cols,
+        cell_size=Vector2(x=cell_size, y=cell_size),
+        row_stride=cols * 4,
+        cell_stride=4,
+        fields=[
+            PackedElementField(name=field, offset=0, type=PackedElementFieldNumericType.Float32)
+        ],
+        data=arr.tobytes(),
+    )
+
+
+def frame_transforms(frames: dict[str, tuple[np.ndarray, np.ndarray]], stamp=(0, 0)):
+    """``FrameTransforms`` from ``map``: ``{child: (translation, quaternion xyzw)}``."""
+    from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Vector3
+
+    out = []
+    for child, (t, q) in frames.items():
+        out.append(
+            FrameTransform(
+                timestamp=_stamp(*stamp),
+                parent_frame_id="map",
+                child_frame_id=child,
+                translation=Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
+                rotation=Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])),
+            )
+        )
+    return FrameTransforms(transforms=out)
+
+
+def quaternion(rotation: np.ndarray) -> np.ndarray:
+    """``(x, y, z, w)`` of a rotation matrix."""
+    m = np.asarray(rotation, dtype=np.float64)
+    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2, m[2, 1] - m[1, 2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2, m[0, 2] - m[2, 0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2, m[1, 0] - m[0, 1])
+    return np.array([x, y, z, w])
+
+
+def site_frames(site, calibration: str | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The fixed frames of a site: ``overhead_camera`` (its calibration) and ``overhead_laser``.
+
+    The camera frame is the optical one (x right, y down, z along the view); the laser frame
+    is the mount's at pan = tilt = 0 (:mod:`terrain_mapper.geometry`), with its offsets.
+    """
+    from terrain_mapper.geometry import mount_rotation
+
+    frames = {}
+    path = calibration or (site.camera.calibration if site is not None else "")
+    if path and path != "simulated":
+        from overhead_localizer.camera_model import load_model
+
+        model = load_model(path)
+        frames["overhead_camera"] = (model.centre, quaternion(model.rotation.T))
+    if site is not None:
+        las = site.laser
+        rot = mount_rotation(0.0, 0.0, (las.pan_offset, las.tilt_offset, las.roll_offset))
+        frames["overhead_laser"] = (np.asarray(las.mount), quaternion(rot))
+    return frames
+
+
+def mapped_fitness(heights_m: np.ndarray, goal_m: np.ndarray, height_unit: float) -> float | None:
+    """The paper's fitness of mapped heights: mean ``exp(-2 |g - z|)`` over known dig cells.
+
+    Heights and goal in metres, compared in whole soil units; ``None`` when no dig cell's
+    height is known.
+    """
+    dig = np.isfinite(goal_m) & np.isfinite(heights_m)
+    if not dig.any():
+        return None
+    diff = np.abs(goal_m[dig] - heights_m[dig]) / height_unit
+    return float(np.mean(np.exp(-2.0 * np.round(diff))))
+
+
+class ViewNode:
+    """The ROS side of ``ant-view``: subscriptions in, foxglove channels out."""
+
+    def __init__(
+        self, robots: int, frames: dict, height_unit: float, period: float = 0.5, **kwargs
+    ) -> None:
+        """Create the node (``kwargs`` go to ``rclpy.node.Node``) and the channels."""
+        import foxglove.channels as ch
+        from diagnostic_msgs.msg import DiagnosticArray
+        from foxglove import Channel
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+        from nav_msgs.msg import MapMetaData
+        from rclpy.node import Node
+        from sensor_msgs.msg import CompressedImage, Image
+        from std_msgs.msg import Float32
+
+        from excavation_common.ros import LATCHED, LATEST_FRAME
+
+        self.node = node = Node("ant_view", **kwargs)
+        self.n = robots
+        self.frames = frames
+        self.height_unit = height_unit
+        self.cell_size = 0.25
+        self.poses: dict[int, tuple[float, float, float, int, int]] = {}
+        self.heights: np.ndarray | None = None
+        self.goal: np.ndarray | None = None
+        self.sim_fitness: float | None = None
+        self.statuses: dict[str, tuple[int, str]] = {}
+        self.sent = 0
+        self.robots_ch = ch.SceneUpdateChannel("/view/robots")
+        self.height_ch = ch.GridChannel("/view/height_map")
+        self.goal_ch = ch.GridChannel("/view/blueprint")
+        self.error_ch = ch.GridChannel("/view/height_error")
+        self.camera_ch = ch.CompressedImageChannel("/view/camera")
+        self.diag_ch = ch.LogChannel("/view/diagnostics")
+        self.tf_ch = ch.FrameTransformsChannel("/tf")
+        self.fitness_ch = Channel("/view/fitness", schema=FITNESS_SCHEMA)
+        for k in range(robots):
+            node.create_subscription(
+                PoseWithCovarianceStamped, f"/robot_{k}/pose", lambda m, k=k: self.on_pose(k, m), 10
+            )
+        node.create_subscription(Image, "/worksite/height_map", self.on_heights, LATCHED)
+        node.create_subscription(Image, "/blueprint/goal", self.on_goal, LATCHED)
+        node.create_subscription(MapMetaData, "/worksite/map_info", self.on_info, LATCHED)
+        node.create_subscription(Float32, "/worksite/fitness", self.on_fitness, 10)
+        node.create_subscription(
+            CompressedImage, "/overhead/image_annotated", self.on_camera, LATEST_FRAME
+        )
+        node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 50)
+        self.diag_pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        node.create_timer(period, self.republish)
+        node.create_timer(1.0, self.publish_diagnostics)
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def on_pose(self, k: int, msg) -> None:
+        """A robot's pose: the scene and its frame."""
+        from terrain_mapper.geometry import yaw_of
+
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        self.poses[k] = (p.x, p.y, yaw_of(q), msg.header.stamp.sec, msg.header.stamp.nanosec)
+        self.publish_robots()
+
+    def on_info(self, msg) -> None:
+        """The cell size."""
+        if msg.resolution > 0:
+            self.cell_size = float(msg.resolution)
+
+    def _grid(self, msg, what: str) -> np.ndarray | None:
+        from excavation_common.messages import MessageError, image_to_grid
+
+        try:
+            return image_to_grid(msg, "32FC1", what)
+        except MessageError as exc:
+            self.node.get_logger().warning(str(exc), throttle_duration_sec=5.0)
+            return None
+
+    def on_heights(self, msg) -> None:
+        """The height map: grid, error against the blueprint, mapped fitness."""
+        self.heights = self._grid(msg, "/worksite/height_map")
+        self.publish_grids()
+
+    def on_goal(self, msg) -> None:
+        """The blueprint's goal heights."""
+        self.goal = self._grid(msg, "/blueprint/goal")
+        self.publish_grids()
+
+    def on_fitness(self, msg) -> None:
+        """The simulator's fitness."""
+        self.sim_fitness = float(msg.data)
+        self.publish_fitness()
+
+    def on_camera(self, msg) -> None:
+        """The annotated camera frame, passed through."""
+        from foxglove.messages import CompressedImage
+
+        fmt = "png" if "png" in msg.format else "jpeg"
+        stamp = _stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
+        self.camera_ch.log(
+            CompressedImage(
+                timestamp=stamp, frame_id="overhead_camera", data=bytes(msg.data), format=fmt
+            )
+        )
+
+    def on_diagnostics(self, msg) -> None:
+        """Each status whose level or message changed, as a log line."""
+        from foxglove.messages import Log, LogLevel
+
+        levels = [LogLevel.Info, LogLevel.Warning, LogLevel.Error, LogLevel.Fatal]
+        for s in msg.status:
+            level = s.level[0] if isinstance(s.level, bytes) else int(s.level)
+            if self.statuses.get(s.name) == (level, s.message):
+                continue
+            self.statuses[s.name] = (level, s.message)
+            self.diag_ch.log(
+                Log(
+                    timestamp=_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
+                    level=levels[min(level, 3)],
+                    message=s.message,
+                    name=s.name,
+                )
+            )
+
+    # --- outputs ----------------------------------------------------------------------------
+
+    def publish_robots(self) -> None:
+        """Robots and every frame."""
+        self.robots_ch.log(robot_entities(self.poses, self.cell_size))
+        frames = dict(self.frames)
+        for k, (x, y, yaw, _, _) in self.poses.items():
+            frames[f"robot_{k}/base_link"] = (
+                np.array([x, y, 0.0]),
+                np.array([0, 0, math.sin(yaw / 2), math.cos(yaw / 2)]),
+            )
+        self.tf_ch.log(frame_transforms(frames))
+        self.sent += 1
+
+    def publish_grids(self) -> None:
+        """Height map, blueprint, their difference; the mapped fitness."""
+        if self.heights is not None:
+            self.height_ch.log(grid(self.heights, self.cell_size, "height"))
+        if self.goal is not None:
+            self.goal_ch.log(grid(self.goal, self.cell_size, "goal"))
+        if (
+            self.heights is not None
+            and self.goal is not None
+            and self.heights.shape == self.goal.shape
+        ):
+            self.error_ch.log(grid(self.heights - self.goal, self.cell_size, "error"))
+        self.publish_fitness()
+
+    def publish_fitness(self) -> None:
+        """``{"fitness": simulator or null, "mapped": from the height map or null}``."""
+        mapped = None
+        if (
+            self.heights is not None
+            and self.goal is not None
+            and self.heights.shape == self.goal.shape
+        ):
+            mapped = mapped_fitness(self.heights, self.goal, self.height_unit)
+        self.fitness_ch.log({"fitness": self.sim_fitness, "mapped": mapped})
+
+    def republish(self) -> None:
+        """The latest state again, for clients that joined since."""
+        self.publish_robots()
+        self.publish_grids()
+
+    def publish_diagnostics(self) -> None:
+        """The view's own status."""
+        from diagnostic_msgs.msg import DiagnosticStatus
+
+        from excavation_common.ros import diagnostics
+
+        message = f"serving {len(self.poses)} robots" + (
+            ", height map" if self.heights is not None else ""
+        )
+        self.diag_pub.publish(
+            diagnostics(self.node, DiagnosticStatus.OK, message, {"updates": self.sent})
+        )
+
+
+FITNESS_SCHEMA = {
+    "type": "object",
+    "properties": {
+        "fitness": {"type": ["number", "null"], "description": "the simulator's fitness"},
+        "mapped": {"type": ["number", "null"], "description": "mapped heights vs the blueprint"},
+    },
+}
+"""JSON schema of ``/view/fitness``."""
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``ant-view``."""
+    import foxglove
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.utilities import remove_ros_args
+
+    argv = sys.argv[1:] if argv is None else argv
+    p = argparse.ArgumentParser(prog="ant-view", description=__doc__.split("\n\n")[0])
+    p.add_argument("--site", metavar="SITE", help="site file: robots, camera and laser frames")
+    p.add_argument("--calibration", metavar="FILE", help="camera calibration (default: the site's)")
+    p.add_argument("--robots", type=int, default=None, help="default: the site's, else 4")
+    p.add_argument("--host", default="127.0.0.1", help="address to serve on (default loopback)")
+    p.add_argument("--port", type=int, default=8765)
+    p.add_argument("--period", type=float, default=0.5, help="s between repeats of the state")
+    args = p.parse_args(remove_ros_args(["ant-view", *argv])[1:])
+    site = None
+    try:
+        if args.site:
+            from excavation_bringup.site import load_site
+
+            site = load_site(args.site, sim=args.calibration is not None or _simulated(args.site))
+        frames = site_frames(site, args.calibration)
+    except FieldError as exc:
+        print(f"ant-view: error: {exc}", file=sys.stderr)
+        return 2
+    robots = args.robots or (site.n_robots if site is not None else 4)
+    unit = site.worksite.soil_unit if site is not None else 0.05
+    server = foxglove.start_server(name="ant-view", host=args.host, port=args.port)
+    print(
+        f"ant-view: serving ws://{args.host}:{server.port} (Foxglove: open connection)", flush=True
+    )
+    rclpy.init(args=["ant-view", *argv])
+    view = ViewNode(robots, frames, unit, args.period)
+    try:
+        rclpy.spin(view.node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        view.node.destroy_node()
+        rclpy.try_shutdown()
+        server.stop()
+    return 0
+
+
+def _simulated(path: str) -> bool:
+    """True when the site's camera is the simulator's (its calibration is written at bring-up)."""
+    from excavation_bringup.site import SIMULATED, parse_site
+
+    site, _ = parse_site(Path(path).read_text(encoding="utf-8"), path)
+    return site is not None and site.camera.calibration == SIMULATED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

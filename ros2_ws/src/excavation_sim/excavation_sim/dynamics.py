@@ -1,0 +1,259 @@
+"""Continuous-motion robots on the grid world (DESIGN.md, "Field execution").
+
+The lockstep simulator applies a behaviour word to the grid at once; here robots drive.
+Each robot is a differential-drive body that integrates its ``cmd_vel`` (forward speed,
+yaw rate) every ``dt`` seconds with wheel-speed limits, slip and noise. The soil and the
+grid poses stay the world model's (:mod:`excavation_sim.world`): the continuous motion only
+decides *when* a grid event happens, and the event itself is the world model's own
+``apply_behaviours`` with a one-behaviour word, so the blade equations, push capacity,
+climb limits, grid edges and the 2 x 2 footprints (no overlaps) are exactly the lockstep
+simulator's:
+
+* **Move.** When a robot driving forward (commanded speed > 0) has moved
+  ``commit_fraction`` of a cell ahead of the centre of its grid footprint, its Move
+  Forward is applied to the world (throttle from ``drive/throttle``). Accepted: the
+  footprint is the next cell and the blade has cut, pushed or filled. Refused (the world
+  would set U1: blocked, off the grid, soil beyond the push capacity, a step too high):
+  the robot *stalls*, held at that point until it backs off. Move Backward likewise.
+* **Turn.** When the yaw has turned more than 45 degrees from the footprint's heading, a
+  Turn Right or Turn Left is applied (turns never fail). Random turns are never drawn here:
+  the executor is told the direction (the team tick draws it from the world's stream).
+* **Blade.** A blade set-point replaces the blade setting; the node applies one when the
+  robot's motion of that tick has ended (Table 2 order: blade behaviours after moves).
+
+State: the :class:`~excavation_sim.world.World` (heights, grid robots) plus ``bodies``
+``float [n, 3]`` (x, y, yaw in ``map``), commands ``float [n, 2]``, throttle and stall
+flags. All randomness comes from one seeded generator.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ant_controller.layout import (
+    MOVE_BACKWARD,
+    MOVE_FORWARD,
+    THROTTLE_UP,
+    TURN_LEFT,
+    TURN_RIGHT,
+)
+from ant_controller.sensing import FORWARD, MAX_LOAD, blade_volume, is_tilted_down
+from excavation_common.frames import heading_to_yaw, robot_center
+from excavation_common.params import param
+from excavation_sim.world import BLADE, COL, HEADING, ROW, STUCK, World, apply_behaviours
+
+
+@dataclass(frozen=True)
+class DynamicsParams:
+    """Physical parameters of the continuous-motion robots (the node's parameters).
+
+    Slip and noise default to the documented values (docs/field.md); the parity trial
+    sets them to 0.
+    """
+
+    dt: float = param(0.05, "integration step, s of sim time", low=0.001, high=1.0)
+    track_width: float = param(0.2, "distance between the wheel tracks, m", low=0.01, high=5.0)
+    max_wheel_speed: float = param(0.3, "wheel speed limit, m/s", low=0.001, high=10.0)
+    slip: float = param(0.03, "fraction of the wheel speed lost to slip", low=0.0, high=0.9)
+    turn_slip: float = param(0.05, "fraction of the yaw rate lost to skid", low=0.0, high=0.9)
+    speed_noise: float = param(0.005, "std of the forward-speed noise, m/s", low=0.0, high=1.0)
+    turn_noise: float = param(0.02, "std of the yaw-rate noise, rad/s", low=0.0, high=10.0)
+    pose_noise: float = param(0.002, "std of the published position noise, m", low=0.0, high=1.0)
+    yaw_noise: float = param(0.004, "std of the published yaw noise, rad", low=0.0, high=1.0)
+    commit_fraction: float = param(
+        0.25, "travel (cells) past the footprint centre that commits a move", low=0.05, high=0.45
+    )
+
+    @classmethod
+    def exact(cls, **changes) -> DynamicsParams:
+        """No slip and no noise (the parity setting)."""
+        base = dict(slip=0.0, turn_slip=0.0, speed_noise=0.0, turn_noise=0.0)
+        base.update(pose_noise=0.0, yaw_noise=0.0)
+        base.update(changes)
+        return cls(**base)
+
+
+@dataclass
+class Counters:
+    """Grid events so far."""
+
+    moves: int = 0
+    refused: int = 0
+    turns: int = 0
+    blade_changes: int = 0
+
+
+class Dynamics:
+    """Continuous diff-drive robots over a :class:`World` (pure, no ``rclpy``).
+
+    Args:
+        world: The grid world (scenario start); its robots become bodies at their cell
+            centres and headings.
+        params: Physical parameters.
+        cell_size: Grid cell size, m.
+        rng: Source of slip and noise.
+    """
+
+    def __init__(
+        self,
+        world: World,
+        params: DynamicsParams,
+        cell_size: float,
+        rng: np.random.Generator,
+    ) -> None:
+        self.world = world
+        self.params = params
+        self.cell = float(cell_size)
+        self.rng = rng
+        n = world.n_robots
+        self.bodies = np.zeros((n, 3))
+        for k in range(n):
+            r = world.robots[k]
+            x, y = robot_center(int(r[ROW]), int(r[COL]), self.cell)
+            self.bodies[k] = (x, y, heading_to_yaw(int(r[HEADING])))
+        self.commands = np.zeros((n, 2))
+        self.throttle = np.zeros(n, dtype=bool)
+        self.stalled = np.zeros(n, dtype=np.int64)  # +1 forward refused, -1 backward refused
+        self.time = 0.0
+        self.counters = Counters()
+
+    @property
+    def n_robots(self) -> int:
+        """Number of robots."""
+        return self.world.n_robots
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def command(self, k: int, linear: float, angular: float) -> None:
+        """Robot k's ``cmd_vel`` (non-finite values count as zero)."""
+        self.commands[k] = (
+            linear if math.isfinite(linear) else 0.0,
+            angular if math.isfinite(angular) else 0.0,
+        )
+
+    def set_blade(self, k: int, blade: int) -> None:
+        """Robot k's blade setting (a code of ``excavation_common.constants``)."""
+        if int(self.world.robots[k, BLADE]) != blade:
+            self.counters.blade_changes += 1
+        self.world.robots[k, BLADE] = blade
+
+    # --- stepping ---------------------------------------------------------------------------
+
+    def wheel_speeds(self, linear: float, angular: float) -> tuple[float, float]:
+        """``(v, w)`` after the wheel-speed limit (each track clipped, the ratio kept)."""
+        half = self.params.track_width / 2
+        left, right = linear - angular * half, linear + angular * half
+        top = max(abs(left), abs(right))
+        if top > self.params.max_wheel_speed:
+            scale = self.params.max_wheel_speed / top
+            left, right = left * scale, right * scale
+        return (left + right) / 2, (right - left) / self.params.track_width
+
+    def step(self) -> None:
+        """Advance every robot by ``dt``, robot 0 first, applying the grid events."""
+        p = self.params
+        for k in range(self.n_robots):
+            if not self.world.active[k]:
+                continue
+            v, w = self.wheel_speeds(*self.commands[k])
+            v *= 1.0 - p.slip
+            w *= 1.0 - p.turn_slip
+            if p.speed_noise and v:
+                v += self.rng.normal(0.0, p.speed_noise)
+            if p.turn_noise and (v or w):
+                w += self.rng.normal(0.0, p.turn_noise)
+            x, y, yaw = self.bodies[k]
+            if abs(w) < 1e-9:
+                x += v * math.cos(yaw) * p.dt
+                y += v * math.sin(yaw) * p.dt
+            else:
+                x += v / w * (math.sin(yaw + w * p.dt) - math.sin(yaw))
+                y -= v / w * (math.cos(yaw + w * p.dt) - math.cos(yaw))
+            yaw = math.atan2(math.sin(yaw + w * p.dt), math.cos(yaw + w * p.dt))
+            self.bodies[k] = (x, y, yaw)
+            self._events(k)
+        self.time += p.dt
+
+    def offset(self, k: int) -> float:
+        """Robot k's travel past its footprint centre along its grid heading, in cells."""
+        r = self.world.robots[k]
+        cx, cy = robot_center(int(r[ROW]), int(r[COL]), self.cell)
+        yaw = heading_to_yaw(int(r[HEADING]))
+        x, y, _ = self.bodies[k]
+        return ((x - cx) * math.cos(yaw) + (y - cy) * math.sin(yaw)) / self.cell
+
+    def _apply(self, k: int, bit: int) -> bool:
+        """One behaviour of robot k through the world model; True when not refused."""
+        word = 1 << bit
+        if self.throttle[k]:
+            word |= 1 << THROTTLE_UP
+        w = self.world
+        apply_behaviours(w.heights, w.robots, w.active, k, word, w.rng, w.params)
+        return not w.robots[k, STUCK]
+
+    def _events(self, k: int) -> None:
+        commit = self.params.commit_fraction
+        robots = self.world.robots
+        # Turns: the footprint's heading follows the yaw past 45 degrees.
+        while True:
+            error = math.remainder(
+                self.bodies[k, 2] - heading_to_yaw(int(robots[k, HEADING])), 2 * math.pi
+            )
+            if error < -math.pi / 4:
+                self._apply(k, TURN_RIGHT)
+            elif error > math.pi / 4:
+                self._apply(k, TURN_LEFT)
+            else:
+                break
+            self.counters.turns += 1
+            self.stalled[k] = 0
+        d = self.offset(k)
+        linear = self.commands[k, 0]
+        for sign, bit in ((1, MOVE_FORWARD), (-1, MOVE_BACKWARD)):
+            if sign * linear > 0 and sign * d > commit and self.stalled[k] != sign:
+                if self._apply(k, bit):
+                    self.counters.moves += 1
+                    d = self.offset(k)
+                else:
+                    self.counters.refused += 1
+                    self.stalled[k] = sign
+            if self.stalled[k] == sign and sign * d > commit:
+                self._hold(k, sign * commit - d)
+                d = sign * commit
+        if abs(d) < commit / 2:
+            self.stalled[k] = 0
+
+    def _hold(self, k: int, cells: float) -> None:
+        """Move robot k by ``cells`` along its grid heading (a stalled robot stays put)."""
+        h = int(self.world.robots[k, HEADING])
+        self.bodies[k, 0] += cells * self.cell * FORWARD[h, 1]
+        self.bodies[k, 1] += cells * self.cell * FORWARD[h, 0]
+
+    # --- outputs ----------------------------------------------------------------------------
+
+    def measured(self, k: int) -> tuple[float, float, float]:
+        """Robot k's pose as a localiser would report it (with ``pose_noise``)."""
+        x, y, yaw = self.bodies[k]
+        p = self.params
+        if p.pose_noise:
+            x += self.rng.normal(0.0, p.pose_noise)
+            y += self.rng.normal(0.0, p.pose_noise)
+        if p.yaw_noise:
+            yaw += self.rng.normal(0.0, p.yaw_noise)
+        return float(x), float(y), float(yaw)
+
+    def blade_force(self, k: int, max_force: float) -> float:
+        """Push force on robot k's blade (N): the held soil, ``max_force`` at 24 units."""
+        r = self.world.robots[k]
+        volume = blade_volume(
+            self.world.heights, int(r[ROW]), int(r[COL]), int(r[HEADING]), int(r[BLADE])
+        )
+        return float(volume) * max_force / MAX_LOAD
+
+    def tilted(self, k: int) -> bool:
+        """R1: robot k stands tilted nose down (the world model's rule)."""
+        r = self.world.robots[k]
+        return bool(is_tilted_down(self.world.heights, int(r[ROW]), int(r[COL]), int(r[HEADING])))

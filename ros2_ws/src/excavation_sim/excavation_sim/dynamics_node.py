@@ -1,0 +1,380 @@
+"""``ros2 run excavation_sim dynamics``: the continuous-motion simulator as a ROS node.
+
+The node owns a :class:`excavation_sim.dynamics.Dynamics` over scenario ``scenario`` of
+``seed`` (the world ``ant-eval --seed`` and the lockstep ``sim`` start from) and is the
+clock of the trial: every step it integrates each robot's latest ``cmd_vel`` for ``dt``
+seconds of sim time and publishes ``/clock`` and every robot's pose. It waits for one
+``cmd_vel`` per robot stamped with the current step (the executors answer every pose) or
+``command_timeout`` wall seconds, whichever comes first, so a trial runs as fast as the
+executors answer: faster than real time, and every node runs on ``use_sim_time``. While
+every command is zero (the team waits for its controllers or a camera frame) the clock
+runs at most ``idle_time_factor`` times real time, so that waiting costs neither CPU nor
+a race of sim time.
+
+Subscribes, per robot k: ``/robot_k/cmd_vel`` (TwistStamped), ``/robot_k/drive/throttle``
+(Bool, latched: high-power mode), ``/robot_k/blade/servo_command`` (JointState, a blade
+set-point stamped with its tick, from the ``blade_driver`` sim backend) and
+``/robot_k/drive/status`` (GoalStatus): with ``blade_after_motion`` a set-point takes effect
+once the robot's drive goal of the same tick has ended (Table 2 order: blade behaviours run
+after the moves). ``/team/snapshot`` (Header): the team tick asks for a perception
+snapshot taken at ``stamp`` or later (published with the first step that reaches it).
+
+Publishes: ``/clock``; ``{pose_prefix}/robot_k/pose`` every step (PoseWithCovarianceStamped,
+with ``pose_noise``); every ``imu_period`` ``/robot_k/imu`` (sensor_msgs/Imu: yaw, and the
+pitch of R1 when the robot stands tilted nose down) and ``/robot_k/blade/plant_state``
+(JointState: the simulated servo's position and push force); on each snapshot request
+``{snapshot_prefix}/worksite/height_map`` (latched, 32FC1 metres), the poses again under
+``snapshot_prefix`` when it differs from ``pose_prefix`` (the ``sensors`` node renders
+exactly those), the blade plant states, ``/worksite/fitness`` and ``/worksite/markers``;
+``/diagnostics``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from action_msgs.msg import GoalStatus
+from builtin_interfaces.msg import Time as TimeMsg
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Image, Imu, JointState
+from std_msgs.msg import Bool, Float32, Header
+from visualization_msgs.msg import Marker, MarkerArray
+
+from excavation_common.constants import BladeGeometry
+from excavation_common.messages import blade_joint, grid_to_image
+from excavation_common.params import param
+from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
+from excavation_sim.dynamics import Dynamics, DynamicsParams
+from excavation_sim.sim_node import TILT_PITCH, scenario_world
+from excavation_sim.world import BLADE
+
+TERMINAL = (GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_ABORTED, GoalStatus.STATUS_CANCELED)
+
+
+@dataclass(frozen=True)
+class DynamicsNodeParams:
+    """The node's own parameters (the physics ones are :class:`DynamicsParams`)."""
+
+    blueprint: str = param("default", "blueprint spec (default, default:D, landing-pad, a file)")
+    robots: int = param(4, "number of robots", low=1, high=64)
+    seed: int = param(0, "scenario seed (as ant-eval --seed)", low=0)
+    scenario: int = param(0, "scenario index of the seed", low=0)
+    noise_seed: int = param(0, "seed of slip and noise", low=0)
+    command_timeout: float = param(
+        0.5, "wall seconds a step waits for every robot's cmd_vel", low=0.001, high=60.0
+    )
+    startup_period: float = param(0.5, "wall seconds the team is present before step 0", low=0.0)
+    imu_period: float = param(0.1, "sim seconds between IMU messages", low=0.001, high=10.0)
+    idle_time_factor: float = param(
+        0.0,
+        "while every command is zero, run at most this many times real time (0: no limit)",
+        low=0.0,
+    )
+    pose_prefix: str = param("", "prefix of the per-step poses (with full perception: /truth)")
+    snapshot_prefix: str = param("", "prefix of the snapshot height map and poses")
+    blade_after_motion: bool = param(
+        True, "a blade set-point waits for the end of its tick's drive goal (Table 2 order)"
+    )
+    max_force: float = param(10.0, "push force of a full blade, N", low=0.001)
+    diagnostics_period: float = param(1.0, "wall seconds between diagnostics", low=0.05)
+
+
+def _stamp(ns: int) -> TimeMsg:
+    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _key(stamp) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+class DynamicsNode(Node):
+    """Continuous-motion simulator node (the trial's clock)."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("dynamics", **kwargs)
+        self.params = declare_params(self, DynamicsNodeParams)
+        self.physics = declare_params(self, DynamicsParams)
+        p = self.params
+        self.n = p.robots
+        self.blueprint, world = scenario_world(p.blueprint, p.robots, p.seed, p.scenario)
+        self.sim = Dynamics(
+            world, self.physics, self.blueprint.cell_size, np.random.default_rng(p.noise_seed)
+        )
+        self.geometry = BladeGeometry(max_force=p.max_force)
+        self.dt_ns = int(round(self.physics.dt * 1e9))
+        self.now_ns = 0
+        self.started = False
+        self.ready_since: float | None = None
+        self.answered: set[int] = set()
+        self.wait_started = 0.0
+        self.late = 0
+        self.steps = 0
+        self.next_imu_ns = 0
+        self.pending: list[tuple[int, int] | None] = [None] * self.n
+        self.done_tick: list[int] = [-1] * self.n
+        self.snapshot_request: str | None = None
+        self.snapshot_due: int | None = None
+        self.snapshots: dict[str, float] = {}
+        self.wall_started = time.monotonic()
+
+        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self.pose_pubs, self.snap_pose_pubs, self.imu_pubs, self.plant_pubs = [], [], [], []
+        self.inputs = []
+        separate = p.snapshot_prefix.rstrip("/") != p.pose_prefix.rstrip("/")
+        for k in range(self.n):
+            ns = f"/robot_{k}"
+            self.pose_pubs.append(
+                self.create_publisher(
+                    PoseWithCovarianceStamped, f"{p.pose_prefix.rstrip('/')}{ns}/pose", 10
+                )
+            )
+            if separate:
+                self.snap_pose_pubs.append(
+                    self.create_publisher(
+                        PoseWithCovarianceStamped, f"{p.snapshot_prefix.rstrip('/')}{ns}/pose", 10
+                    )
+                )
+            self.imu_pubs.append(self.create_publisher(Imu, f"{ns}/imu", 10))
+            self.plant_pubs.append(self.create_publisher(JointState, f"{ns}/blade/plant_state", 10))
+            sub = self.create_subscription
+            self.inputs.append(
+                sub(TwistStamped, f"{ns}/cmd_vel", lambda m, k=k: self.on_cmd_vel(k, m), 10)
+            )
+            sub(Bool, f"{ns}/drive/throttle", lambda m, k=k: self.on_throttle(k, m), LATCHED)
+            sub(JointState, f"{ns}/blade/servo_command", lambda m, k=k: self.on_blade(k, m), 10)
+            sub(GoalStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
+        self.create_subscription(Header, "/team/snapshot", self.on_snapshot_request, 10)
+        self.heights_pub = self.create_publisher(
+            Image, f"{p.snapshot_prefix.rstrip('/')}/worksite/height_map", LATCHED
+        )
+        self.fitness_pub = self.create_publisher(Float32, "/worksite/fitness", 10)
+        self.markers_pub = self.create_publisher(MarkerArray, "/worksite/markers", 10)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(0.001, self.poll)
+        self.create_timer(p.diagnostics_period, self.publish_diagnostics)
+
+    # --- inputs -----------------------------------------------------------------------------
+
+    def on_cmd_vel(self, k: int, msg: TwistStamped) -> None:
+        """Robot k's command; one stamped with the current step counts as its answer."""
+        self.sim.command(k, float(msg.twist.linear.x), float(msg.twist.angular.z))
+        if self.started and _key(msg.header.stamp) >= self.now_ns:
+            self.answered.add(k)
+            if len(self.answered) == self.n and self.due(time.monotonic()):
+                self.advance()
+
+    def on_throttle(self, k: int, msg: Bool) -> None:
+        """Robot k's power mode (Throttle Up)."""
+        self.sim.throttle[k] = bool(msg.data)
+
+    def on_blade(self, k: int, msg: JointState) -> None:
+        """A blade set-point (nearest setting), applied after its tick's drive."""
+        if "blade" not in msg.name or len(msg.position) <= list(msg.name).index("blade"):
+            return
+        value = float(msg.position[list(msg.name).index("blade")])
+        if not math.isfinite(value):
+            return
+        self.pending[k] = (_key(msg.header.stamp), self.geometry.nearest(value))
+        self.apply_blade(k)
+
+    def on_status(self, k: int, msg: GoalStatus) -> None:
+        """Robot k's drive status: a terminal one releases that tick's blade set-point."""
+        if msg.status in TERMINAL:
+            self.done_tick[k] = max(self.done_tick[k], _key(msg.goal_info.stamp))
+            self.apply_blade(k)
+
+    def apply_blade(self, k: int) -> None:
+        """Apply robot k's pending set-point if its tick's motion has ended."""
+        pending = self.pending[k]
+        if pending is None:
+            return
+        if self.params.blade_after_motion and self.done_tick[k] < pending[0]:
+            return
+        self.sim.set_blade(k, pending[1])
+        self.pending[k] = None
+
+    def on_snapshot_request(self, msg: Header) -> None:
+        """The team tick wants a perception snapshot taken at ``msg.stamp`` or later."""
+        self.snapshot_request = msg.frame_id
+        self.snapshot_due = _key(msg.stamp)
+        if self.started and self.now_ns >= self.snapshot_due:
+            self.publish_snapshot()
+
+    # --- stepping ---------------------------------------------------------------------------
+
+    def team_present(self) -> bool:
+        """Every robot's executor publishes cmd_vel and reads its pose."""
+        return all(s.get_publisher_count() > 0 for s in self.inputs) and all(
+            pub.get_subscription_count() > 0 for pub in self.pose_pubs
+        )
+
+    def poll(self) -> None:
+        """Start once the team is present; step when a robot is late."""
+        wall = time.monotonic()
+        if not self.started:
+            if not self.team_present():
+                self.ready_since = None
+                return
+            if self.ready_since is None:
+                self.ready_since = wall
+            if wall - self.ready_since >= self.params.startup_period:
+                self.started = True
+                self.wall_started = wall
+                self.publish_state()
+            return
+        if len(self.answered) == self.n and self.due(wall):
+            self.advance()
+        elif wall - self.wait_started > self.params.command_timeout:
+            self.late += 1
+            self.advance()
+
+    def due(self, wall: float) -> bool:
+        """False while the team stands still and the idle time factor holds the clock back."""
+        factor = self.params.idle_time_factor
+        if factor <= 0 or self.sim.commands.any():
+            return True
+        return wall - self.wait_started >= self.physics.dt / factor
+
+    def advance(self) -> None:
+        """Integrate one step and publish its state."""
+        self.sim.step()
+        self.now_ns += self.dt_ns
+        self.steps += 1
+        self.publish_state()
+
+    def publish_state(self) -> None:
+        """``/clock`` and every pose of the current step (IMU when due)."""
+        stamp = _stamp(self.now_ns)
+        self.answered.clear()
+        self.wait_started = time.monotonic()
+        self.clock_pub.publish(Clock(clock=stamp))
+        imu_due = self.now_ns >= self.next_imu_ns
+        if imu_due:
+            self.next_imu_ns = self.now_ns + int(round(self.params.imu_period * 1e9))
+        for k in range(self.n):
+            self.pose_pubs[k].publish(self.pose(k, stamp))
+            if imu_due:
+                self.imu_pubs[k].publish(self.imu(k, stamp))
+                self.plant_pubs[k].publish(self.plant_state(k, stamp))
+        if self.snapshot_due is not None and self.now_ns >= self.snapshot_due:
+            self.publish_snapshot()
+
+    def pose(self, k: int, stamp: TimeMsg) -> PoseWithCovarianceStamped:
+        """Robot k's measured pose in ``map``, with its covariance."""
+        x, y, yaw = self.sim.measured(k)
+        msg = PoseWithCovarianceStamped()
+        msg.header.stamp = stamp
+        msg.header.frame_id = "map"
+        msg.pose.pose.position.x, msg.pose.pose.position.y = x, y
+        msg.pose.pose.orientation.z = math.sin(yaw / 2)
+        msg.pose.pose.orientation.w = math.cos(yaw / 2)
+        cov = np.zeros(36)
+        cov[0] = cov[7] = max(self.physics.pose_noise, 1e-4) ** 2
+        cov[14] = cov[21] = cov[28] = 1e6
+        cov[35] = max(self.physics.yaw_noise, 1e-4) ** 2
+        msg.pose.covariance = cov
+        return msg
+
+    def imu(self, k: int, stamp: TimeMsg) -> Imu:
+        """Robot k's orientation: yaw, and the R1 pitch when tilted nose down."""
+        yaw = float(self.sim.bodies[k, 2])
+        pitch = TILT_PITCH if self.sim.tilted(k) else 0.0
+        msg = Imu()
+        msg.header.stamp = stamp
+        msg.header.frame_id = f"robot_{k}/base_link"
+        cy, sy, cp, sp = (
+            math.cos(yaw / 2),
+            math.sin(yaw / 2),
+            math.cos(pitch / 2),
+            math.sin(pitch / 2),
+        )
+        msg.orientation.w, msg.orientation.x = cy * cp, -sy * sp
+        msg.orientation.y, msg.orientation.z = cy * sp, sy * cp
+        return msg
+
+    def plant_state(self, k: int, stamp: TimeMsg) -> JointState:
+        """Robot k's blade servo as measured: position of its setting, push force."""
+        blade = int(self.sim.world.robots[k, BLADE])
+        force = self.sim.blade_force(k, self.geometry.max_force)
+        return blade_joint(blade, force, self.geometry, stamp)
+
+    def publish_snapshot(self) -> None:
+        """Height map, snapshot poses, blade plant states, fitness and markers, stamped now."""
+        stamp = _stamp(self.now_ns)
+        w, bp = self.sim.world, self.blueprint
+        self.heights_pub.publish(
+            grid_to_image((w.heights * bp.height_unit).astype(np.float32), "32FC1", stamp=stamp)
+        )
+        for k in range(self.n):
+            if self.snap_pose_pubs:
+                self.snap_pose_pubs[k].publish(self.pose(k, stamp))
+            self.plant_pubs[k].publish(self.plant_state(k, stamp))
+        fitness = w.fitness()
+        if self.snapshot_request is not None:
+            self.snapshots[self.snapshot_request] = fitness
+        self.snapshot_due = None
+        self.fitness_pub.publish(Float32(data=float(fitness)))
+        self.markers_pub.publish(self.markers(stamp))
+
+    def markers(self, stamp: TimeMsg) -> MarkerArray:
+        """One cube per robot at its true pose (for RViz or Foxglove)."""
+        out = MarkerArray()
+        cell = self.blueprint.cell_size
+        for k in range(self.n):
+            x, y, yaw = self.sim.bodies[k]
+            m = Marker()
+            m.header.stamp = stamp
+            m.header.frame_id = "map"
+            m.ns, m.id, m.type, m.action = "robots", k, Marker.CUBE, Marker.ADD
+            m.pose.position.x, m.pose.position.y = float(x), float(y)
+            m.pose.orientation.z, m.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+            m.scale.x = m.scale.y = 2 * cell
+            m.scale.z = cell
+            m.color.r, m.color.g, m.color.b, m.color.a = 0.9, 0.5, 0.1, 0.8
+            out.markers.append(m)
+        return out
+
+    def publish_diagnostics(self) -> None:
+        """Sim time, real-time factor, grid events."""
+        wall = max(time.monotonic() - self.wall_started, 1e-9)
+        c = self.sim.counters
+        level = DiagnosticStatus.OK if self.started else DiagnosticStatus.WARN
+        message = (
+            f"stepping: {self.now_ns * 1e-9:.2f} s of sim time"
+            if self.started
+            else "waiting for every robot's executor"
+        )
+        self.diag_pub.publish(
+            diagnostics(
+                self,
+                level,
+                message,
+                {
+                    "sim_time": f"{self.now_ns * 1e-9:.3f}",
+                    "real_time_factor": f"{self.now_ns * 1e-9 / wall:.2f}" if self.started else 0,
+                    "steps": self.steps,
+                    "late_steps": self.late,
+                    "moves": c.moves,
+                    "refused_moves": c.refused,
+                    "turns": c.turns,
+                    "fitness": f"{self.sim.world.fitness():.6f}",
+                },
+                hardware_id="excavation_sim",
+            )
+        )
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run excavation_sim dynamics``."""
+    return spin_node(DynamicsNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,47 @@
+"""Parameters of the ``localizer`` node besides the detection settings (no ``rclpy``).
+
+:class:`LocalizerNodeParams` (topics, files, QoS, diagnostics) and
+:class:`overhead_localizer.localize.LocalizerParams` (detection, pairing, tracking) are
+declared together by ``excavation_common.ros.declare_params``; ``config/localizer.yaml``
+states every default, and ``excavation_bringup.site`` generates them from a site file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from excavation_common.params import param
+
+
+@dataclass(frozen=True)
+class LocalizerNodeParams:
+    """Topics, files and QoS of the localizer node.
+
+    Attributes:
+        robots: Robots 0 .. robots - 1 are localized (the first entries of the LED table).
+        calibration: Camera calibration YAML (``calibrate``); required, there is no default.
+        beacons: LED table YAML; empty: the package's ``config/beacons.yaml``.
+        image_topic: Camera frames (``sensor_msgs/Image``; with ``compressed``,
+            ``sensor_msgs/CompressedImage``, conventionally ``<image>/compressed``).
+        compressed: Frames arrive as jpeg or png ``CompressedImage``.
+        camera_info_topic: ``sensor_msgs/CameraInfo`` whose K and D replace the calibration
+            file's intrinsics (the file still gives the camera's pose); empty: none.
+        use_height_map: The LED planes follow the soil under each robot.
+        reliable: Reliable QoS (the lockstep trial); else best effort. Depth 1 either way.
+        annotated_period: Seconds between annotated frames on ``/overhead/image_annotated``
+            (jpeg, detected LEDs and poses drawn); 0: none.
+        diagnostics_period: Seconds between ``/diagnostics`` reports.
+    """
+
+    robots: int = param(4, "robots localized (first entries of the LED table)", low=1, high=64)
+    calibration: str = param("", "camera calibration YAML (required)")
+    beacons: str = param("", "LED table YAML; empty: the package's config/beacons.yaml")
+    image_topic: str = param("/overhead/image_raw", "camera frames")
+    compressed: bool = param(False, "frames are sensor_msgs/CompressedImage (jpeg, png)")
+    camera_info_topic: str = param("", "CameraInfo whose K, D replace the file's; empty: none")
+    use_height_map: bool = param(True, "LED planes follow the soil under each robot")
+    reliable: bool = param(False, "reliable QoS for frames (else best effort); depth 1")
+    annotated_period: float = param(
+        0.0, "s between annotated frames on /overhead/image_annotated; 0: none", low=0.0
+    )
+    diagnostics_period: float = param(1.0, "s between diagnostics", low=0.01, high=3600.0)

@@ -1,0 +1,1 @@
+"""Team supervisor: the team's safety state and the operator's command line."""

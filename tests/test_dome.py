@@ -1,0 +1,152 @@
+"""ant-dome up --sim end to end: the same fitness as ant-trial, a killed node restarted,
+Ctrl-C stopping the nodes in reverse order and finishing the bag."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from conftest import next_domain
+
+from excavation_bringup.trial import run_trial
+
+ROOT = Path(__file__).resolve().parents[1]
+SITE = ROOT / "ros2_ws/src/excavation_bringup/config/site_sim.yaml"
+
+
+def dome(tmp_path, *extra, ticks=None):
+    cmd = [sys.executable, "-m", "excavation_bringup.dome", "up", str(SITE), "--sim", "--json"]
+    cmd += ["--domain", str(next_domain()), "--run-dir", str(tmp_path / "run"), "--timeout", "900"]
+    if ticks:
+        cmd += ["--ticks", str(ticks)]
+    return subprocess.Popen(
+        [*cmd, *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+
+
+def state(tmp_path):
+    try:
+        return json.loads((tmp_path / "run" / "state.json").read_text())
+    except (FileNotFoundError, json.JSONDecodeError):
+        return {}
+
+
+def events(tmp_path):
+    try:
+        return (tmp_path / "run" / "events.log").read_text()
+    except FileNotFoundError:
+        return ""
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_for(condition, timeout):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.2)
+    return condition()
+
+
+def test_dome_up_sim_runs_40_ticks_with_the_fitness_of_ant_trial(tmp_path):
+    proc = dome(tmp_path)
+    out, err = proc.communicate(timeout=1200)
+    assert proc.returncode == 0, err + events(tmp_path)
+    summary = json.loads(out.strip().splitlines()[-1])
+    result = json.loads((tmp_path / "run" / "result.json").read_text())
+    assert summary["ticks"] == 40 and summary["ok"] and not summary["restarts"]
+    assert result["missed"] == {"0": 0, "1": 0}
+    # the same scenario through ant-trial, reading the simulator's truth: full perception in
+    # processes must give the same commands and fitness (tests/test_perception_trial.py
+    # shows the composed full-perception trial equal to this one)
+    truth = run_trial("genomes/best.json", 2, 40, 0, "default:1", domain=next_domain())
+    assert result["commands"] == truth.commands
+    assert summary["fitness"] == truth.fitness
+    logs = {p.stem for p in (tmp_path / "run" / "logs").glob("*.log")}
+    assert logs == {
+        "supervisor",
+        "server",
+        "sensors",
+        "localizer",
+        "mapper",
+        "sim",
+        "blade_driver_0",
+        "blade_driver_1",
+        "controller_0",
+        "controller_1",
+    }
+    order = [
+        line.split("starting ")[1].split(" ")[0]
+        for line in events(tmp_path).splitlines()
+        if " starting " in line
+    ]
+    assert order[:2] == ["supervisor", "server"] and order[-1] == "sim"
+
+
+def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
+    proc = dome(tmp_path, ticks=150)
+    try:
+        assert wait_for(lambda: "all 10 nodes are up" in events(tmp_path), 600)
+        time.sleep(2.0)  # a few ticks
+        victim = state(tmp_path)["controller_1"]["pid"]
+        os.kill(victim, signal.SIGKILL)
+        out, err = proc.communicate(timeout=900)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err + events(tmp_path)
+    summary = json.loads(out.strip().splitlines()[-1])
+    assert summary["ticks"] == 150 and summary["restarts"] == {"controller_1": 1}
+    log = events(tmp_path)
+    assert "controller_1 exited with code -9" in log
+    assert "restarting controller_1 in 1.0 s (restart 1)" in log
+    assert "controller_1 is up again (restart 1)" in log
+    assert state(tmp_path)["controller_1"]["pid"] != victim
+    assert (tmp_path / "run" / "logs" / "controller_1.log").read_text().count("start\n") == 2
+
+
+def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag(tmp_path):
+    from excavation_bags.reader import open_bag
+
+    bag = tmp_path / "bag"
+    port = _free_port()
+    proc = dome(tmp_path, "--record", str(bag), "--view", "--view-port", str(port), ticks=300)
+    try:
+        assert wait_for(lambda: "all 12 nodes are up" in events(tmp_path), 600)
+        time.sleep(5.0)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err + events(tmp_path)
+    log = events(tmp_path)
+    assert "stopping: SIGINT" in log
+    stopped = [
+        line.split("stopping ")[1]
+        for line in log.splitlines()
+        if " stopping " in line and ":" not in line.split("stopping ")[1]
+    ]
+    started = [
+        line.split("starting ")[1].split(" ")[0]
+        for line in log.splitlines()
+        if " starting " in line
+    ]
+    assert stopped == started[::-1] and started[0] == "recorder" and started[-1] == "view"
+    assert f"serving ws://127.0.0.1:{port}" in (tmp_path / "run" / "logs" / "view.log").read_text()
+    recorded = open_bag(bag)
+    assert not recorded.warnings  # closed properly: summary and footer written
+    assert recorded.topics["/worksite/height_map"].count > 0
+    assert recorded.topics["/overhead/image_raw/compressed"].count > 0  # the recorder compresses

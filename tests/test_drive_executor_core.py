@@ -1,0 +1,306 @@
+"""Drive executor core (no rclpy): words as primitives, closed loop, time-outs, gate, override."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ant_controller.layout import (
+    MOVE_BACKWARD,
+    MOVE_FORWARD,
+    RANDOM_TURN,
+    THROTTLE_UP,
+    TURN_LEFT,
+    TURN_RIGHT,
+)
+from blueprint_server.blueprint import default_blueprint
+from drive_executor.core import DriveExecutorCore, plan
+from drive_executor.errors import GoalError
+from drive_executor.goals import (
+    ABORTED,
+    EXECUTING,
+    LEFT,
+    RIGHT,
+    SUCCEEDED,
+    DriveGoal,
+    goal_from_message,
+    goal_message,
+)
+from drive_executor.params import ExecutorParams
+from drive_executor.primitives import DriveCells, Limits, Pose2D, Status, Turn, Twist2D
+from excavation_common.frames import heading_to_yaw, robot_anchor, robot_center, yaw_to_heading
+from excavation_common.params import ParameterError, validate
+from excavation_common.safety import ARMED, PAUSED, MotionGate
+from excavation_sim.world import COL, HEADING, ROW, World, next_random
+
+CELL = 0.25
+DT = 0.05
+
+
+def armed_gate(now: float = 0.0) -> MotionGate:
+    gate = MotionGate(active=True, enabled=True)
+    gate.on_heartbeat(ARMED, now)
+    return gate
+
+
+class Plant:
+    """A perfect unicycle: the twist is the motion."""
+
+    def __init__(self, x: float, y: float, yaw: float) -> None:
+        self.x, self.y, self.yaw = x, y, yaw
+
+    def pose(self) -> Pose2D:
+        return Pose2D(self.x, self.y, self.yaw)
+
+    def apply(self, twist: Twist2D, dt: float = DT) -> None:
+        self.x += twist.linear * math.cos(self.yaw) * dt
+        self.y += twist.linear * math.sin(self.yaw) * dt
+        self.yaw += twist.angular * dt
+
+
+def run_goal(core, gate, plant, goal, t=0.0, limit=2000, move=True):
+    """Drive a goal to its end; returns (final status event, time, twists)."""
+    core.submit(goal, t)
+    twists = []
+    for _ in range(limit):
+        gate.on_heartbeat(ARMED, t)
+        twist = core.on_pose(plant.pose(), t, t)
+        twists.append(twist)
+        ends = [e for e in core.drain() if e[0] == "status" and e[2] in (SUCCEEDED, ABORTED)]
+        if ends:
+            return ends[0], t, twists
+        if move:
+            plant.apply(twist)
+        t += DT
+    raise AssertionError("goal did not end")
+
+
+def world_direction(rng_state: np.ndarray) -> int:
+    """The direction the world model's next random turn takes (its own rule)."""
+    probe = rng_state.copy()
+    return RIGHT if next_random(probe) >> np.uint64(63) else LEFT
+
+
+def test_every_word_ends_where_the_world_model_puts_the_robot():
+    """All 4096 words from random interior poses, a perfect plant: the world model's cell."""
+    bp = default_blueprint(1)
+    rng = np.random.default_rng(7)
+    params = ExecutorParams(cell_size=CELL)
+    for word in range(4096):
+        world = World.scenario(bp.zones, bp.goal, 1, 0, word)
+        world.robots[0, ROW] = rng.integers(2, 12)
+        world.robots[0, COL] = rng.integers(2, 12)
+        world.robots[0, HEADING] = rng.integers(0, 4)
+        turn = world_direction(world.rng)
+        x, y = robot_center(int(world.robots[0, ROW]), int(world.robots[0, COL]), CELL)
+        yaw = heading_to_yaw(int(world.robots[0, HEADING]))
+        plant = Plant(x + rng.normal(0, 0.003), y + rng.normal(0, 0.003), yaw + rng.normal(0, 0.02))
+        world.step(np.array([word]))
+        gate = armed_gate()
+        core = DriveExecutorCore(params, gate)
+        (_, _, code, stuck), _, _ = run_goal(core, gate, plant, DriveGoal(word, word, turn))
+        assert code == SUCCEEDED and not stuck, word
+        row, col = robot_anchor(plant.x, plant.y, CELL)
+        assert (row, col, yaw_to_heading(plant.yaw)) == (
+            int(world.robots[0, ROW]),
+            int(world.robots[0, COL]),
+            int(world.robots[0, HEADING]),
+        ), word
+
+
+def test_plan_follows_table_2_order_and_nets_the_turns():
+    fwd, back = 1 << MOVE_FORWARD, 1 << MOVE_BACKWARD
+    assert plan(fwd | back, 0) == [("drive", 1), ("drive", -1)]
+    assert plan(1 << TURN_RIGHT | 1 << TURN_LEFT, 0) == []
+    assert plan(1 << RANDOM_TURN | 1 << TURN_RIGHT, RIGHT) == [("turn", 1), ("turn", 1)]
+    assert plan(1 << RANDOM_TURN | 1 << TURN_RIGHT, LEFT) == []
+    assert plan(fwd | 1 << TURN_LEFT, 0) == [("drive", 1), ("turn", -1)]
+    assert (
+        plan(0xFFF & ~(fwd | back | 1 << RANDOM_TURN | 1 << TURN_RIGHT | 1 << TURN_LEFT), 0) == []
+    )
+
+
+def test_bad_words_and_goals_are_refused():
+    with pytest.raises(GoalError, match="12-bit"):
+        plan(0x1000, 0)
+    with pytest.raises(GoalError, match="direction"):
+        plan(1 << RANDOM_TURN, 0)
+    msg = goal_message(DriveGoal(3, 5))
+    msg.goal_id.uuid = [0] * 16
+    with pytest.raises(GoalError, match="not a drive goal"):
+        goal_from_message(msg)
+    good = goal_message(DriveGoal(12345, 0xABC, LEFT, 2, (12, 5)))
+    assert goal_from_message(good) == DriveGoal(12345, 0xABC, LEFT, 2, (12, 5))
+    gate = armed_gate()
+    core = DriveExecutorCore(ExecutorParams(), gate)
+    core.submit(DriveGoal(0, 0x1FFF), 0.0)
+    ((_, goal, code, stuck),) = [e for e in core.drain() if e[0] == "status"]
+    assert code == ABORTED and stuck and not core.busy
+
+
+def test_random_turn_without_a_direction_uses_the_executor_s_own_seeded_generator():
+    def direction(seed):
+        core = DriveExecutorCore(ExecutorParams(seed=seed), armed_gate())
+        core.submit(DriveGoal(0, 1 << RANDOM_TURN), 0.0)
+        return core.queue[0][1]
+
+    draws = [direction(s) for s in range(20)]
+    assert draws == [direction(s) for s in range(20)]
+    assert set(draws) == {RIGHT, LEFT}
+
+
+def test_blocked_robot_times_out_stops_and_reports_stuck():
+    """A plant that does not move: no progress, abort, zero twist, settle, U1."""
+    gate = armed_gate()
+    params = ExecutorParams(progress_window=0.5)
+    core = DriveExecutorCore(params, gate)
+    plant = Plant(*robot_center(4, 4, CELL), heading_to_yaw(0))
+    (_, _, code, stuck), t, twists = run_goal(
+        core, gate, plant, DriveGoal(0, 1 << MOVE_FORWARD), move=False
+    )
+    assert code == ABORTED and stuck
+    assert core.counters.primitives_aborted >= 1
+    assert "no progress" in core.counters.last_failure
+    assert any(tw.linear > 0 for tw in twists) and twists[-1] == Twist2D()
+    assert t < params.time_allowance
+
+
+def test_time_allowance_ends_a_slow_primitive():
+    """A plant that creeps (progress, but too slowly): the time allowance aborts it."""
+    params = ExecutorParams(time_allowance=2.0, min_progress=0.0)
+    prim = DriveCells(1, params, Limits.of(params, False))
+    pose = Pose2D(*robot_center(4, 4, CELL), heading_to_yaw(1))
+    prim.on_run(pose, 0.0)
+    t, status = 0.0, Status.RUNNING
+    while status is Status.RUNNING:
+        t += DT
+        pose = Pose2D(pose.x + 0.0005, pose.y, pose.yaw)
+        status, twist = prim.on_cycle_update(pose, t)
+    assert status is Status.FAILED and "time allowance" in prim.failure
+    assert twist == Twist2D() and t == pytest.approx(2.0 + DT, abs=DT)
+
+
+def test_stale_pose_gives_zero_twist_at_once_and_aborts():
+    gate = armed_gate()
+    core = DriveExecutorCore(ExecutorParams(pose_timeout=0.3), gate)
+    plant = Plant(*robot_center(4, 4, CELL), heading_to_yaw(0))
+    core.submit(DriveGoal(0, 1 << MOVE_FORWARD), 0.0)
+    for i in range(10):
+        twist = core.on_pose(plant.pose(), i * DT, i * DT)
+        plant.apply(twist)
+    assert twist.linear > 0
+    gate.on_heartbeat(ARMED, 0.8)
+    assert core.check(0.8) == Twist2D()  # the last pose is stamped 0.45 s: stale
+    ends = [e for e in core.drain() if e[0] == "status" and e[2] == ABORTED]
+    assert ends and ends[0][3] and not core.busy
+    # A pose that arrives already stale moves nothing either.
+    core.submit(DriveGoal(1, 1 << MOVE_FORWARD), 0.8)
+    assert core.on_pose(plant.pose(), 0.0, 0.8) == Twist2D()
+    assert [e[2] for e in core.drain() if e[0] == "status"] == [EXECUTING, ABORTED]
+
+
+@pytest.mark.parametrize("stop", ["estop", "heartbeat", "disable", "pause", "inactive"])
+def test_gate_stops_at_once_and_nothing_moves_before_armed_again(stop):
+    gate = armed_gate()
+    core = DriveExecutorCore(ExecutorParams(), gate)
+    plant = Plant(*robot_center(4, 4, CELL), heading_to_yaw(0))
+    core.submit(DriveGoal(0, 1 << MOVE_FORWARD), 0.0)
+    t = 0.0
+    for _ in range(8):
+        gate.on_heartbeat(ARMED, t)
+        twist = core.on_pose(plant.pose(), t, t)
+        plant.apply(twist)
+        t += DT
+    assert twist.linear > 0
+    core.drain()
+    if stop == "estop":
+        gate.on_estop(True)
+    elif stop == "disable":
+        gate.on_enabled(False)
+    elif stop == "pause":
+        gate.on_heartbeat(PAUSED, t)
+    elif stop == "inactive":
+        gate.active = False
+    else:
+        t += 0.6  # no heartbeat for longer than the deadman
+    assert core.check(t) == Twist2D()
+    assert [e[2] for e in core.drain() if e[0] == "status"] == [ABORTED]
+    # A new goal while stopped: refused at once, nothing moves.
+    core.submit(DriveGoal(1, 1 << MOVE_FORWARD), t)
+    assert [e[2] for e in core.drain() if e[0] == "status"] == [EXECUTING, ABORTED]
+    assert core.on_pose(plant.pose(), t, t) == Twist2D()
+    # Armed again (reset, enable, resume, heartbeat, active): the next goal moves.
+    gate.on_estop(False)
+    gate.on_enabled(True)
+    gate.active = True
+    gate.on_heartbeat(ARMED, t)
+    core.submit(DriveGoal(2, 1 << MOVE_FORWARD), t)
+    assert core.on_pose(plant.pose(), t, t).linear > 0
+
+
+def test_nothing_moves_before_the_first_armed_heartbeat():
+    gate = MotionGate(active=True, enabled=True)
+    core = DriveExecutorCore(ExecutorParams(), gate)
+    core.submit(DriveGoal(0, 1 << MOVE_FORWARD), 0.0)
+    assert core.on_pose(Pose2D(*robot_center(4, 4, CELL), 0.0), 0.0, 0.0) == Twist2D()
+    assert not core.busy
+
+
+def test_override_wins_while_fresh_clamped_and_the_estop_still_wins():
+    params = ExecutorParams(override_timeout=0.5)
+    gate = armed_gate()
+    core = DriveExecutorCore(params, gate)
+    pose = Pose2D(*robot_center(4, 4, CELL), 0.0)
+    core.submit(DriveGoal(0, 1 << MOVE_FORWARD), 0.0)
+    core.on_pose(pose, 0.0, 0.0)
+    core.on_override(Twist2D(5.0, -9.0), 0.1)
+    twist = core.check(0.1)
+    assert twist == Twist2D(params.throttle_speed, -params.throttle_turn_rate)
+    assert core.on_pose(pose, 0.2, 0.2) == twist
+    assert not core.busy  # the goal gave way to the operator
+    gate.on_heartbeat(ARMED, 0.3)
+    gate.on_estop(True)
+    assert core.check(0.3) == Twist2D()
+    gate.on_estop(False)
+    gate.on_heartbeat(ARMED, 0.7)
+    assert core.on_pose(pose, 0.7, 0.7) == Twist2D()  # the override is 0.6 s old
+    assert core.check(0.7) is None
+
+
+def test_throttle_up_raises_the_limits():
+    params = ExecutorParams()
+    fast = max(abs(tw.linear) for tw in _drive(params, 1 << MOVE_FORWARD | 1 << THROTTLE_UP))
+    slow = max(abs(tw.linear) for tw in _drive(params, 1 << MOVE_FORWARD))
+    assert slow == pytest.approx(params.max_speed)
+    assert fast > slow and fast <= params.throttle_speed
+    with pytest.raises(ParameterError, match="throttle_speed"):
+        validate(ExecutorParams, {"throttle_speed": 0.05})
+
+
+def _drive(params, word):
+    gate = armed_gate()
+    core = DriveExecutorCore(params, gate)
+    plant = Plant(*robot_center(4, 4, 0.25), 0.0)
+    return run_goal(core, gate, plant, DriveGoal(0, word))[2]
+
+
+def test_turn_primitive_respects_rate_and_acceleration_limits():
+    params = ExecutorParams()
+    prim = Turn(-1, params, Limits.of(params, False))
+    plant = Plant(0.0, 0.0, 0.0)
+    prim.on_run(plant.pose(), 0.0)
+    t, last, status = 0.0, 0.0, Status.RUNNING
+    while status is Status.RUNNING:
+        status, twist = prim.on_cycle_update(plant.pose(), t)
+        assert abs(twist.angular) <= params.max_turn_rate + 1e-12
+        # The stop within tolerance is from at most sqrt(2 accel tolerance), a slow crawl.
+        step = params.max_turn_accel * DT if status is Status.RUNNING else last
+        assert abs(twist.angular - last) <= step + 1e-9
+        assert abs(last) <= 2 * math.sqrt(2 * params.max_turn_accel * params.heading_tolerance)
+        last = twist.angular
+        plant.apply(twist)
+        t += DT
+    assert status is Status.SUCCEEDED
+    assert abs(plant.yaw - math.pi / 2) <= params.heading_tolerance

@@ -1,0 +1,170 @@
+"""The executor node: lifecycle, the team gate over real topics, the override, diagnostics."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+from action_msgs.msg import GoalInfo, GoalStatus
+from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from std_msgs.msg import Bool, Header
+
+from ant_controller.layout import MOVE_FORWARD
+from drive_executor.executor_node import ExecutorNode
+from drive_executor.goals import DriveGoal, goal_message
+from excavation_common.frames import robot_center
+from excavation_common.ros import LATCHED
+from excavation_common.safety import ARMED
+
+
+class Base(Node):
+    """The test's robot base and team supervisor: a plant on cmd_vel, poses, team state."""
+
+    def __init__(self, context):
+        super().__init__("base", context=context)
+        self.x, self.y = robot_center(4, 4, 0.25)
+        self.yaw = math.pi / 2
+        self.twists: list[tuple[float, TwistStamped]] = []
+        self.statuses: list[int] = []
+        self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "/robot_0/pose", 10)
+        self.goal_pub = self.create_publisher(GoalInfo, "/robot_0/drive/goal", 10)
+        self.override_pub = self.create_publisher(TwistStamped, "/robot_0/drive/override", 10)
+        self.estop_pub = self.create_publisher(Bool, "/team/estop", LATCHED)
+        self.enabled_pub = self.create_publisher(Bool, "/robot_0/enabled", LATCHED)
+        self.heart_pub = self.create_publisher(Header, "/team/heartbeat", 10)
+        self.create_subscription(TwistStamped, "/robot_0/cmd_vel", self.on_twist, 10)
+        self.create_subscription(
+            GoalStatus, "/robot_0/drive/status", lambda m: self.statuses.append(m.status), 10
+        )
+        self.beating = True
+        self.create_timer(0.05, self.tick)
+
+    def on_twist(self, msg):
+        self.twists.append((time.monotonic(), msg))
+
+    def tick(self):
+        if self.twists:
+            tw = self.twists[-1][1].twist
+            self.x += tw.linear.x * math.cos(self.yaw) * 0.05
+            self.y += tw.linear.x * math.sin(self.yaw) * 0.05
+            self.yaw += tw.angular.z * 0.05
+        msg = PoseWithCovarianceStamped()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = "map"
+        msg.pose.pose.position.x, msg.pose.pose.position.y = self.x, self.y
+        msg.pose.pose.orientation.z = math.sin(self.yaw / 2)
+        msg.pose.pose.orientation.w = math.cos(self.yaw / 2)
+        self.pose_pub.publish(msg)
+        if self.beating:
+            self.heart_pub.publish(Header(stamp=msg.header.stamp, frame_id=ARMED))
+
+    def moving(self) -> bool:
+        return bool(self.twists) and abs(self.twists[-1][1].twist.linear.x) > 1e-6
+
+    def stopped_after(self, t0: float) -> bool:
+        return any(t >= t0 and m.twist.linear.x == 0.0 for t, m in self.twists)
+
+
+@pytest.fixture
+def rig(ros):
+    base = ros.add(Base(ros.context))
+    node = ros.add(
+        ExecutorNode(
+            context=ros.context,
+            namespace="/robot_0",
+            parameter_overrides=[Parameter("progress_window", value=5.0)],
+        )
+    )
+    base.estop_pub.publish(Bool(data=False))
+    base.enabled_pub.publish(Bool(data=True))
+    return ros, base, node
+
+
+def wait_matched(ros, base, node):
+    assert ros.spin_until(
+        lambda: (
+            node.cmd_pub.get_subscription_count() > 0
+            and base.goal_pub.get_subscription_count() > 0
+            and base.override_pub.get_subscription_count() > 0
+            and node.gate.allowed(node.get_clock().now().nanoseconds * 1e-9)
+        ),
+        5,
+    )
+
+
+def send_goal(base, tick):
+    base.goal_pub.publish(goal_message(DriveGoal(tick, 1 << MOVE_FORWARD, 0, 0, (tick, 0))))
+
+
+def test_nothing_moves_before_activation_then_the_goal_drives(rig):
+    ros, base, node = rig
+    node.trigger_configure()
+    ros.spin_until(lambda: node.cmd_pub.get_subscription_count() > 0, 5)
+    send_goal(base, 0)
+    ros.spin_until(lambda: False, 0.6)
+    assert base.twists == []  # configured, not active: the lifecycle publisher is silent
+    node.trigger_activate()
+    send_goal(base, 1)
+    assert ros.spin_until(base.moving, 5)
+    assert base.twists[-1][1].header.frame_id == "robot_0/base_link"
+    done = ros.spin_until(lambda: GoalStatus.STATUS_SUCCEEDED in base.statuses, 10)
+    assert done, (base.statuses, node.core.counters, base.x, base.y)
+
+
+@pytest.mark.parametrize("stop", ["estop", "disable", "heartbeat", "deactivate"])
+def test_stops_at_once_and_stays_stopped(rig, stop):
+    ros, base, node = rig
+    node.trigger_configure()
+    node.trigger_activate()
+    wait_matched(ros, base, node)
+    send_goal(base, 0)
+    assert ros.spin_until(base.moving, 5)
+    t0 = time.monotonic()
+    if stop == "estop":
+        base.estop_pub.publish(Bool(data=True))
+    elif stop == "disable":
+        base.enabled_pub.publish(Bool(data=False))
+    elif stop == "heartbeat":
+        base.beating = False
+    else:
+        node.trigger_deactivate()
+    assert ros.spin_until(lambda: base.stopped_after(t0), 2)
+    latency = min(t for t, m in base.twists if t >= t0 and m.twist.linear.x == 0.0) - t0
+    print(f"{stop}: zero cmd_vel {latency * 1000:.1f} ms after the event (wall)")
+    assert ros.spin_until(lambda: GoalStatus.STATUS_ABORTED in base.statuses, 2)
+    send_goal(base, 1)  # still stopped: the new goal is refused, nothing moves
+    ros.spin_until(lambda: False, 0.5)
+    after = [m for t, m in base.twists if t >= t0 + latency + 0.05]
+    assert after or stop == "deactivate"  # inactive: silent (the base's cmd_vel_timeout)
+    assert all(m.twist.linear.x == 0.0 for m in after)
+
+
+def test_override_wins_while_fresh_clamped_estop_wins_over_it(rig):
+    ros, base, node = rig
+    node.trigger_configure()
+    node.trigger_activate()
+    wait_matched(ros, base, node)
+    override = TwistStamped()
+    override.twist.linear.x, override.twist.angular.z = 9.0, 0.0
+    base.override_pub.publish(override)
+    limit = node.params.throttle_speed
+    assert ros.spin_until(
+        lambda: base.twists and base.twists[-1][1].twist.linear.x == pytest.approx(limit), 3
+    )
+    ros.spin_until(lambda: False, node.params.override_timeout + 0.3)  # stale: back to zero
+    assert base.twists[-1][1].twist.linear.x == 0.0
+    base.override_pub.publish(override)
+    base.estop_pub.publish(Bool(data=True))
+    t0 = time.monotonic()
+    ros.spin_until(lambda: False, 0.5)
+    assert all(m.twist.linear.x == 0.0 for t, m in base.twists if t >= t0 + 0.05)
+
+
+def test_bad_parameter_is_one_clear_error(ros):
+    from excavation_common.params import ParameterError
+
+    with pytest.raises(ParameterError, match="max_speed"):
+        ExecutorNode(context=ros.context, parameter_overrides=[Parameter("max_speed", value=-1.0)])

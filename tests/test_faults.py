@@ -1,0 +1,383 @@
+"""The fault matrix (docs/reliability.md): each row's fault injected into a process trial.
+
+Every test starts a lockstep trial with each node its own process (``tests/faults.py``),
+injects one fault (SIGKILL and restart of a node, a stalled or slowed sensor, a clock
+jump, a full disk, an interrupted checkpoint) and checks what the system does, what a user
+sees (``/diagnostics``, exit codes, logs) and what is lost.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import next_domain
+from faults import FaultTrial
+from test_trial import offline
+
+from excavation_bags.cli import main as bag_main
+from excavation_bags.reader import open_bag
+from excavation_bringup.trial import run_trial
+
+SIM = "/sim"
+
+
+def controller(k: int) -> str:
+    """Diagnostics name of robot k's controller."""
+    return f"/robot_{k}/controller"
+
+
+def blade_driver(k: int) -> str:
+    """Diagnostics name of robot k's blade driver."""
+    return f"/robot_{k}/blade_driver"
+
+
+def kill_and_restart(trial: FaultTrial, name: str, at: int = 5, down: int = 3) -> tuple[int, int]:
+    """SIGKILL ``name`` at tick ``at``, restart it ``down`` ticks later: (killed, restarted)."""
+    killed = trial.wait_tick(at)
+    assert trial.kill(name) == -9
+    restarted = trial.wait_tick(killed + down)
+    trial.restart(name)
+    return killed, restarted
+
+
+# --- SIGKILL + restart, truth perception ---------------------------------------------------
+
+
+def test_server_killed_and_restarted(tmp_path):
+    """The blueprint is latched: controllers keep it, the trial is not disturbed at all."""
+    steps, seed = 30, 3
+    with FaultTrial(tmp_path, steps=steps, seed=seed) as trial:
+        kill_and_restart(trial, "server")
+        result = trial.result()
+    heights, fitness = offline("hand-coded", 2, steps, seed)
+    assert result["missed"] == {"0": 0, "1": 0}
+    assert result["fitness"] == fitness and np.array_equal(result["heights"], heights)
+
+
+def test_controller_killed_and_restarted(tmp_path):
+    """The robot idles (reported), its blade goes home, the restarted controller rejoins."""
+    with FaultTrial(tmp_path, steps=30) as trial:
+        killed, restarted = kill_and_restart(trial, "controller_1")
+        result = trial.result()
+        sim = trial.messages(SIM)
+        driver = trial.messages(blade_driver(1), since_tick=killed)
+    missed = result["missed"]
+    assert missed["0"] == 0
+    assert restarted - killed - 1 <= missed["1"] <= restarted - killed + 2
+    assert any("no command from robots [1]" in m for m in sim)
+    assert any(m.startswith("watchdog") for m in driver)  # blade home while orphaned
+    assert result["commands"][-1][1] != 0 or result["commands"][-2][1] != 0  # acting again
+
+
+def test_blade_driver_killed_and_restarted(tmp_path):
+    """The robot's blade is held and the robot idles (no joint state), then rejoins."""
+    with FaultTrial(tmp_path, steps=30) as trial:
+        killed, restarted = kill_and_restart(trial, "blade_driver_1")
+        result = trial.result()
+        sim = trial.messages(SIM)
+        holding = trial.messages(controller(1), since_tick=killed)
+    assert result["missed_blade_setpoints"]["0"] == 0 and result["missed"]["0"] == 0
+    assert result["missed_blade_setpoints"]["1"] >= restarted - killed - 1
+    assert result["missed"]["1"] >= restarted - killed - 1  # no blade state: no decision
+    assert any("no blade set-point from robots [1]" in m for m in sim)
+    assert any("holding still" in m for m in holding) or result["missed"]["1"] > 0
+    assert result["commands"][-1][1] != 0 or result["commands"][-2][1] != 0
+
+
+@pytest.mark.parametrize(
+    "blade_driver",
+    [
+        False,
+        pytest.param(
+            True,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="finding: a blade driver keeps the old trial's blade setting and "
+                "set-point when sim time goes back (docs/reliability.md)",
+            ),
+        ),
+    ],
+    ids=["no-driver", "blade-driver"],
+)
+def test_simulator_killed_and_restarted(tmp_path, blade_driver):
+    """A restarted simulator starts the trial again from tick 0: sim time jumps back.
+
+    The controllers see every input go back in time together and follow the new clock (a
+    new trial); the new run ends as an undisturbed trial would.
+    """
+    steps, seed = 80, 3
+    with FaultTrial(tmp_path, steps=steps, seed=seed, blade_driver=blade_driver) as trial:
+        killed = trial.wait_tick(12)
+        assert trial.kill("sim") == -9
+        trial.wait_seconds(2.0)
+        trial.restart("sim")
+        result = trial.result()
+        ticks = list(trial.watcher.ticks_seen)
+        log = trial.log("controller_0")
+    assert ticks.index(0, ticks.index(killed)) > 0  # time went back to 0
+    assert "went back in time" in log
+    assert len(result["trace"]) == steps + 1  # the new run is a whole trial
+    assert sum(result["missed"].values()) == 0
+    heights, fitness = offline("hand-coded", 2, steps, seed)
+    assert result["fitness"] == fitness and np.array_equal(result["heights"], heights)
+
+
+def recorded_ticks(bag) -> list[int]:
+    """Sim-time seconds of every ``/clock`` message in a bag."""
+    return [bag.decode("/clock", raw).clock.sec for _, _, raw in bag.messages(["/clock"])]
+
+
+def test_recorder_killed_and_restarted(tmp_path, capsys):
+    """The killed bag is truncated and recoverable; a restart records into a new bag."""
+    first, second = tmp_path / "bag", tmp_path / "bag2"
+    steps = 300
+    with FaultTrial(tmp_path, steps=steps, record=str(first)) as trial:
+        trial.wait_tick(30)
+        assert trial.kill("recorder") == -9
+        killed = trial.tick
+        command = [*trial.processes.commands["recorder"]]
+        trial.restart("recorder")  # the same directory: refused, exit code 2
+        assert trial.processes.procs.pop("recorder").wait(timeout=60) == 2
+        assert "exists; bags are not overwritten" in trial.log("recorder")
+        command[command.index("--out") + 1] = str(second)
+        trial.restart("recorder", command)
+        result = trial.result()
+    assert sum(result["missed"].values()) == 0  # the trial did not notice
+    assert open_bag(first).truncated
+    assert bag_main(["recover", str(first), "--out", str(tmp_path / "fixed")]) == 0
+    assert "was truncated" in capsys.readouterr().out
+    fixed, new = open_bag(tmp_path / "fixed"), open_bag(second)
+    before, after = recorded_ticks(fixed), recorded_ticks(new)
+    assert not fixed.truncated and before == list(range(before[0], before[0] + len(before)))
+    assert before[-1] <= killed  # at most the last flush period is lost before the kill
+    print(
+        f"recorder kill at tick {killed}: the bag ends at tick {before[-1]}, the new one "
+        f"starts at tick {after[0]}"
+    )
+    assert after[-1] == steps and after == list(range(after[0], steps + 1))
+    assert after[0] > before[-1] + 1  # the gap while no recorder ran is lost
+    assert "/blueprint/zones" in new.topics  # latched: recorded again by the new bag
+
+
+def test_recorder_disk_full(tmp_path, capsys):
+    """Writes fail (RLIMIT_FSIZE): one error line, the trial goes on, the bag is recoverable."""
+    bag = tmp_path / "bag"
+
+    def small_disk():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (300_000, 300_000))
+
+    with FaultTrial(tmp_path, steps=200, record=str(bag), start=False) as trial:
+        for name in trial.processes.commands:
+            popen = {"preexec_fn": small_disk} if name == "recorder" else {}
+            trial.processes.start(name, **popen)
+        code = trial.processes.procs["recorder"].wait(timeout=300)  # the disk fills up
+        del trial.processes.procs["recorder"]
+        stopped = trial.tick
+        result = trial.result()
+        log = trial.log("recorder")
+    assert sum(result["missed"].values()) == 0  # the trial did not notice
+    assert stopped < 200  # the recorder stopped mid-trial
+    assert code == 2 and "ant-bag: error: [Errno 27] File too large" in log
+    assert "Traceback" not in log
+    assert bag.joinpath("bag.mcap").stat().st_size <= 300_000
+    partial = open_bag(bag)
+    assert partial.truncated and partial.message_count > 0
+    assert bag_main(["recover", str(bag), "--out", str(tmp_path / "fixed")]) == 0
+    fixed = open_bag(tmp_path / "fixed")
+    ticks = recorded_ticks(fixed)
+    assert not fixed.truncated and ticks == list(range(len(ticks)))
+
+
+# --- full perception: localizer, mapper, camera and laser -----------------------------------
+
+FULL = {"perception": "full", "command_timeout": 5.0, "steps": 30}
+
+
+@pytest.fixture(scope="module")
+def full_reference():
+    """Fitness of the undisturbed full-perception trial (composed: quicker, the same)."""
+    return run_trial(
+        "hand-coded",
+        2,
+        FULL["steps"],
+        3,
+        "default:1",
+        domain=next_domain(),
+        command_timeout=30.0,
+        perception="full",
+    ).fitness
+
+
+def test_localizer_killed_and_restarted(tmp_path):
+    """No poses: every robot idles (reported); the restarted localizer finds them again."""
+    with FaultTrial(tmp_path, **FULL) as trial:
+        killed = trial.wait_tick(5)
+        assert trial.kill("localizer") == -9
+        trial.wait_seconds(6.0)  # at least one tick times out
+        restarted = trial.tick
+        trial.restart("localizer")
+        result = trial.result()
+        sim = trial.messages(SIM)
+        seen = trial.messages("localizer: robot_0", since_tick=restarted)
+    assert restarted > killed
+    assert result["missed"]["0"] >= 1 and result["missed"]["0"] == result["missed"]["1"]
+    assert any("no command from robots [0, 1]" in m for m in sim)
+    assert "seen" in seen
+    assert result["missed"]["0"] <= restarted - killed + 2  # acting again after the restart
+
+
+def test_mapper_killed_and_restarted(tmp_path):
+    """No height map: every robot idles; the restarted mapper's first map is right except
+    under the robots (its prior: level ground)."""
+    with FaultTrial(tmp_path, **FULL) as trial:
+        killed = trial.wait_tick(5)
+        assert trial.kill("mapper") == -9
+        trial.wait_seconds(6.0)
+        restarted = trial.tick
+        trial.restart("mapper")
+        result = trial.result()
+        maps = trial.watcher.maps
+        sim = trial.messages(SIM)
+    assert restarted > killed and result["missed"]["0"] >= 1
+    assert any("no command from robots [0, 1]" in m for m in sim)
+    stamps = sorted(k for k in maps["mapped"] if k[0] > restarted)
+    assert stamps, "no height map after the restart"
+    first = stamps[0]
+    wrong = np.abs(maps["mapped"][first] - maps["truth"][first]) > 0.025  # half a soil unit
+    print(f"mapper restart: {int(wrong.sum())} cells wrong in the first map (tick {first[0]})")
+    assert wrong.sum() <= 4 * 2  # at most the cells under the two robots
+    assert result["missed"]["0"] <= restarted - killed + 2
+
+
+@pytest.mark.parametrize(
+    ("knob", "seconds", "timeout", "loses_ticks"),
+    [
+        ("paused", 1.0, 30.0, False),  # a 1 s stall is shorter than the tick timeout
+        ("paused", 10.0, 5.0, True),  # a 10 s stall is longer: ticks time out
+        ("laser_paused", 10.0, 5.0, True),
+    ],
+    ids=["camera-1s", "camera-10s", "laser-10s"],
+)
+def test_sensor_stalls(tmp_path, full_reference, knob, seconds, timeout, loses_ticks):
+    """Frames or sweeps stop, then resume with the latest truth."""
+    with FaultTrial(tmp_path, **{**FULL, "command_timeout": timeout}) as trial:
+        trial.wait_tick(5)
+        trial.set_params("/sensors", **{knob: True})
+        stalled = trial.tick
+        trial.wait_seconds(seconds)
+        trial.set_params("/sensors", **{knob: False})
+        result = trial.result()
+        sim = trial.messages(SIM)
+    missed = result["missed"]
+    if loses_ticks:
+        assert missed["0"] >= 1 and missed["0"] == missed["1"]
+        assert any("no command from robots [0, 1]" in m for m in sim)
+        assert missed["0"] <= seconds / timeout + 2
+    else:
+        # Finding (docs/reliability.md): a stall shorter than the tick timeout should lose
+        # nothing, yet in our runs it cost each robot one tick (the mapper fuses the held
+        # sweep after pose_wait with the robots' previous poses). At most that one tick:
+        assert missed["0"] <= 1 and missed["1"] <= 1
+        if missed == {"0": 0, "1": 0}:
+            assert result["fitness"] == full_reference  # nothing lost at all
+    assert stalled >= 5
+
+
+def test_camera_at_5_hz(tmp_path, full_reference):
+    """A slow camera slows the lockstep trial down; nothing is lost."""
+    with FaultTrial(tmp_path, **{**FULL, "command_timeout": 30.0}) as trial:
+        trial.set_params("/sensors", timeout=120.0, frame_period=0.2)
+        result = trial.result()
+    assert result["missed"] == {"0": 0, "1": 0}
+    assert result["fitness"] == full_reference
+
+
+# --- evolution: SIGKILL during checkpoint writes ---------------------------------------------
+
+EVOLVE = [
+    "--quiet",
+    "--population",
+    "6",
+    "--generations",
+    "30",
+    "--scenarios",
+    "2",
+    "--steps",
+    "30",
+    "--checkpoint-every",
+    "1",
+    "--workers",
+    "1",
+    "--seed",
+    "4",
+]
+
+KILL_IN_WRITE = """
+import os, signal, sys
+import excavation_common.files as files
+import ant_evolution.evolve as evolve
+n = int(sys.argv.pop(1))
+real = files.write_text_atomic
+calls = [0]
+def dying(path, text):
+    calls[0] += 1
+    if calls[0] == n:  # half the temporary file written, then SIGKILL
+        fd = os.open(os.path.join(os.path.dirname(path), "." + os.path.basename(path) + ".x.tmp"),
+                     os.O_WRONLY | os.O_CREAT)
+        os.write(fd, text[: len(text) // 2].encode())
+        os.kill(os.getpid(), signal.SIGKILL)
+    return real(path, text)
+evolve.write_text_atomic = dying
+from ant_evolution.cli_evolve import main
+sys.exit(main())
+"""
+
+
+def evolve_outputs(out) -> dict:
+    """What must not depend on interruptions: checkpoint (less timings), best, history."""
+    ck = json.loads((out / "checkpoint.json").read_text())
+    for row in ck["history"]:
+        row.pop("seconds")
+    history = [",".join(line.split(",")[:-1]) for line in (out / "history.csv").open()]
+    return {"checkpoint": ck, "best": (out / "best.json").read_text(), "history": history}
+
+
+def test_evolve_killed_during_checkpoint_writes(tmp_path):
+    """SIGKILL in the middle of writes (and at random moments); --resume ends identical."""
+    straight = tmp_path / "straight"
+    cmd = [sys.executable, "-m", "ant_evolution.cli_evolve"]
+    subprocess.run([*cmd, "--out", str(straight), *EVOLVE], check=True, timeout=600)
+    out = tmp_path / "killed"
+    rng = np.random.default_rng(7)
+    kills = 0
+    for attempt in range(40):
+        resume = ["--resume"] if (out / "checkpoint.json").exists() else []
+        args = ["--out", str(out), *resume, *EVOLVE]
+        if attempt % 2 == 0:  # killed inside the n-th atomic write of this run
+            n = int(rng.integers(1, 9))
+            proc = subprocess.run(
+                [sys.executable, "-c", KILL_IN_WRITE, str(n), *args], timeout=600, check=False
+            )
+        else:  # killed at a random moment
+            p = subprocess.Popen([*cmd, *args])
+            try:
+                p.wait(timeout=float(rng.uniform(2.0, 10.0)))
+            except subprocess.TimeoutExpired:
+                os.kill(p.pid, signal.SIGKILL)
+                p.wait()
+            proc = p
+        if proc.returncode == 0:
+            break
+        assert proc.returncode == -9
+        kills += 1
+    else:
+        pytest.fail("the run never finished")
+    assert kills >= 4
+    assert evolve_outputs(out) == evolve_outputs(straight)

@@ -1,0 +1,290 @@
+"""Mount angles interpolated to each scan's stamp; mount offsets and their calibration."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Image, JointState, LaserScan
+
+from excavation_common.messages import image_to_grid
+from excavation_common.ros import LATCHED
+from excavation_sim.laser import LaserParams, OverheadLaser, trace
+from terrain_mapper.calibrate_mount import Scan, fit_offsets, main, pair_scans
+from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, beam_directions
+from terrain_mapper.mapper import MapperParams, TerrainMapper
+from terrain_mapper.mapper_node import MOUNT_TOPIC, SCAN_TOPIC, MapperNode
+from terrain_mapper.mount_sync import MISS, WAIT, MountSync
+
+LASER = LaserParams(sweep_scans=16)
+PERIOD_NS = 10_000_000  # a scan every 10 ms, the tilt moving steadily
+
+
+def test_sync_interpolates_waits_and_misses():
+    sync = MountSync(max_gap_ns=50_000_000)
+    assert sync.lookup(5).status == WAIT
+    sync.add(0, 0.0, 0.0)
+    sync.add(10_000_000, 0.1, 0.2)
+    found = sync.lookup(3_000_000)
+    assert found.status == "ok"
+    assert math.isclose(found.pan, 0.03) and math.isclose(found.tilt, 0.06)
+    assert sync.lookup(10_000_000).tilt == 0.2  # an exact stamp is used as it is
+    assert sync.lookup(12_000_000).status == WAIT  # its later state has not arrived
+    assert sync.lookup(-1_000_000).status == MISS
+    sync.add(200_000_000, 0.0, 0.0)  # a gap in the mount's stream
+    gap = sync.lookup(100_000_000)
+    assert gap.status == MISS and "0.190 s apart" in gap.reason
+    sync.add(5, 1.0, 1.0)  # out of order: ignored
+    assert sync.out_of_order == 1
+
+
+def tilt_at(t_ns: int) -> float:
+    """The mount's tilt, sweeping steadily from tilt_min to tilt_max over the sweep."""
+    span = (LASER.sweep_scans - 1) * PERIOD_NS
+    return LASER.tilt_min + (LASER.tilt_max - LASER.tilt_min) * t_ns / span
+
+
+class Rig:
+    """A mapper node and a probe publishing scans and mount states."""
+
+    def __init__(self, ros):
+        from rclpy.node import Node
+
+        self.mapper = ros.add(
+            MapperNode(
+                context=ros.context,
+                parameter_overrides=[
+                    Parameter("robots", value=0),
+                    Parameter("sweep_scans", value=LASER.sweep_scans),
+                    Parameter("reliable", value=True),
+                    Parameter("diagnostics_period", value=0.1),
+                    Parameter("mount_wait", value=0.5),
+                ],
+            )
+        )
+        node = ros.add(Node("probe", context=ros.context))
+        qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
+        self.scan_pub = node.create_publisher(LaserScan, SCAN_TOPIC, qos)
+        self.mount_pub = node.create_publisher(JointState, MOUNT_TOPIC, qos)
+        self.maps: list[Image] = []
+        node.create_subscription(Image, "/worksite/height_map", self.maps.append, LATCHED)
+        self.status = None
+        node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
+        ros.spin_until(
+            lambda: (
+                self.scan_pub.get_subscription_count() and self.mount_pub.get_subscription_count()
+            )
+        )
+
+    def on_diag(self, msg):
+        for s in msg.status:
+            if s.name == "/mapper":
+                self.status = s
+
+    def mount(self, t_ns, tilt):
+        msg = JointState(name=[PAN_JOINT, TILT_JOINT], position=[0.0, tilt])
+        msg.header.stamp = Time(sec=100 + t_ns // 10**9, nanosec=t_ns % 10**9)
+        self.mount_pub.publish(msg)
+
+    def scan(self, t_ns, ranges):
+        msg = LaserScan()
+        msg.header.stamp = Time(sec=100 + t_ns // 10**9, nanosec=t_ns % 10**9)
+        msg.angle_min, msg.angle_max = LASER.angle_min, LASER.angle_max
+        msg.angle_increment = LASER.angle_increment
+        msg.range_min, msg.range_max = LASER.range_min, LASER.range_max
+        msg.ranges = [float(r) for r in ranges]
+        self.scan_pub.publish(msg)
+
+
+def sweep_ranges(heights, seed=1):
+    laser, rng = OverheadLaser(LASER, 0.25), np.random.default_rng(seed)
+    return [laser.scan(heights, tilt_at(i * PERIOD_NS), rng) for i in range(LASER.sweep_scans)]
+
+
+@pytest.mark.parametrize("lag_ms", [0, 3])
+def test_scans_and_mount_states_apart_give_the_map_of_equal_stamps(ros, lag_ms):
+    heights = np.random.default_rng(0).integers(-3, 4, (16, 16)) * 0.05
+    scans = sweep_ranges(heights)
+    exact = TerrainMapper(MapperParams())  # what equal stamps give: each scan's own tilt
+    for i, ranges in enumerate(scans):
+        exact.add_scan(
+            ranges,
+            LASER.angle_min,
+            LASER.angle_increment,
+            LASER.range_min,
+            LASER.range_max,
+            0.0,
+            tilt_at(i * PERIOD_NS),
+        )
+    exact.finish_sweep()
+    rig = Rig(ros)
+    lag = lag_ms * 1_000_000
+    for i, ranges in enumerate(scans):
+        t = i * PERIOD_NS
+        rig.mount(t - lag, tilt_at(t - lag))  # the mount's own driver, 3 ms earlier
+        rig.scan(t, ranges)
+    t_end = LASER.sweep_scans * PERIOD_NS - lag  # the mount keeps publishing
+    rig.mount(t_end, tilt_at(t_end))
+    assert ros.spin_until(lambda: rig.maps)
+    got = image_to_grid(rig.maps[0], "32FC1", shape=(16, 16))
+    want = exact.height_map()
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    assert np.isfinite(want).mean() > 0.5
+    assert np.allclose(got[np.isfinite(want)], want[np.isfinite(want)], atol=1e-6)
+    assert rig.mapper.unbracketed == 0
+
+
+def test_unbracketed_scans_are_counted_and_warned(ros):
+    rig = Rig(ros)
+    scans = sweep_ranges(np.zeros((16, 16)))
+    rig.mount(0, tilt_at(0))
+    rig.mount(10**9, tilt_at(0))  # one second later: a gap in the mount's stream
+    for i, ranges in enumerate(scans[1:], start=1):
+        rig.scan(i * PERIOD_NS, ranges)
+
+    def warned():
+        s = rig.status
+        return (
+            s is not None
+            and s.level == DiagnosticStatus.WARN
+            and "no mount state brackets their stamp" in s.message
+        )
+
+    assert ros.spin_until(warned)
+    assert rig.mapper.unbracketed == LASER.sweep_scans - 1
+    assert {kv.key: kv.value for kv in rig.status.values}["unbracketed_scans"] == "15"
+    assert not rig.maps
+
+
+# --- mount offsets ------------------------------------------------------------------------
+
+TRUE_OFFSETS = (0.0, 0.021, -0.013)  # pan, tilt, roll (rad)
+MOUNT = (2.0, 2.0, 4.0)
+
+
+def floor_sweep(mount=MOUNT, offsets=TRUE_OFFSETS, seed=0, box=False):
+    """A sweep of a flat floor (a box on it with ``box``) by a mount with ``offsets``."""
+    rng = np.random.default_rng(seed)
+    surface = np.zeros((16, 16))
+    if box:
+        surface[3:5, 10:12] = 0.3
+    out = []
+    for tilt in LaserParams(sweep_scans=32).tilts():
+        dirs = beam_directions(0.0, tilt, LASER.angles(), offsets)
+        ranges = np.empty(len(dirs))
+        trace(surface, 0.25, np.asarray(mount, dtype=float), dirs, 8.0, ranges)
+        out.append(Scan(0.0, float(tilt), LASER.angles(), ranges + rng.normal(0, 0.008, len(dirs))))
+    return out
+
+
+def test_offsets_make_the_mapper_see_a_level_floor():
+    scans = floor_sweep()
+    fit = fit_offsets(scans, MOUNT)
+    assert abs(fit.tilt_offset - TRUE_OFFSETS[1]) < 1e-3
+    assert abs(fit.roll_offset - TRUE_OFFSETS[2]) < 1e-3
+    assert fit.rms_before > 0.03 and fit.rms_after < 0.012
+
+    def floor_map(offsets):
+        p = MapperParams(tilt_offset=offsets[1], roll_offset=offsets[2])
+        mapper = TerrainMapper(p)
+        for s in scans:
+            mapper.add_scan(s.ranges, LASER.angle_min, LASER.angle_increment, 0.1, 8.0, 0.0, s.tilt)
+        mapper.finish_sweep()
+        return mapper.height_map()
+
+    level = floor_map((0.0, fit.tilt_offset, fit.roll_offset))
+    skewed = floor_map((0.0, 0.0, 0.0))
+    assert np.nanmax(np.abs(level)) < 0.02 < np.nanmax(np.abs(skewed))
+
+
+def test_fit_with_height_and_an_object_on_the_floor():
+    scans = floor_sweep(mount=(2.0, 2.0, 4.06), box=True)
+    fit = fit_offsets(scans, MOUNT, fit_height=True)
+    assert abs(fit.mount_z - 4.06) < 5e-3
+    assert abs(fit.tilt_offset - TRUE_OFFSETS[1]) < 2e-3
+    assert fit.dropped > 0  # the box's returns are not floor
+
+
+def test_calibrate_mount_reads_a_bag(tmp_path, capsys):
+    import yaml
+    from rosbags.typesys import Stores, get_typestore
+
+    from excavation_bags.writer import BagWriter
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = store.types
+    Header, Stamp = types["std_msgs/msg/Header"], types["builtin_interfaces/msg/Time"]
+    bag = tmp_path / "floor"
+    with BagWriter(bag) as writer:
+        writer.add_topic(SCAN_TOPIC, "sensor_msgs/msg/LaserScan")
+        writer.add_topic(MOUNT_TOPIC, "sensor_msgs/msg/JointState")
+        scans = floor_sweep()
+        step = scans[1].tilt - scans[0].tilt
+        for i in range(len(scans) + 1):
+            t = 10**9 + i * PERIOD_NS
+            lagged = t - 3_000_000  # the mount's state 3 ms before the scan, moving steadily
+            tilt = scans[0].tilt + (i - 0.3) * step
+            head = Header(stamp=Stamp(sec=lagged // 10**9, nanosec=lagged % 10**9), frame_id="")
+            state = types["sensor_msgs/msg/JointState"](
+                header=head,
+                name=[PAN_JOINT, TILT_JOINT],
+                position=np.array([0.0, tilt]),
+                velocity=np.array([], dtype=float),
+                effort=np.array([], dtype=float),
+            )
+            writer.write(MOUNT_TOPIC, t, store.serialize_cdr(state, "sensor_msgs/msg/JointState"))
+            if i == len(scans):
+                break
+            s = scans[i]
+            head = Header(stamp=Stamp(sec=t // 10**9, nanosec=t % 10**9), frame_id="laser")
+            scan = types["sensor_msgs/msg/LaserScan"](
+                header=head,
+                angle_min=LASER.angle_min,
+                angle_max=LASER.angle_max,
+                angle_increment=LASER.angle_increment,
+                time_increment=0.0,
+                scan_time=0.01,
+                range_min=0.1,
+                range_max=8.0,
+                ranges=s.ranges.astype(np.float32),
+                intensities=np.array([], dtype=np.float32),
+            )
+            writer.write(SCAN_TOPIC, t, store.serialize_cdr(scan, "sensor_msgs/msg/LaserScan"))
+    out = tmp_path / "mount.yaml"
+    assert main(["--bag", str(bag), "--mount", "2.0", "2.0", "4.0", "--out", str(out)]) == 0
+    fitted = yaml.safe_load(out.read_text())["laser"]
+    assert fitted["mount"] == [2.0, 2.0, 4.0]
+    assert abs(fitted["offsets"]["roll"] - TRUE_OFFSETS[2]) < 2e-3
+    assert abs(fitted["offsets"]["tilt"] - TRUE_OFFSETS[1]) < 1e-3
+    assert "floor returns" in capsys.readouterr().err
+    assert main(["--bag", str(tmp_path / "none"), "--mount", "2", "2", "4"]) == 2
+
+
+def test_pairing_drops_scans_without_mount_state():
+    class Msg:
+        pass
+
+    def stamped(ns):
+        m = Msg()
+        m.header = Msg()
+        m.header.stamp = Time(sec=ns // 10**9, nanosec=ns % 10**9)
+        return m
+
+    states = []
+    for ns in (0, 10_000_000):
+        m = stamped(ns)
+        m.name, m.position = [PAN_JOINT, TILT_JOINT], [0.0, ns * 1e-9]
+        states.append(m)
+    scans = []
+    for ns in (5_000_000, 20_000_000):
+        m = stamped(ns)
+        m.angle_min, m.angle_increment, m.range_min, m.range_max = -0.1, 0.1, 0.1, 8.0
+        m.ranges = [1.0, 2.0, 3.0]
+        scans.append(m)
+    paired, missed = pair_scans(scans, states)
+    assert missed == 1 and len(paired) == 1 and math.isclose(paired[0].tilt, 0.005)

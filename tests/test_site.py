@@ -1,0 +1,157 @@
+"""Site files (ant-site/1): every inconsistency named; node parameters generated from one file."""
+
+from __future__ import annotations
+
+from dataclasses import fields
+from pathlib import Path
+
+import pytest
+import yaml
+
+from excavation_bringup import site as sitefile
+from excavation_bringup.dome import main, node_table
+from excavation_common.params import validate
+
+SITES = Path(__file__).parent / "data" / "sites"
+CONFIG = Path(__file__).resolve().parents[1] / "ros2_ws/src/excavation_bringup/config"
+
+BROKEN = {
+    "grid_mismatch": "worksite.rows/cols = [20, 16]: the blueprint is 16 x 16 cells",
+    "soil_unit": "worksite.soil_unit = 0.1: the blueprint's height_unit is 0.05 m",
+    "cell_size": "worksite.cell_size = 0.5: the blueprint's is 0.25 m",
+    "duplicate_leds": "robots[1].leds = ['red', 'green']: the same pair as robots[0]",
+    "map_info": "overrides.mapper.publish_map_info = True: more than one map_info publisher",
+    "no_calibration": "camera.calibration = '': required",
+    "missing_calibration": "nowhere.yaml': does not exist",
+    "robot_name": "robots[1].name = 'robot_7': robots are named by their index: expected robot_1",
+    "unknown_backend": "robots[1].blade.backend = 'can': must be one of sim, serial",
+    "missing_genome": "nowhere.json': does not exist",
+    "bad_genome": "bad_genome.json': cannot be loaded",
+    "bad_domain": "network.domain = 300: must be in 0 .. 232",
+    "discovery_range": "network.discovery_range = 'EVERYWHERE': must be one of LOCALHOST",
+    "unknown_colour": "robots[1].leds = ['blue', 'purple']: 'purple' is not in",
+    "serial_no_port": "robots[1].blade.port = '': the serial backend needs the board's port",
+    "same_port": "robots[1].blade.port = '/dev/ttyUSB0': robots[0] uses it too",
+    "compressed_topic": "camera.image_topic = '/overhead/image_raw': jpeg frames are a Compressed",
+    "bad_format": "format = 'ant-site/2': expected 'ant-site/1'",
+    "unknown_key": "camera.fps = 30: unknown key",
+    "laser_outside": "laser.mount = [9.0, 2.0, 4.0]: is outside the 4.0 x 4.0 m worksite",
+    "derived_override": "overrides.controller.height_unit = 0.1: set by the site file's "
+    "worksite.soil_unit",
+    "duplicate_key": "network = 'line 17 column 1': is given twice (first at line 16 column 1)",
+}
+
+
+def test_the_good_site_and_the_shipped_sites_are_consistent():
+    assert sitefile.check_site(SITES / "good.yaml")[1] == []
+    assert sitefile.check_site(CONFIG / "site_sim.yaml", sim=True)[1] == []
+
+
+@pytest.mark.parametrize("name", sorted(BROKEN))
+def test_each_broken_site_gives_its_message(name, capsys):
+    path = SITES / f"{name}.yaml"
+    _, errors = sitefile.check_site(path)
+    messages = [str(e) for e in errors]
+    assert len(messages) == 1, messages  # each file breaks one thing
+    assert messages[0].startswith(str(path) + ": ")
+    assert BROKEN[name] in messages[0]
+    assert main(["check", str(path)]) == 1
+    assert BROKEN[name] in capsys.readouterr().out
+
+
+def test_every_broken_file_is_tested():
+    shipped = {p.stem for p in SITES.glob("*.yaml")} - {"good"}
+    assert shipped == set(BROKEN)
+
+
+def test_sim_checks_what_the_simulator_renders(tmp_path):
+    text = (
+        (CONFIG / "site_sim.yaml").read_text().replace("leds: [blue, yellow]", "leds: [cyan, red]")
+    )
+    text = text.replace("mount: [2.0, 2.0, 4.0]", "mount: [2.0, 2.0, 5.0]")
+    text = text.replace("../../../../genomes", str(Path(__file__).resolve().parents[1] / "genomes"))
+    (tmp_path / "s.yaml").write_text(text)
+    _, errors = sitefile.check_site(tmp_path / "s.yaml", sim=True)
+    messages = "\n".join(map(str, errors))
+    assert (
+        "robots[1].leds = ['cyan', 'red']: the simulator's robot 1 carries ['blue', 'yellow']"
+        in messages
+    )
+    assert "laser.mount = [2.0, 2.0, 5.0]: the simulator's laser is at [2.0, 2.0, 4.0]" in messages
+    _, errors = sitefile.check_site(CONFIG / "site_sim.yaml")  # not for the real dome
+    assert [e.field for e in errors] == ["camera.calibration"]
+
+
+def test_missing_file_and_load_site_raises(tmp_path):
+    _, errors = sitefile.check_site(tmp_path / "nope.yaml")
+    assert "does not exist" in str(errors[0])
+    with pytest.raises(sitefile.SiteError, match="worksite.soil_unit"):
+        sitefile.load_site(SITES / "soil_unit.yaml")
+
+
+def _config_keys(package: str, name: str) -> set[str]:
+    import importlib
+
+    module = importlib.import_module(package)
+    doc = yaml.safe_load((Path(module.__file__).parents[1] / "config" / name).read_text())
+    return set(next(iter(doc.values()))["ros__parameters"])
+
+
+@pytest.mark.parametrize("sim", [False, True])
+def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
+    from overhead_localizer.localize import LocalizerParams
+    from overhead_localizer.params import LocalizerNodeParams
+    from terrain_mapper.mapper import MapperParams
+    from terrain_mapper.params import MapperNodeParams
+
+    path = CONFIG / "site_sim.yaml" if sim else SITES / "good.yaml"
+    site = sitefile.load_site(path, sim=sim)
+    table = node_table(site, tmp_path, sim=sim, record=str(tmp_path / "bag"), view=True)
+    names = [s.name for s in table]
+    # the recorder first (it sees every topic), then the team supervisor
+    assert names[:3] == ["recorder", "supervisor", "server"]
+    assert names[-1] == "view" and (names[-2] == "sim") == sim
+    by_name = {s.name: s for s in table}
+    for spec in table:
+        if spec.module.startswith(("overhead_localizer", "terrain_mapper")):
+            classes = (
+                (LocalizerNodeParams, LocalizerParams)
+                if spec.name == "localizer"
+                else (MapperNodeParams, MapperParams)
+            )
+            for cls in classes:
+                own = {f.name for f in fields(cls)}
+                validate(cls, {k: v for k, v in spec.params.items() if k in own}, spec.name)
+            assert set(spec.params) <= {f.name for c in classes for f in fields(c)}
+    controller_keys = _config_keys("ant_controller", "controller.yaml")
+    driver_keys = _config_keys("blade_driver", "driver.yaml")
+    for k in range(site.n_robots):
+        c = by_name[f"controller_{k}"]
+        assert set(c.params) <= controller_keys and c.namespace == f"/robot_{k}"
+        assert c.params["height_unit"] == site.worksite.soil_unit and c.params["robot_id"] == k
+        assert c.params["lockstep"] == sim
+        assert set(by_name[f"blade_driver_{k}"].params) <= driver_keys
+    assert set(by_name["server"].params) <= _config_keys("blueprint_server", "server.yaml")
+    assert set(by_name["recorder"].params) <= _config_keys("excavation_bags", "bag_recorder.yaml")
+    supervisor = by_name["supervisor"].params
+    assert set(supervisor) <= _config_keys("team_supervisor", "supervisor.yaml")
+    assert supervisor["robots"] == site.n_robots
+    assert supervisor["arm_at_start"] is sim  # the dome starts disarmed: the operator arms
+    # the one map_info publisher is the blueprint server
+    assert by_name["mapper"].params["publish_map_info"] is False
+    beacons = yaml.safe_load((tmp_path / "beacons.yaml").read_text())
+    assert [(r["front"], r["rear"]) for r in beacons["robots"]] == [r.leds for r in site.robots]
+    if not sim:
+        assert by_name["blade_driver_1"].params == {"backend": "serial", "port": "/dev/ttyUSB1"}
+        assert by_name["localizer"].params["compressed"] is True
+        assert by_name["mapper"].params["tilt_offset"] == 0.01
+        assert by_name["controller_1"].args == ("--hand-coded",)
+    else:
+        assert (tmp_path / "camera.yaml").exists()
+        assert by_name["localizer"].params["calibration"] == str(tmp_path / "camera.yaml")
+
+
+def test_repeated_keys_are_refused_anywhere():
+    with pytest.raises(sitefile.SiteError, match=r"a = 'line 3 column 3': is given twice"):
+        sitefile.safe_load_unique("x:\n  a: 1\n  a: 2\n", "t.yaml")
+    assert sitefile.safe_load_unique("x: {a: 1, b: 2}", "t.yaml") == {"x": {"a": 1, "b": 2}}

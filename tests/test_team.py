@@ -1,0 +1,83 @@
+"""The supervisor's pure state machine: team transitions, enables, lost-robot policy."""
+
+from __future__ import annotations
+
+import pytest
+
+from excavation_common.safety import ARMED, DISARMED, ESTOPPED, PAUSED
+from team_supervisor.team import Team
+
+
+def test_team_starts_disarmed_and_arms_only_from_disarmed():
+    team = Team(2)
+    assert team.state == DISARMED
+    assert not team.resume().success and not team.pause().success and not team.reset().success
+    assert team.arm().success and team.state == ARMED
+    assert team.pause().success and team.state == PAUSED
+    assert not team.arm().success  # a paused team resumes, it is not re-armed
+    assert team.resume().success and team.state == ARMED
+
+
+@pytest.mark.parametrize("start", [DISARMED, ARMED, PAUSED])
+def test_estop_latches_from_every_state_until_reset_then_disarmed(start):
+    team = Team(1)
+    if start != DISARMED:
+        team.arm()
+    if start == PAUSED:
+        team.pause()
+    assert team.estop("test").success and team.state == ESTOPPED
+    for blocked in (team.arm, team.resume, team.pause):
+        assert not blocked().success and team.state == ESTOPPED
+    assert team.estop().success and team.estop_reason == "test"  # idempotent, first reason kept
+    assert team.reset().success and team.state == DISARMED  # never straight back to armed
+    assert team.arm().success
+
+
+def test_operator_enable_and_bad_robot():
+    team = Team(3)
+    assert all(team.enabled(k) for k in range(3))
+    assert team.enable(1, False).success and not team.enabled(1)
+    assert "operator" in team.describe(1)
+    assert team.enable(1, True).success and team.enabled(1)
+    assert not team.enable(3, True).success
+    assert not Team(2, enabled_at_start=False).enabled(0)
+    with pytest.raises(ValueError):
+        Team(0)
+
+
+def feed(team, stamp, robots):
+    for k in robots:
+        team.on_pose(k, stamp)
+
+
+def test_lost_robot_stops_at_once_rejoins_within_grace():
+    team = Team(3, lost_timeout=1.5, lost_grace=3.0)
+    feed(team, 0.0, [0, 1, 2])
+    feed(team, 1.0, [0, 1])  # robot 2 misses one tick: 1 s behind, not lost
+    assert team.enabled(2) and not team.members[2].lost
+    feed(team, 2.0, [0, 1])  # 2 s behind: lost, stopped at once
+    assert not team.enabled(2) and team.members[2].operator_enabled
+    assert "lost" in team.describe(2)
+    assert not team.enable(2, True).success  # cannot be enabled while lost
+    feed(team, 3.0, [0, 1, 2])  # seen again within the grace period: rejoins by itself
+    assert team.enabled(2)
+
+
+def test_lost_beyond_grace_is_disabled_until_seen_and_enabled():
+    team = Team(2, lost_timeout=1.5, lost_grace=2.0)
+    for t in range(6):
+        feed(team, float(t), [0])  # robot 1 never seen: counts from the team's first pose
+    assert team.members[1].lost and team.members[1].disabled_reason == "lost"
+    feed(team, 6.0, [0, 1])  # seen again, but stays disabled
+    assert not team.members[1].lost and not team.enabled(1)
+    assert team.enable(1, True).success and team.enabled(1)
+    assert team.enabled(0)
+
+
+def test_stamps_not_arrival_order_decide():
+    """Poses of one tick arriving one after another never make a robot lost."""
+    team = Team(4, lost_timeout=1.5)
+    for t in range(50):
+        for k in (3, 1, 0, 2):
+            team.on_pose(k, float(t))
+            assert all(team.enabled(j) for j in range(4))

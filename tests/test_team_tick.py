@@ -1,0 +1,148 @@
+"""The team tick's barrier (pure): snapshots, words, random turns, robot-order scheduling."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ant_controller.layout import (
+    BLADE_BELOW,
+    BLADE_BELOW_CMD,
+    BLADE_HOME,
+    MOVE_FORWARD,
+    RANDOM_TURN,
+    TURN_RIGHT,
+)
+from blueprint_server.blueprint import default_blueprint
+from excavation_bringup.team_tick import (
+    LEFT,
+    RIGHT,
+    Phase,
+    TeamTick,
+    TeamTickParams,
+    draw_turns,
+    schedule,
+)
+from excavation_sim.world import HEADING, World, seed_state
+
+FWD = 1 << MOVE_FORWARD
+
+
+def make(robots=3, **kw) -> TeamTick:
+    return TeamTick(TeamTickParams(robots=robots, **kw), seed_state(12345))
+
+
+def feed_snapshot(tt: TeamTick, stamp: float, poses, blades=None) -> None:
+    for k, pose in enumerate(poses):
+        tt.on_pose(k, pose, stamp, f"pose{k}@{stamp}")
+        tt.on_blade(k, (blades or [BLADE_HOME] * len(poses))[k], stamp, f"blade{k}")
+    tt.on_heights(stamp, "heights")
+
+
+def kinds(actions):
+    return [a[0] for a in actions]
+
+
+def test_random_turns_are_the_world_model_s_draws():
+    """Directions drawn in robot order from the world's stream turn as world.step turns."""
+    bp = default_blueprint(1)
+    rng = np.random.default_rng(0)
+    for index in range(30):
+        world = World.scenario(bp.zones, bp.goal, 4, 9, index)
+        stream = world.rng.copy()
+        for _ in range(5):
+            words = [int(w) for w in rng.choice([0, 1 << RANDOM_TURN], size=4)]
+            before = world.robots[:, HEADING].copy()
+            turns = draw_turns(words, stream)
+            world.step(np.array(words))
+            assert list((before + np.array(turns)) % 4) == list(world.robots[:, HEADING])
+            assert all((t != 0) == bool(w) for t, w in zip(turns, words, strict=True))
+        assert stream[0] == world.rng[0]
+
+
+def test_conflicting_robots_wait_in_robot_order_disjoint_ones_move_at_once():
+    poses = [(2, 2, 0), (4, 3, 2), (12, 12, 1), (3, 10, 0)]
+    waits = schedule(poses, [FWD] * 4, reach=2)
+    assert waits == [set(), {0}, set(), set()]
+    assert schedule(poses, [0, FWD, FWD, FWD], reach=2)[1] == set()  # robot 0 does not move
+    assert schedule(poses, [FWD] * 4, reach=4)[3] == {0, 1, 2}
+
+
+def test_one_tick_end_to_end():
+    tt = make(robots=3, settle=0.1)
+    assert kinds(tt.start(0.0)) == ["request"]
+    assert tt.step(0.05, 0.0) == []  # nothing in yet
+    feed_snapshot(tt, 0.2, [(2, 2, 0), (4, 3, 2), (12, 12, 1)])
+    actions = tt.step(0.25, 1.0)
+    publish = [a for a in actions if a[0] == "publish"]
+    assert publish and publish[0][1:3] == (0, 0.0)
+    assert publish[0][3]["poses"] == ["pose0@0.2", "pose1@0.2", "pose2@0.2"]
+    assert publish[0][3]["stuck"] == [False, False, False]
+    assert tt.phase is Phase.WORDS
+    tt.on_word(0, FWD)
+    tt.on_word(1, FWD | 1 << BLADE_BELOW_CMD)
+    assert tt.step(0.3, 1.1) == []
+    tt.on_word(2, 1 << TURN_RIGHT)
+    tt.on_word(2, 0)  # a second word of the same tick does not count
+    goals = [a for a in tt.step(0.35, 1.2) if a[0] == "goal"]
+    assert [(g[1], g[4]) for g in goals] == [(0, FWD), (2, 1 << TURN_RIGHT)]  # 1 waits for 0
+    tt.on_status(0, 0, terminal=True, aborted=True, now=3.0)
+    goals = [a for a in tt.step(3.0, 2.0) if a[0] == "goal"]
+    assert [g[1] for g in goals] == [1]
+    tt.on_status(2, 0, terminal=True, aborted=False, now=3.5)
+    tt.on_status(1, 0, terminal=True, aborted=False, now=6.0)
+    actions = tt.step(6.0, 3.0)
+    assert actions == [("request", "tick 1", 6.0 + 0.1)]
+    assert tt.tick == 1 and tt.phase is Phase.SNAPSHOT
+    # A snapshot from before the motion ended does not count; nor a blade not yet lowered.
+    feed_snapshot(tt, 5.0, [(3, 2, 0), (4, 3, 2), (12, 12, 2)])
+    assert tt.step(6.2, 3.1) == []
+    feed_snapshot(tt, 6.2, [(3, 2, 0), (4, 3, 2), (12, 12, 2)])
+    assert tt.step(6.3, 3.2) == []
+    assert tt.snapshot_ready(6.3) == "blade of robot 1 at its setting"
+    feed_snapshot(
+        tt, 6.3, [(3, 2, 0), (4, 3, 2), (12, 12, 2)], [BLADE_HOME, BLADE_BELOW, BLADE_HOME]
+    )
+    publish = [a for a in tt.step(6.4, 3.3) if a[0] == "publish"]
+    assert publish[0][1:3] == (1, 1.0)
+    assert publish[0][3]["stuck"] == [True, False, False]
+
+
+def test_silent_controller_idles_and_a_robot_that_never_finishes_is_left_out():
+    tt = make(robots=2, motion_limit=10.0, word_timeout=0.5, first_word_timeout=0.5)
+    tt.start(0.0)
+    feed_snapshot(tt, 0.1, [(2, 2, 0), (8, 8, 0)])
+    tt.step(0.2, 0.0)
+    tt.on_word(0, FWD)
+    actions = tt.step(0.3, 1.0)  # robot 1 silent past the timeout: word 0
+    assert [(a[1], a[4]) for a in actions if a[0] == "goal"] == [(0, FWD), (1, 0)]
+    assert tt.missed == [0, 1]
+    tt.on_status(1, 0, terminal=True, aborted=False, now=0.4)
+    assert kinds(tt.step(5.0, 2.0)) == []
+    actions = tt.step(10.5, 3.0)
+    assert "report" in kinds(actions) and "request" in kinds(actions)
+    assert tt.late == [1, 0] and tt.stuck == [True, False] and tt.records[0].late == [0]
+
+
+def test_no_tick_starts_while_the_team_is_not_armed():
+    tt = make(robots=1)
+    tt.start(0.0)
+    feed_snapshot(tt, 0.5, [(2, 2, 0)])
+    tt.armed = False
+    assert tt.step(0.6, 0.0) == []
+    tt.armed = True
+    assert "publish" in kinds(tt.step(0.7, 0.1))
+
+
+def test_finishes_after_the_last_tick_s_snapshot():
+    tt = make(robots=1, steps=1)
+    tt.start(0.0)
+    feed_snapshot(tt, 0.2, [(2, 2, 0)])
+    tt.step(0.3, 0.0)
+    tt.on_word(0, 0)
+    tt.step(0.3, 0.1)
+    tt.on_status(0, 0, terminal=True, aborted=False, now=0.4)
+    assert kinds(tt.step(0.4, 0.2)) == ["request"]
+    feed_snapshot(tt, 0.6, [(2, 2, 0)])
+    assert kinds(tt.step(0.6, 0.3)) == ["finished"]
+    assert tt.phase is Phase.FINISHED and len(tt.records) == 1
+    assert RIGHT == 1 and LEFT == -1

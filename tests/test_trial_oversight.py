@@ -1,0 +1,320 @@
+"""Operator oversight of a running lockstep trial (4 robots, blade drivers, supervisor).
+
+The trial runs in a thread (composed nodes, its own rclpy context); the test is the
+operator: a node of its own on the trial's domain that watches the tick (``/clock``) and the
+blade drivers' set-points and calls the supervisor's services, and ``ant-operator`` as a
+separate process. Latencies are printed (never asserted on wall time).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+from conftest import next_domain
+from test_supervisor_node import operator
+from test_trial import offline
+
+from excavation_bringup.trial import LOST_GRACE, LOST_TIMEOUT, run_trial
+from excavation_common.safety import HELD
+
+GENOME = "genomes/best.json"
+ROBOTS = 4
+
+
+class Watcher:
+    """The operator's side: its own context on the trial's domain, spun in this thread."""
+
+    def __init__(self, domain: int, robots: int = ROBOTS):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Bool
+
+        from excavation_common.ros import LATCHED
+
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain)
+        self.node = rclpy.create_node("test_operator", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.tick = -1
+        self.tick_wall: list[tuple[int, float]] = []
+        self.servo = {k: [] for k in range(robots)}  # (wall, stamp sec, value, frame_id)
+        self.enabled = {k: [] for k in range(robots)}
+
+        def on_clock(msg):
+            self.tick = msg.clock.sec
+            self.tick_wall.append((self.tick, time.monotonic()))
+
+        self.node.create_subscription(Clock, "/clock", on_clock, 10)
+        for k in range(robots):
+            self.node.create_subscription(
+                JointState,
+                f"/robot_{k}/blade/servo_command",
+                lambda m, k=k: self.servo[k].append(
+                    (time.monotonic(), m.header.stamp.sec, m.position[0], m.header.frame_id)
+                ),
+                50,
+            )
+            self.node.create_subscription(
+                Bool, f"/robot_{k}/enabled", lambda m, k=k: self.enabled[k].append(m.data), LATCHED
+            )
+
+    def spin_until(self, condition, timeout=120.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if condition():
+                return True
+            self.executor.spin_once(timeout_sec=0.02)
+        return condition()
+
+    def call(self, name: str, timeout: float = 30.0, tries: int = 1):
+        """Call a Trigger service; ``tries`` > 1 re-sends an unanswered (idempotent) request."""
+        from std_srvs.srv import Trigger
+
+        client = self.node.create_client(Trigger, name)
+        assert client.wait_for_service(timeout_sec=timeout), name
+        for _ in range(tries):
+            sent = time.monotonic()
+            future = client.call_async(Trigger.Request())
+            if self.spin_until(future.done, timeout / tries):
+                break
+        assert future.done(), f"{name}: no answer"
+        self.node.destroy_client(client)
+        return future.result(), sent
+
+    def operator(self, domain: int, *args: str):
+        """``ant-operator ARGS`` as a separate process, spinning meanwhile (no queue overflows)."""
+        done = {}
+        thread = threading.Thread(
+            target=lambda: done.setdefault("r", operator(domain, *args, timeout="30"))
+        )  # a loaded machine can take seconds to discover the services
+        thread.start()
+        assert self.spin_until(lambda: not thread.is_alive(), timeout=120)
+        thread.join()
+        return done["r"]
+
+    def held_since(self, since: float) -> dict[int, float]:
+        """Robot -> wall time of its first held (home) set-point after ``since``."""
+        out = {}
+        for k, msgs in self.servo.items():
+            for wall, _, value, frame in msgs:
+                if wall >= since and frame == HELD:
+                    assert value == pytest.approx(0.10)
+                    out[k] = wall
+                    break
+        return out
+
+    def close(self):
+        import rclpy
+
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def start_trial(domain, steps, **kwargs):
+    """Run a trial in a thread; returns (thread, holder of its result or exception)."""
+    out = {}
+
+    def run():
+        try:
+            out["result"] = run_trial(
+                GENOME,
+                ROBOTS,
+                steps,
+                kwargs.pop("seed", 3),
+                "default:1",
+                domain=domain,
+                command_timeout=kwargs.pop("command_timeout", 30.0),
+                timeout=kwargs.pop("timeout", 400.0),
+                **kwargs,
+            )
+        except Exception as exc:  # reported by the test
+            out["error"] = exc
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread, out
+
+
+def finish(watch, thread, out):
+    assert watch.spin_until(lambda: not thread.is_alive(), timeout=400.0)
+    thread.join()
+    assert "error" not in out, out.get("error")
+    return out["result"]
+
+
+def stays_still(watch, seconds=1.0) -> bool:
+    """No tick is published for ``seconds`` of wall time."""
+    tick = watch.tick
+    watch.spin_until(lambda: False, timeout=seconds)
+    return watch.tick == tick
+
+
+def test_estop_at_tick_10_then_pause_resume_ends_as_an_uninterrupted_trial():
+    domain, steps = next_domain(), 30
+    watch = Watcher(domain)
+    try:
+        thread, out = start_trial(domain, steps)
+        assert watch.spin_until(lambda: watch.tick >= 10)
+        reply, sent = watch.call("/supervisor/estop")
+        assert reply.success
+        assert watch.spin_until(lambda: len(watch.held_since(sent)) == ROBOTS, timeout=10)
+        at = watch.tick
+        held = watch.held_since(sent)
+        stamps = {
+            k: next(s for w, s, _, f in watch.servo[k] if w >= sent and f == HELD) for k in held
+        }
+        print(
+            f"e-stop at tick {at}: every blade home within "
+            f"{1e3 * (max(held.values()) - sent):.1f} ms wall, "
+            f"{max(stamps.values()) - at} s sim time (stamps {sorted(set(stamps.values()))})"
+        )
+        assert set(stamps.values()) <= {at}  # no tick went by: 0 s of sim time
+        assert stays_still(watch)  # no behaviour applied while e-stopped
+        assert watch.call("/supervisor/reset")[0].success
+        assert stays_still(watch, 0.5)  # reset alone: disarmed, still held
+        assert watch.call("/supervisor/arm")[0].success
+        assert watch.spin_until(lambda: watch.tick >= 20)
+        assert watch.call("/supervisor/pause")[0].success
+        assert stays_still(watch)
+        assert watch.call("/supervisor/resume")[0].success
+        result = finish(watch, thread, out)
+    finally:
+        watch.close()
+    heights, fitness = offline(GENOME, ROBOTS, steps, 3)
+    assert sum(result.missed.values()) == 0
+    assert np.array_equal(result.heights, heights) and result.fitness == fitness
+    assert result.holds >= 3  # e-stop, reset (disarmed), pause
+
+
+def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial():
+    domain, steps = next_domain(), 200
+    watch = Watcher(domain)
+    try:
+        thread, out = start_trial(domain, steps)
+        assert watch.spin_until(lambda: watch.tick >= 5)
+        status = watch.operator(domain, "status")
+        assert status.returncode == 0 and "team armed" in status.stdout
+        disabled = watch.operator(domain, "disable", "1")
+        assert disabled.returncode == 0, disabled.stderr
+        off_at = watch.tick
+        assert watch.spin_until(lambda: watch.tick >= off_at + 8)
+        assert "robot 1: disabled (operator)" in watch.operator(domain, "status").stdout
+        on_at = watch.tick  # before the call: it takes effect before the process ends
+        assert watch.operator(domain, "enable", "1").returncode == 0
+        blade = watch.operator(domain, "blade", "0", "0.05", "--for", "1.5")
+        assert blade.returncode == 0, blade.stderr
+        result = finish(watch, thread, out)
+    finally:
+        watch.close()
+    commands = np.array(result.commands)
+    # Robot 1 idled while disabled (its ticks were not waited for, nor missed); the others
+    # carried on.
+    assert (commands[off_at + 2 : on_at - 1, 1] == 0).all()
+    assert commands[off_at + 2 : on_at - 1, [0, 2, 3]].any()
+    assert result.missed == {0: 0, 1: 0, 2: 0, 3: 0}
+    overridden = [v for _, _, v, f in watch.servo[0] if f == "" and v == pytest.approx(0.05)]
+    assert overridden, "the operator's blade set-point never reached the simulator"
+
+
+def test_supervisor_sigkilled_every_blade_homes_by_deadman_then_a_new_one_resumes():
+    domain, steps = next_domain(), 25
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
+    cmd = [
+        sys.executable,
+        "-m",
+        "team_supervisor.supervisor_node",
+        "--ros-args",
+        "-p",
+        f"robots:={ROBOTS}",
+        "-p",
+        f"lost_timeout:={LOST_TIMEOUT}",
+        "-p",
+        f"lost_grace:={LOST_GRACE}",
+    ]
+    watch = Watcher(domain)
+    sup = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        thread, out = start_trial(domain, steps, supervisor="external")
+        assert watch.spin_until(lambda: watch.tick == 0)  # tick 0 goes out unarmed...
+        assert stays_still(watch, 2.0) and watch.tick == 0  # ...but is not applied
+        assert watch.call("/supervisor/arm")[0].success
+        assert watch.spin_until(lambda: watch.tick >= 8)
+        sup.send_signal(signal.SIGKILL)
+        killed, killed_at = time.monotonic(), watch.tick
+        sup.wait()
+        assert watch.spin_until(lambda: len(watch.held_since(killed)) == ROBOTS, timeout=10)
+        held = watch.held_since(killed)
+        assert stays_still(watch)  # the simulator holds too
+        at = watch.tick
+        stamps = {s for k in held for w, s, _, f in watch.servo[k] if w >= killed and f == HELD}
+        print(
+            f"supervisor SIGKILLed at tick {killed_at}: every blade home within "
+            f"{max(held.values()) - killed:.3f} s wall (deadman 0.5 s); lockstep sim time ran "
+            f"{at - killed_at} s (ticks) meanwhile, then held at tick {at}"
+        )
+        assert stamps == {at}  # homed in the tick the simulator holds: none applied after
+        sup = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        # A fresh supervisor starts disarmed. The killed one's service stays in the graph
+        # until its lease ends, so the first request may go nowhere: arm is idempotent.
+        assert watch.call("/supervisor/arm", timeout=60.0, tries=6)[0].success
+        result = finish(watch, thread, out)
+    finally:
+        if sup.poll() is None:
+            sup.send_signal(signal.SIGINT)
+            sup.wait(timeout=10)
+        watch.close()
+    heights, fitness = offline(GENOME, ROBOTS, steps, 3)
+    assert np.array_equal(result.heights, heights) and result.fitness == fitness
+
+
+def test_robot_hidden_from_the_camera_stops_is_disabled_and_the_others_finish():
+    from rcl_interfaces.msg import Parameter as ParameterMsg
+    from rcl_interfaces.msg import ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    domain, steps, hidden = next_domain(), 14, 2
+    watch = Watcher(domain)
+    try:
+        thread, out = start_trial(
+            domain, steps, perception="full", command_timeout=20.0, timeout=900.0
+        )
+        assert watch.spin_until(lambda: watch.tick >= 3, timeout=600)
+        client = watch.node.create_client(SetParameters, "/sensors/set_parameters")
+        assert client.wait_for_service(timeout_sec=30)
+        value = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="2:front,2:rear")
+        future = client.call_async(
+            SetParameters.Request(parameters=[ParameterMsg(name="occlude", value=value)])
+        )
+        assert watch.spin_until(future.done, 30) and future.result().results[0].successful
+        hidden_at = watch.tick
+        assert watch.spin_until(
+            lambda: watch.enabled[hidden] and not watch.enabled[hidden][-1], 600
+        )
+        lost_at = watch.tick
+        result = finish(watch, thread, out)
+    finally:
+        watch.close()
+    commands = np.array(result.commands)
+    print(
+        f"robot {hidden} hidden at tick {hidden_at}, stopped and absent at tick {lost_at}; "
+        f"fitness {result.fitness:.4f} after {steps} ticks, missed {result.missed}, "
+        f"{result.seconds:.0f} s"
+    )
+    assert len(result.trace) == steps + 1
+    assert (commands[lost_at + 1 :, hidden] == 0).all()  # it stays stopped
+    others = [k for k in range(ROBOTS) if k != hidden]
+    assert commands[lost_at + 1 :, others].any()  # the other three carry on
+    # Only the ticks before the supervisor stopped it were lost to the team.
+    assert max(result.missed[k] for k in others) <= lost_at - hidden_at + 1

@@ -1,0 +1,180 @@
+"""ant-view: a WebSocket client subscribes to its Foxglove channels during a trial and decodes
+robot poses and the height map."""
+
+from __future__ import annotations
+
+import base64
+import json
+import struct
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+
+from excavation_bringup import view
+from excavation_common.frames import robot_center
+
+LAYOUT = (
+    Path(__file__).resolve().parents[1]
+    / "ros2_ws/src/excavation_bringup/config/foxglove_layout.json"
+)
+
+
+def _decoder(channel: dict):
+    """A function bytes -> message for a protobuf channel (from its advertised schema)."""
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+    assert channel["encoding"] == "protobuf" and channel["schemaEncoding"] == "protobuf"
+    files = descriptor_pb2.FileDescriptorSet.FromString(base64.b64decode(channel["schema"]))
+    pool = descriptor_pool.DescriptorPool()
+    for f in files.file:
+        pool.Add(f)
+    cls = message_factory.GetMessageClass(pool.FindMessageTypeByName(channel["schemaName"]))
+    return cls.FromString
+
+
+class Client(threading.Thread):
+    """Connects, subscribes to ``topics`` and keeps the last message of each, decoded."""
+
+    def __init__(self, port: int, topics: list[str]):
+        super().__init__(daemon=True)
+        self.port, self.topics = port, topics
+        self.last: dict[str, object] = {}
+        self.channels: dict[str, dict] = {}
+        self.error: Exception | None = None
+        self.stop = threading.Event()
+
+    def run(self):
+        from websockets.sync.client import connect
+
+        try:
+            with connect(f"ws://127.0.0.1:{self.port}", subprotocols=["foxglove.sdk.v1"]) as ws:
+                subscribed = {}
+                while not self.stop.is_set():
+                    try:
+                        frame = ws.recv(timeout=0.5)
+                    except TimeoutError:
+                        continue
+                    if isinstance(frame, str):
+                        msg = json.loads(frame)
+                        if msg.get("op") == "advertise":
+                            new = []
+                            for ch in msg["channels"]:
+                                self.channels[ch["topic"]] = ch
+                                if (
+                                    ch["topic"] in self.topics
+                                    and ch["topic"] not in subscribed.values()
+                                ):
+                                    sub_id = len(subscribed) + 1
+                                    subscribed[sub_id] = ch["topic"]
+                                    new.append({"id": sub_id, "channelId": ch["id"]})
+                            if new:
+                                ws.send(json.dumps({"op": "subscribe", "subscriptions": new}))
+                        continue
+                    opcode, sub_id, _ = struct.unpack_from("<BIQ", frame)
+                    if opcode == 1 and sub_id in subscribed:
+                        topic = subscribed[sub_id]
+                        payload = frame[13:]
+                        ch = self.channels[topic]
+                        self.last[topic] = (
+                            json.loads(payload)
+                            if ch["encoding"] == "json"
+                            else _decoder(ch)(payload)
+                        )
+        except Exception as exc:  # reported to the test
+            self.error = exc
+
+
+def test_client_decodes_robots_and_height_map_of_a_running_trial(ros):
+    import foxglove
+
+    from ant_controller.controller import Controller
+    from ant_controller.controller_node import ControllerNode
+    from blueprint_server.server_node import BlueprintServer
+    from excavation_sim.sim_node import SimNode
+    from excavation_sim.world import COL, ROW
+
+    server = foxglove.start_server(host="127.0.0.1", port=0)
+    try:
+        ros.add(BlueprintServer(context=ros.context))
+        sim = ros.add(
+            SimNode(
+                context=ros.context,
+                parameter_overrides=[Parameter("robots", value=2), Parameter("steps", value=6)],
+            )
+        )
+        for k in range(2):
+            ros.add(
+                ControllerNode(
+                    Controller.hand_coded(),
+                    context=ros.context,
+                    namespace=f"/robot_{k}",
+                    parameter_overrides=[
+                        Parameter("robot_id", value=k),
+                        Parameter("robots", value=2),
+                        Parameter("lockstep", value=True),
+                    ],
+                )
+            )
+        frames = {"overhead_laser": (np.array([2.0, 2.0, 4.0]), np.array([0.0, 0.0, 0.0, 1.0]))}
+        v = view.ViewNode(2, frames, 0.05, period=0.2, context=ros.context)
+        ros.add(v.node)
+        topics = ["/view/robots", "/view/height_map", "/view/blueprint", "/view/fitness", "/tf"]
+        client = Client(server.port, topics)
+        client.start()
+        assert ros.spin_until(lambda: sim.tick >= 2 and set(topics) <= set(client.last), timeout=60)
+        assert ros.spin_until(lambda: sim.finished, timeout=60)
+        ros.spin_until(lambda: False, 1.0)  # the final state reaches the client
+        client.stop.set()
+        client.join(5)
+        assert client.error is None, client.error
+    finally:
+        server.stop()
+    scene = client.last["/view/robots"]
+    positions = {
+        e.id: (e.cubes[0].pose.position.x, e.cubes[0].pose.position.y) for e in scene.entities
+    }
+    for k in range(2):
+        r = sim.world.robots[k]
+        assert positions[f"robot_{k}"] == pytest.approx(
+            robot_center(int(r[ROW]), int(r[COL]), 0.25)
+        )
+    g = client.last["/view/height_map"]
+    assert g.frame_id == "map" and g.column_count == 16 and g.fields[0].name == "height"
+    heights = np.frombuffer(g.data, dtype="<f4").reshape(-1, g.column_count)
+    assert np.array_equal(heights, (sim.world.heights * 0.05).astype(np.float32))
+    tf = {t.child_frame_id: t for t in client.last["/tf"].transforms}
+    assert {"overhead_laser", "robot_0/base_link", "robot_1/base_link"} <= set(tf)
+    assert client.last["/view/fitness"]["fitness"] == pytest.approx(sim.world.fitness())
+    assert client.last["/view/fitness"]["mapped"] == pytest.approx(sim.world.fitness(), abs=1e-6)
+
+
+def test_layout_names_the_view_channels():
+    layout = json.loads(LAYOUT.read_text())
+    text = json.dumps(layout)
+    for topic in (
+        "/view/robots",
+        "/view/height_map",
+        "/view/blueprint",
+        "/view/camera",
+        "/view/fitness",
+        "/view/diagnostics",
+    ):
+        assert topic in text, topic
+
+
+def test_quaternion_of_a_rotation():
+    from terrain_mapper.geometry import mount_rotation
+
+    rot = mount_rotation(0.3, -0.2, (0.01, 0.02, 0.03))
+    x, y, z, w = view.quaternion(rot)
+    back = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    assert np.allclose(back, rot, atol=1e-9)
