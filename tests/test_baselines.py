@@ -199,3 +199,71 @@ def test_neat_resume_keeps_the_node_indexer(tmp_path):
     # lowest keys first: a restarted indexer would begin inside the next genome's keys
     for genome in sorted(pop.population.values(), key=lambda g: max(g.nodes)):
         copy.deepcopy(genome).mutate_add_node(genome_config)  # asserts on a used key
+
+
+# --- NEAT: the numpy compile and the linear-time crossover give neat-python's results ---------
+
+
+def _evolved_neat_genomes(tmp_path, genome_type, generations: int = 3, count: int = 12):
+    """A small NEAT population after a few generations of a made-up fitness (varied
+    topologies: added and deleted nodes and connections, disabled connections)."""
+    import neat
+
+    from ant_evolution.baselines.neat_baseline import neat_config
+
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    cfg = neat_config(tmp_path / "neat.ini", count, hidden=20)
+    cfg.genome_type = genome_type
+    cfg.genome_config.node_add_prob = 0.6
+    cfg.genome_config.conn_delete_prob = 0.6
+    pop = neat.Population(cfg, seed=11)
+
+    def fitness(genomes, _config) -> None:
+        for key, g in genomes:
+            g.fitness = float((key * 7919) % 101) + 0.01 * len(g.connections)
+
+    pop.run(fitness, generations)
+    return cfg, list(pop.population.values())
+
+
+def test_neat_compile_gives_neat_pythons_network_exactly(tmp_path):
+    """Every node value of the compiled program equals neat-python's ``activate`` output
+    bit for bit, on random inputs, for genomes with grown and pruned topologies."""
+    import neat
+
+    from ant_evolution.baselines.neat_baseline import NeatGenome, compile_neat
+
+    cfg, genomes = _evolved_neat_genomes(tmp_path / "evolved", NeatGenome)
+    assert any(not cg.enabled for g in genomes for cg in g.connections.values())
+    initial_cfg, initial, _ = _neat_programs(tmp_path, 3)  # the full initial topology too
+    codes = _random_codes(np.random.default_rng(9), 60)
+    for cfg, g in [(cfg, g) for g in genomes] + [(initial_cfg, g) for g in initial]:
+        prog = compile_neat(g, cfg)
+        net = neat.nn.FeedForwardNetwork.create(g, cfg)
+        assert prog.n_nodes == len(net.node_evals)
+        assert prog.n_edges == sum(len(links) for *_, links in net.node_evals)
+        for c in codes:
+            outs = net.activate([float(c[i]) * float(SENSOR_SCALE[i]) for i in range(len(c))])
+            mask, values = decide_program_reference(prog, c)
+            assert [values[o] for o in prog.out_node] == outs  # exactly, not approximately
+            assert program_decide(c, prog.record()) == mask
+
+
+def test_neat_genome_crossover_equals_neat_pythons(tmp_path):
+    """NeatGenome's crossover gives neat-python's children: same genes, same draws."""
+    import neat
+
+    from ant_evolution.baselines.neat_baseline import NeatGenome
+
+    def genes(genomes):
+        return [
+            (
+                sorted((k, c.weight, c.enabled, c.innovation) for k, c in g.connections.items()),
+                sorted((k, n.bias, n.response) for k, n in g.nodes.items()),
+            )
+            for g in genomes
+        ]
+
+    _, ours = _evolved_neat_genomes(tmp_path / "a", NeatGenome, generations=4)
+    _, theirs = _evolved_neat_genomes(tmp_path / "b", neat.DefaultGenome, generations=4)
+    assert genes(ours) == genes(theirs)

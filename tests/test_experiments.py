@@ -96,3 +96,12 @@ def test_cli_rejects_bad_arguments(tmp_path, capsys):
     with pytest.raises(SystemExit):
         cli.main(["depth", "--genome", str(tmp_path / "missing.json"), "--out", str(tmp_path)])
     assert "missing.json: no such file" in capsys.readouterr().err
+
+
+def test_tested_scale_is_the_campaigns_budget():
+    """docs/experiments.md: at least 10 runs per setting and, per run, the 4.3 million
+    scenario evaluations the v1 run needed to reach 0.9, over more than its 433 generations."""
+    s = SCALES["tested"]
+    assert s.runs >= 10
+    assert s.population * s.scenarios * s.generations >= 4.3e6
+    assert s.generations > 433 and s.scenarios % len(s.depths) == 0

@@ -9,11 +9,17 @@ workers pickled and come back as floats.
 
 * ``workers <= 1`` and no Ray address: in this process.
 * ``workers > 1``: a ``ProcessPoolExecutor`` (spawned processes, each loads the numba
-  cache once), kept for the whole run. The population is split into ``workers``
-  contiguous chunks, one task each, so that a task lasts about a generation's share of
-  work (at least a second at the paper's scale).
+  cache once), kept for the whole run. The population is dealt into ``CHUNKS_PER_WORKER x
+  workers`` interleaved chunks (individual i into chunk ``i mod chunks``), one task each,
+  which idle workers take in turn: individuals cost very different amounts (a tissue
+  whose robots come to rest ends its scenarios early, docs/benchmarks.md), and neither
+  neighbours in the population nor one chunk per worker would share that out evenly.
 * ``ray_address``: ``ray.init(address=...)`` (``"local"`` starts a Ray instance on this
-  machine); one remote task per chunk, ``chunks`` = the cluster's CPU count.
+  machine); chunks as above, the cluster's CPU count standing for ``workers``.
+
+A ``compile_fn`` wrapped in :class:`CompileHere` runs in this process instead, and the
+programs travel: for NEAT, whose genomes (about 1,600 gene objects each) take longer to
+pickle and unpickle than to compile.
 """
 
 from __future__ import annotations
@@ -40,6 +46,25 @@ def genome_fitness(genome: Genome, sets: Sequence[ScenarioSet]) -> float:
     return program_fitness(compile_genome(genome), sets)
 
 
+CHUNKS_PER_WORKER = 4
+"""Tasks per worker and generation (see the module docstring)."""
+
+
+class CompileHere:
+    """A ``compile_fn`` to run in the evaluating process; the workers get the programs.
+
+    Args:
+        fn: The compile function (individual -> decision program).
+    """
+
+    def __init__(self, fn: Callable) -> None:
+        self.fn = fn
+
+    def __call__(self, item):
+        """The decision program of ``item``."""
+        return self.fn(item)
+
+
 def _evaluate_parts(items: list, sets: Sequence[ScenarioSet], compile_fn) -> list[float]:
     if compile_fn is None:
         return [program_fitness(p, sets) for p in items]
@@ -51,9 +76,18 @@ def _evaluate_chunk(payload: tuple) -> list[float]:
 
 
 def _chunks(items: list, n: int) -> list[list]:
+    """``items`` dealt into ``n`` interleaved chunks (item i into chunk ``i mod n``)."""
     n = max(1, min(n, len(items)))
-    bounds = np.linspace(0, len(items), n + 1).round().astype(int)
-    return [items[bounds[i] : bounds[i + 1]] for i in range(n)]
+    return [items[i::n] for i in range(n)]
+
+
+def _unchunk(results: list[list[float]]) -> np.ndarray:
+    """Fitness in the items' order from the results of :func:`_chunks`' chunks."""
+    n = len(results)
+    out = np.empty(sum(len(r) for r in results))
+    for i, r in enumerate(results):
+        out[i::n] = r
+    return out
 
 
 def start_workers(workers: int, ray_address: str | None, task) -> tuple:
@@ -111,19 +145,22 @@ class Evaluator:
             items: The population: ANT genomes by default, or anything ``compile_fn`` turns
                 into a decision program.
             sets: The scenario sets.
-            compile_fn: Picklable function run in the workers on every item; ``None``:
-                the items are decision programs already.
+            compile_fn: Picklable function run in the workers on every item (in this
+                process when it is a :class:`CompileHere`); ``None``: the items are
+                decision programs already.
         """
         if self._ray is None and self._pool is None:
             return np.array(_evaluate_parts(list(items), sets, compile_fn))
-        chunks = _chunks(list(items), self.workers)
+        if isinstance(compile_fn, CompileHere):
+            items, compile_fn = [compile_fn(x) for x in items], None
+        chunks = _chunks(list(items), self.workers * CHUNKS_PER_WORKER)
         if self._ray is not None:
             sets_ref = self._ray.put(list(sets))
             results = self._ray.get([self._remote.remote(c, sets_ref, compile_fn) for c in chunks])
         else:
             payloads = [(c, sets, compile_fn) for c in chunks]
             results = list(self._pool.map(_evaluate_chunk, payloads))
-        return np.array([f for chunk in results for f in chunk])
+        return _unchunk(results)
 
     def close(self) -> None:
         """Stop the worker processes (Ray is left to its owner)."""

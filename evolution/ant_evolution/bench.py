@@ -3,13 +3,20 @@
 Setting (DESIGN.md): 80-neuron ANT tissues, 4 robots, the 16 x 16 default blueprint,
 T = 300. Measured in one run:
 
-* the compiled evaluator in this process (1 worker) and on a 2-process pool;
+* the compiled evaluator in this process (1 worker) and on a 2-process pool, for a
+  generation-0 population of random tissues, the shipped evolved genome and the hand-coded
+  controller;
 * the same kernels as plain Python (a subprocess with ``NUMBA_DISABLE_JIT=1``) on a subset
   of the same genome-scenario pairs, whose scores must equal the compiled ones;
+* where the time goes per robot-step (:mod:`ant_evolution.breakdown`: sensing, decision,
+  world step), compiled and in plain Python;
+* the wall time of whole generations of ANT, NEAT and the fixed network (same P, S, T,
+  workers), split into evaluation and breeding (``tell``).
 
-and printed as robot-steps per second with ratios against the plain-Python reference.
-Results go to ``docs/benchmarks.md`` (``--write``). Timings exclude start-up (pool spawn,
-numba compilation), which a run pays once.
+It prints the tables with ratios against the plain-Python reference and, with
+``--write``, puts them into their section of ``docs/benchmarks.md`` (between
+``<!-- evaluation-bench -->`` markers; the other sections are left alone). Timings
+exclude start-up (pool spawn, numba compilation), which a run pays once.
 """
 
 from __future__ import annotations
@@ -18,8 +25,10 @@ import argparse
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -29,57 +38,91 @@ from ant_controller.controller import Controller
 from ant_controller.genome import random_genome
 from ant_controller.genome_io import genome_from_dict, genome_to_dict, load_genome
 from ant_evolution.backends import Evaluator, genome_fitness
+from ant_evolution.breakdown import phase_times
 from ant_evolution.evaluate import ScenarioSet
 from blueprint_server.blueprint import default_blueprint
 
 ROBOTS = 4
 STEPS = 300
+PAPER_GENERATION = 100 * 100 * STEPS * ROBOTS
+"""Robot-steps of one paper-scale generation (P 100, S 100, T 300, 4 robots)."""
+PAPER_GENERATIONS = 5000
+MARK = "<!-- evaluation-bench -->"
+PHASES = ("sensing", "decision", "world step")
 
-NOTES = """# Benchmarks
+NOTES = """## Evaluation throughput (`ant-bench`)
 
-Written by `make bench` (`ant-bench --write docs/benchmarks.md`); every number below comes
-from the run that wrote this file. Throughput is in robot-steps per second: one robot
-sensing, deciding and acting for one timestep. Setting: 4 robots on the 16 x 16 default
-blueprint, T = 300, tissues of 80 neurons (random) or the shipped evolved genome. "Plain
-Python" is the same code run with numba's JIT disabled, on 2 genomes x 2 scenarios of the
-same set, and its scores are checked equal to the compiled ones.
-
-## Results
+Written by `make bench` (`ant-bench --write docs/benchmarks.md`); every number in this
+section comes from the run that wrote it. Throughput is in robot-steps per second: one
+robot sensing, deciding and acting for one timestep. Setting: 4 robots on the 16 x 16
+default blueprint, T = 300, tissues of 80 neurons (random) or the shipped evolved genome.
+"Plain Python" is the same code run with numba's JIT disabled, on 2 genomes x 2 scenarios
+of the same set, and its scores are checked equal to the compiled ones. Targets
+(DESIGN.md): 6 million robot-steps per second on both cores; for the reproduction, 1.7e7
+with an evolved genome (a 5,000-generation paper-scale run in under an hour) and a NEAT
+generation at most 1.5 x an ANT generation of the same size.
 
 {results}
 
-## What the time goes to (profiling notes)
-
-Target (DESIGN.md): 6 million robot-steps per second on both cores, i.e. a paper-scale
-generation (100 genomes x 100 scenarios x 300 steps x 4 robots = 1.2e7 robot-steps) in 2 s.
+### What the time goes to (profiling notes)
 
 * **Reference counting was the first bound.** numba reference-counts arrays passed to
-  functions; on this machine every call site that passes arrays cost 40-70 ns per robot
-  and step even when its branch was not taken (a micro-benchmark: an empty per-robot
-  `apply` went from 2 ns to 55 ns once it merely contained a call to `try_forward`). The
-  step loop (`_run_steps` in `evolution/ant_evolution/kernel.py`) is now compiled with
-  `_nrt=False` and allocates nothing; helpers that run several times per robot take scalars
-  (`zone_code`, `in_grid`). Together about 10x (0.33 to 3-4 million robot-steps per
-  second on one core for the same scenarios).
-* **Python's error model.** Compiling the step loop with numba's `error_model="numpy"`
+  functions; every call site that passes arrays cost 40-70 ns per robot and step even when
+  its branch was not taken. The step loop (`_run_steps` in
+  `evolution/ant_evolution/kernel.py`) and the world step it calls (`step_robots` in
+  `excavation_sim/world.py`) are compiled with `_nrt=False` and allocate nothing; sensing
+  (`sense_robot`) is inlined into the loop; helpers that run several times per robot take
+  scalars (`zone_code`, `in_grid`). Compiling the world functions that way (before, only
+  the loop was) halved the evolved genome's cost per robot-step (about 180 to 85 ns on
+  one core, measured under the same load).
+* **Python's error model.** The step loop is compiled with numba's `error_model="numpy"`
   (no Python exception checks on division and modulo; every division in the kernels is
-  guarded, so results do not change and the tests still compare them exactly) raised an
-  evolved genome's single-core rate from about 3.2 to 4.9 million robot-steps per second.
+  guarded, so results do not change): about +50 % when it was introduced.
+* **Occupancy grid.** The moves no longer scan every robot to find out whether a cell is
+  taken: the kernel keeps an `int16` grid of which robot stands where (`occupancy`), and
+  `try_forward` / `try_backward` read it and move the robot's footprint in it.
+  `apply_all` (the public step, used by the simulator node and the tests) builds the grid
+  per call, so the plain-Python reference tests exercise the same path.
+* **Fixed points.** A timestep in which no robot moves, turns, draws a random turn or
+  changes its blade, memory or stuck bit leaves the world exactly as it was, so every
+  later timestep repeats it; the kernel stops the scenario there with the same score and
+  trace (`step_robots` reports it; `tests/test_kernel.py` holds episodes that stop early
+  to stepping every timestep). Random tissues mostly come to rest within a few steps, so
+  generation-0 populations now cost little; the rates below count every timestep of every
+  scenario, computed or not (the breakdown's "steps run" says how many were).
 * **Decision cache.** A tissue's output depends on the sensor vector alone, so each genome
   evaluation keeps a direct-mapped cache of 2^16 answers keyed by the mixed-radix sensor
-  code. For the evolved genome 3,359 distinct vectors occur in 24,000 robot-steps (20
-  scenarios); a 2^12-entry cache missed 16% of lookups, 2^16 entries gave +18% throughput.
-* **Idle versus busy robots.** Random tissues mostly stand still, so a generation-0
-  population is cheap. Robots that move and dig cost more world work: with the hand-coded
-  controller, sensing takes about 60 ns and acting about 150 ns per robot-step on one core.
-  That world work, not the network, is what remains of the evolved genome's cost; it is the
-  part to optimise next (fewer occupancy scans in `try_forward`, incremental load volumes).
-* **Workers.** The population is split into one chunk per worker; with evolved genomes two
-  workers give 1.9-2x. With a cheap generation-0 population the chunks are short (tens of
-  milliseconds) and unequal, so the pool's fixed costs show.
+  code, now one 64-bit word per entry (key and mask together: one memory access per
+  lookup). For the evolved genome about 3,400 distinct vectors occur in 24,000 robot-steps.
+* **Blade volume.** Caching `V_blade` between sensing and the move was measured as not
+  worth it: computing it is a few loads (it is in the "world step" share below); sensing
+  S1 through the occupancy grid instead of a scan over the 4 robots did not change the
+  sensing time measurably either, so `ant_controller.sensing` is as it was.
+* **Workers.** The population is dealt into 4 interleaved chunks per worker
+  (`backends.py`), which idle workers take in turn: with fixed points, individuals cost
+  very different amounts, and one contiguous chunk per worker left one worker idle.
+  ANT genomes compile into tissues in the workers (about 0.8 ms for 80 neurons, 25 kB
+  pickled); NEAT genomes compile in the main process (numpy, about 0.6 ms each) because
+  a genome of 1,600 gene objects takes longer to pickle and unpickle (about 5 ms) than to
+  compile.
+* **NEAT.** The library's crossover checked every inherited connection for a cycle by
+  rescanning all connections so far (quadratic; about 3 s of a 3.5 s generation at P 100).
+  `NeatGenome` answers those checks once per child from the fitter parent's graph and
+  inlines the connection genes' copy / crossover / mutate with the library's random
+  draws; `tests/test_baselines.py` checks the children equal neat-python's own. What is
+  left of a NEAT generation is its evaluation: evolving NEAT networks (75 nodes, 1,600
+  connections) drive robots through many distinct sensor vectors, and each decision-cache
+  miss evaluates 1,600 connections in order (the order neat-python sums them in, so the
+  results stay exact), and neat-python's reproduction (about 0.4 s at P 100), which runs
+  in the main process while the workers wait. The target (a NEAT generation at most 1.5 x
+  an ANT generation) is not met: early ANT generations are cheap because most random
+  tissues come to rest (fixed points), while NEAT's robots keep moving. What would close
+  the gap: evaluating several independent nodes of a NEAT network at once (each node's sum
+  kept in its own order, so still exact); reproduction faster still would need genes held
+  as arrays, which would no longer make neat-python's random draws.
 
-Reproduce: `make bench` (about 2 minutes; it pauses nothing else, so run it on an idle
-machine).
+Reproduce: `make bench` (a few minutes; it pauses nothing else, so run it on an idle
+machine: on a loaded one the rates below are lower bounds).
 """
 
 
@@ -107,8 +150,14 @@ def throughput(genomes, sets, workers: int, repeats: int = 3) -> tuple[float, np
     return best, fit
 
 
-def reference(genomes, n_scenarios: int, seed: int) -> tuple[float, list[float]]:
-    """Plain-Python robot-steps per second (subprocess with numba's JIT disabled)."""
+def reference(genomes, n_scenarios: int, seed: int) -> dict:
+    """Plain-Python rate and phases (a subprocess with numba's JIT disabled).
+
+    Returns:
+        ``rate`` (robot-steps per second of ``genomes``), ``fitness`` (theirs), ``phases``
+        (the first genome's :func:`phase_times`) and ``hand`` (the hand-coded
+        controller's).
+    """
     payload = json.dumps(
         {"genomes": [genome_to_dict(g) for g in genomes], "scenarios": n_scenarios, "seed": seed}
     )
@@ -121,8 +170,7 @@ def reference(genomes, n_scenarios: int, seed: int) -> tuple[float, list[float]]
         env=env,
         check=True,
     )
-    result = json.loads(out.stdout.strip().splitlines()[-1])
-    return result["rate"], result["fitness"]
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def _reference_worker() -> None:
@@ -136,7 +184,108 @@ def _reference_worker() -> None:
     fit = [genome_fitness(g, sets) for g in genomes]
     dt = time.perf_counter() - t0
     steps = len(genomes) * data["scenarios"] * STEPS * ROBOTS
-    print(json.dumps({"rate": steps / dt, "fitness": fit}))
+    phases = phase_times(Controller.from_genome(genomes[0]), sets[0], repeats=1)
+    hand = phase_times(Controller.hand_coded(), sets[0], repeats=1)
+    print(json.dumps({"rate": steps / dt, "fitness": fit, "phases": phases, "hand": hand}))
+
+
+def generation_costs(
+    population_size: int, n_scenarios: int, workers: int, generations: int, seed: int = 1000
+) -> dict[str, dict[str, float]]:
+    """Wall seconds per generation of ANT, NEAT and the fixed network, side by side.
+
+    The three run generation by generation in turn on one worker pool, on the same
+    scenarios (4 robots, T = 300), so machine load falls on all of them alike. Generation
+    0 is reported apart (NEAT's and the fixed network's initial populations differ most
+    from later ones); ``eval`` and ``tell`` are medians over generations 1 onward.
+    """
+    from ant_evolution.baselines.runs import FixedStrategy, NeatStrategy
+    from ant_evolution.evolve import AntStrategy, EvolveConfig, blueprints_of, scenario_sets
+
+    config = EvolveConfig(
+        population=population_size,
+        generations=generations,
+        scenarios=n_scenarios,
+        steps=STEPS,
+        robots=ROBOTS,
+        seed=seed,
+    )
+    blueprints = blueprints_of(config)
+    with tempfile.TemporaryDirectory() as tmp:
+        strategies = {
+            "ANT": AntStrategy(config),
+            "NEAT": NeatStrategy(config, Path(tmp)),
+            "fixed network": FixedStrategy(config),
+        }
+        states = {k: s.init() for k, s in strategies.items()}
+        rows: dict[str, list[tuple[float, float]]] = {k: [] for k in strategies}
+        with Evaluator(workers=workers) as ev:
+            warm = scenario_sets(config, 0, blueprints)
+            for k, s in strategies.items():  # spawn and compile outside the timing
+                pop, st = s.ask(states[k])
+                ev.evaluate(pop[:workers], warm, s.compiler(st))
+            for g in range(generations):
+                sets = scenario_sets(config, g, blueprints)
+                for k, s in strategies.items():
+                    t0 = time.perf_counter()
+                    pop, st = s.ask(states[k])
+                    fit = ev.evaluate(pop, sets, s.compiler(st))
+                    t1 = time.perf_counter()
+                    states[k] = s.tell(st, fit)
+                    rows[k].append((t1 - t0, time.perf_counter() - t1))
+    out = {}
+    for k, r in rows.items():
+        a = np.array(r)
+        out[k] = {
+            "gen0": float(a[0].sum()),
+            "eval": float(np.median(a[1:, 0])),
+            "tell": float(np.median(a[1:, 1])),
+            "total": float(np.median(a[1:].sum(axis=1))),
+        }
+    return out
+
+
+def replace_section(path: Path, section: str) -> None:
+    """Put ``section`` between the markers of ``path``.
+
+    A file without the markers (the layout before them, where this section was the whole
+    top of the file) gets its text up to the first other section replaced.
+    """
+    text = path.read_text() if path.exists() else ""
+    pattern = re.compile(re.escape(MARK) + ".*?" + re.escape(MARK), re.S)
+    if pattern.search(text):
+        text = pattern.sub(lambda _: section, text)
+    else:
+        first = text.find("<!--")
+        rest = text[first:] if first >= 0 else ""
+        text = "# Benchmarks\n\n" + section + ("\n\n" + rest if rest else "\n")
+    path.write_text(text)
+
+
+def _ns(x: float) -> str:
+    return f"{x * 1e9:,.0f}"
+
+
+def breakdown_table(cases: list[tuple[str, dict, dict]]) -> list[str]:
+    """Rows of the per-robot-step breakdown of ``(label, compiled, plain)`` phase times."""
+    lines = [
+        "| controller | phase | compiled, ns per robot-step | share | plain Python, us | "
+        "plain / compiled |",
+        "|---|---|---:|---:|---:|---:|",
+    ]
+    for label, c, p in cases:
+        total = sum(c[k] for k in PHASES)
+        for k in PHASES:
+            lines.append(
+                f"| {label} | {k} | {_ns(c[k])} | {c[k] / total:.0%} | {p[k] * 1e6:,.1f} | "
+                f"{p[k] / c[k]:,.0f}x |"
+            )
+        lines.append(
+            f"| {label} | **sum** (the whole kernel: {_ns(c['kernel'])}) | {_ns(total)} | | "
+            f"{sum(p[k] for k in PHASES) * 1e6:,.1f} | "
+            f"{sum(p[k] for k in PHASES) / total:,.0f}x |"
+        )
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -151,7 +300,13 @@ def main(argv: list[str] | None = None) -> int:
         default="genomes/best.json",
         help="an evolved genome to time as well (skipped when missing)",
     )
-    p.add_argument("--write", metavar="MD", help="write the results table here")
+    p.add_argument(
+        "--generations",
+        type=int,
+        default=6,
+        help="generations of each method timed side by side (default 6; 0 skips them)",
+    )
+    p.add_argument("--write", metavar="MD", help="put the section into this file")
     p.add_argument("--reference-worker", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.reference_worker:
@@ -166,21 +321,21 @@ def main(argv: list[str] | None = None) -> int:
             population(args.genomes, args.seed),
         )
     ]
+    evolved = None
     if Path(args.evolved).exists():
         evolved = load_genome(args.evolved)
         cases.append((f"evolved genome {args.evolved} (x{args.genomes})", [evolved] * args.genomes))
-    ref_rate = None
+    ref = {}
     for label, genomes in cases:
         r1, fit1 = throughput(genomes, sets, 1)
         r2, fit2 = throughput(genomes, sets, 2)
         if not np.array_equal(fit1, fit2):
             raise SystemExit("ant-bench: 1 and 2 workers disagree; this is a bug")
-        rate, ref_fit = reference(genomes[:2], 2, args.seed)
+        ref = reference(genomes[:2], 2, args.seed)
         compiled = [genome_fitness(g, scenarios(2, args.seed)) for g in genomes[:2]]
-        if ref_fit != compiled:
+        if ref["fitness"] != compiled:
             raise SystemExit("ant-bench: the plain-Python reference disagrees; this is a bug")
-        ref_rate = rate
-        rows.append((label, rate, r1, r2))
+        rows.append((label, ref["rate"], r1, r2))
     hand = Controller.hand_coded()
     hand_steps = sum(st.size for st in sets) * STEPS * ROBOTS
     hand_rate = 0.0
@@ -189,20 +344,22 @@ def main(argv: list[str] | None = None) -> int:
         for st in sets:
             st.score(hand)
         hand_rate = max(hand_rate, hand_steps / (time.perf_counter() - t0))
+    ref_rate = rows[-1][1]
 
     lines = [
         f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-        f"Python {platform.python_version()}. {args.genomes} genomes x {args.scenarios} "
+        f"Python {platform.python_version()}; load average at the start "
+        f"{os.getloadavg()[0]:.1f}. {args.genomes} genomes x {args.scenarios} "
         f"scenarios x {STEPS} steps x {ROBOTS} robots per measurement, best of 3.",
         "",
         "| controllers | plain Python (ref) | compiled, 1 worker | compiled, 2 workers |"
-        " 1 worker / ref | 2 workers / ref | 2 / 1 workers |",
+        " 1 worker / ref | 2 workers / ref | 2 / 1 workers (efficiency) |",
         "|---|---:|---:|---:|---:|---:|---:|",
     ]
-    for label, ref, r1, r2 in rows:
+    for label, rate, r1, r2 in rows:
         lines.append(
-            f"| {label} | {ref:,.0f} | {r1:,.0f} | {r2:,.0f} | {r1 / ref:,.0f}x | "
-            f"{r2 / ref:,.0f}x | {r2 / r1:.2f} |"
+            f"| {label} | {rate:,.0f} | {r1:,.0f} | {r2:,.0f} | {r1 / rate:,.0f}x | "
+            f"{r2 / rate:,.0f}x | {r2 / r1:.2f} ({r2 / r1 / 2:.0%}) |"
         )
     lines += [
         "",
@@ -210,13 +367,58 @@ def main(argv: list[str] | None = None) -> int:
         f"({hand_rate / ref_rate:,.0f}x the reference of the last row).",
         "",
         "Robot-steps per second; the paper-scale generation (1.2e7 robot-steps) takes "
-        + ", ".join(f"{1.2e7 / r2:.1f} s ({label.split(' (')[0]})" for label, _, _, r2 in rows)
+        + ", ".join(
+            f"{PAPER_GENERATION / r2:.2f} s ({label.split(' (')[0]})" for label, _, _, r2 in rows
+        )
         + " on 2 workers.",
     ]
+    if evolved is not None:
+        r2 = rows[-1][3]
+        hours = PAPER_GENERATIONS * PAPER_GENERATION / r2 / 3600
+        lines += [
+            f"A {PAPER_GENERATIONS:,}-generation paper-scale run of evolved genomes "
+            f"({PAPER_GENERATIONS * PAPER_GENERATION:.1e} robot-steps) at that rate: "
+            f"{hours:.2f} h on 2 workers (target: under 1 h, i.e. 1.7e7 robot-steps/s).",
+        ]
+        batch = sets[0]
+        compiled = [
+            ("evolved genome", phase_times(Controller.from_genome(evolved), batch), ref["phases"]),
+            ("hand-coded", phase_times(hand, batch), ref["hand"]),
+        ]
+        lines += [
+            "",
+            "### Where the time goes per robot-step",
+            "",
+            f"`ant_evolution.breakdown` on {batch.size} scenarios (compiled) and 2 scenarios "
+            "(plain Python, the reference's): each phase replayed alone on a recording of "
+            "the kernel's own run, checked to reproduce it; one core, best of 3.",
+            "",
+            *breakdown_table(compiled),
+        ]
+    if args.generations > 1:
+        costs = generation_costs(args.genomes, 20, 2, args.generations)
+        ant = costs["ANT"]["total"]
+        lines += [
+            "",
+            "### Generations: ANT, NEAT and the fixed network",
+            "",
+            f"P {args.genomes}, S 20, T {STEPS}, {ROBOTS} robots, 2 workers; the three "
+            f"methods' generations run in turn on one pool ({args.generations} each, seed "
+            "1000). Wall seconds: generation 0, then medians over the later generations.",
+            "",
+            "| method | generation 0 | later generation | evaluation | breeding (tell) | / ANT |",
+            "|---|---:|---:|---:|---:|---:|",
+        ]
+        for k, c in costs.items():
+            lines.append(
+                f"| {k} | {c['gen0']:.2f} | {c['total']:.2f} | {c['eval']:.2f} | "
+                f"{c['tell']:.2f} | {c['total'] / ant:.1f}x |"
+            )
     text = "\n".join(lines)
     print(text)
     if args.write:
-        Path(args.write).write_text(NOTES.replace("{results}", text))
+        section = MARK + "\n" + NOTES.replace("{results}", text).rstrip() + "\n" + MARK
+        replace_section(Path(args.write), section)
     return 0
 
 

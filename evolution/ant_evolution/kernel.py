@@ -22,9 +22,14 @@ lookup and skip it).
 :func:`run_scenarios` scores one program on every scenario of a set
 (:class:`ScenarioArrays`); both run the same per-step loop, one timestep being
 
-1. every robot senses the same snapshot (:func:`excavation_sim.world.sense_all`);
+1. every active robot senses the same snapshot (:func:`excavation_sim.world.sense_robot`;
+   a switched-off robot, such as those beyond a genome's N gene, is skipped);
 2. each active robot's program decides its behaviour mask;
-3. robots act in index order (:func:`excavation_sim.world.apply_all`).
+3. robots act in index order (:func:`excavation_sim.world.step_robots`, on an occupancy
+   grid the kernel keeps for the episode).
+
+A timestep that changes nothing ends the episode early with the same result (a fixed
+point; :func:`_run_steps` says why that is exact).
 """
 
 from __future__ import annotations
@@ -36,10 +41,10 @@ import numpy as np
 from numba.extending import overload
 
 from ant_controller.hand_coded import HandCodedRules, hand_coded_program
-from ant_controller.layout import N_SENSORS, SENSOR_STATES
+from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, SENSOR_STATES
 from ant_controller.tissue import TissueRecord, decide_into, new_scratch
 from ant_evolution.baselines.network import NetworkRecord, program_decide_into, program_scratch
-from excavation_sim.world import WorldArrays, apply_all, fitness, sense_all
+from excavation_sim.world import WorldArrays, fitness, occupancy, sense_robot, step_robots
 
 
 class DecisionProgram(Protocol):
@@ -135,12 +140,15 @@ CACHE_BITS = 16
 """A decision cache holds ``2 ** CACHE_BITS`` entries (direct-mapped)."""
 
 _RADIX = np.cumprod(np.concatenate(([1], SENSOR_STATES[:-1]))).astype(np.int64)
+_MASK_BITS = N_BEHAVIOURS
+_MASK_FIELD = (1 << _MASK_BITS) - 1
+# An entry is ``key << _MASK_BITS | mask`` in one int64, so a lookup reads one word.
+assert int(np.prod(SENSOR_STATES)) < 1 << (63 - _MASK_BITS)
 
 
-def new_cache() -> tuple[np.ndarray, np.ndarray]:
-    """An empty decision cache: ``(keys, masks)``, keys -1 = empty slot."""
-    size = 1 << CACHE_BITS
-    return np.full(size, -1, dtype=np.int64), np.zeros(size, dtype=np.int64)
+def new_cache() -> np.ndarray:
+    """An empty decision cache: ``int64 [2 ** CACHE_BITS]`` entries, -1 = empty slot."""
+    return np.full(1 << CACHE_BITS, -1, dtype=np.int64)
 
 
 @nb.njit(cache=True, inline="always")
@@ -152,40 +160,37 @@ def sensor_key(codes):
     return key
 
 
-def decide_cached(codes, program, scratch, cache_keys, cache_masks):
+def decide_cached(codes, program, scratch, cache):
     """:func:`decide_program` through a direct-mapped cache of earlier answers.
 
     A program's answer depends on the sensor vector alone, so a hit returns exactly what
-    :func:`decide_program` would. Use one cache per program (:func:`new_cache`).
+    :func:`decide_program` would. Use one cache per program (:func:`new_cache`); an entry
+    holds the sensor key and the mask in one word (``key << 12 | mask``).
     """
     if isinstance(program, HandCodedRules):
         return hand_coded_program(codes, program)
-    return _lookup(codes, program, scratch, cache_keys, cache_masks)
+    return _lookup(codes, program, scratch, cache)
 
 
 @nb.njit(cache=True, inline="always")
-def _lookup(codes, program, scratch, cache_keys, cache_masks):
+def _lookup(codes, program, scratch, cache):
     key = sensor_key(codes)
     slot = (np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(64 - CACHE_BITS)
-    if cache_keys[slot] == key:
-        return cache_masks[slot]
+    entry = cache[slot]
+    if entry >> _MASK_BITS == key:
+        return entry & _MASK_FIELD
     mask = decide_program(codes, program, scratch)
-    cache_keys[slot] = key
-    cache_masks[slot] = mask
+    cache[slot] = key << _MASK_BITS | mask
     return mask
 
 
 @overload(decide_cached, inline="always")
-def _decide_cached(codes, program, scratch, cache_keys, cache_masks):
+def _decide_cached(codes, program, scratch, cache):
     kind = _kind(program)
     if kind is HandCodedRules:
-        return lambda codes, program, scratch, cache_keys, cache_masks: hand_coded_program(
-            codes, program
-        )
+        return lambda codes, program, scratch, cache: hand_coded_program(codes, program)
     if kind is TissueRecord or kind is NetworkRecord:
-        return lambda codes, program, scratch, cache_keys, cache_masks: _lookup(
-            codes, program, scratch, cache_keys, cache_masks
-        )
+        return lambda codes, program, scratch, cache: _lookup(codes, program, scratch, cache)
     return None
 
 
@@ -196,21 +201,21 @@ class Workspace(NamedTuple):
     """Everything one evaluation writes besides the world (allocated once, reused)."""
 
     scratch: object
-    cache_keys: np.ndarray
-    cache_masks: np.ndarray
+    cache: np.ndarray
     codes: np.ndarray
     masks: np.ndarray
+    occupancy: np.ndarray
 
 
 @nb.njit(cache=True)
-def new_workspace(program, n_robots):
-    """A :class:`Workspace` for ``program`` and ``n_robots`` robots (an empty cache)."""
+def new_workspace(program, n_robots, rows, cols):
+    """A :class:`Workspace` for ``program``, ``n_robots`` robots, a ``rows x cols`` grid."""
     return Workspace(
         program_scratch_for(program),
         np.full(1 << CACHE_BITS, -1, dtype=np.int64),
-        np.zeros(1 << CACHE_BITS, dtype=np.int64),
         np.zeros((n_robots, N_SENSORS), dtype=np.int64),
         np.zeros(n_robots, dtype=np.int64),
+        np.zeros((rows, cols), dtype=np.int16),
     )
 
 
@@ -223,6 +228,12 @@ def _run_steps(world, steps, program, work, trace):
     numpy error model drops Python's division checks (every division here is guarded).
     Both measured in docs/benchmarks.md. ``trace[t]`` gets the fitness after step t (an
     empty ``trace``: none).
+
+    A timestep that changes nothing (:func:`excavation_sim.world.step_robots` returns
+    False: no robot moved, turned, drew a random turn or changed its blade, memory or stuck
+    bit) leaves the world in a fixed point: every later timestep starts from the same
+    state, senses and decides the same, and changes nothing either. The loop stops there
+    (the trace keeps the last fitness), which gives exactly the result of running on.
     """
     heights = world.heights
     zones = world.zones
@@ -231,19 +242,25 @@ def _run_steps(world, steps, program, work, trace):
     active = world.active
     codes = work.codes
     masks = work.masks
+    occ = work.occupancy
     n = robots.shape[0]
+    occupancy(robots, active, occ)
     for t in range(steps):
-        sense_all(heights, zones, goal, robots, active, codes, world.params)
+        for k in range(n):  # every robot senses the snapshot before any acts
+            if active[k]:
+                sense_robot(heights, zones, goal, robots, active, k, codes[k], world.params)
         for k in range(n):
             if not active[k]:
                 masks[k] = 0
             else:
-                masks[k] = decide_cached(
-                    codes[k], program, work.scratch, work.cache_keys, work.cache_masks
-                )
-        apply_all(heights, robots, active, masks, world.rng, world.params)
+                masks[k] = decide_cached(codes[k], program, work.scratch, work.cache)
+        changed = step_robots(heights, robots, active, occ, masks, world.rng, world.params)
         if trace.shape[0] > t:
             trace[t] = fitness(heights, zones, goal)
+        if not changed:
+            for u in range(t + 1, min(steps, trace.shape[0])):
+                trace[u] = trace[t]
+            return
 
 
 @nb.njit(cache=True)
@@ -252,7 +269,9 @@ def run_episode(world, steps, program, trace):
 
     ``trace[t]`` gets the fitness after step t; ``trace`` may be empty (length 0).
     """
-    _run_steps(world, steps, program, new_workspace(program, world.robots.shape[0]), trace)
+    rows, cols = world.heights.shape
+    work = new_workspace(program, world.robots.shape[0], rows, cols)
+    _run_steps(world, steps, program, work, trace)
 
 
 @nb.njit(cache=True)
@@ -263,7 +282,7 @@ def run_scenarios(start, steps, program, n_robots, scores):
     0 keeps each scenario's own robot count. One decision cache serves all scenarios.
     """
     n = start.robots.shape[1]
-    work = new_workspace(program, n)
+    work = new_workspace(program, n, start.zones.shape[0], start.zones.shape[1])
     world = WorldArrays(
         np.empty_like(start.heights[0]),
         start.zones,

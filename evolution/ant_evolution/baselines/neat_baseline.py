@@ -3,9 +3,10 @@
 neat-python does the whole NEAT algorithm (genomes, speciation, reproduction); this module
 gives it a configuration with the excavation task's 14 sensor inputs and 12 behaviour
 outputs, an initial topology of 40 to 120 neurons (hidden plus output, drawn once per run
-from the run's seed), and a fitness function that compiles every genome with neat-python's
-own ``FeedForwardNetwork.create`` into a :class:`~.network.NetworkProgram` and scores it
-on the same scenarios and the same batched kernel path as the fixed network.
+from the run's seed), and a fitness function that compiles every genome into a
+:class:`~.network.NetworkProgram` (:func:`compile_neat`: the network neat-python's
+``FeedForwardNetwork.create`` builds, computed with numpy) and scores it on the same
+scenarios and the same batched kernel path as the fixed network.
 
 Two switches of the run's profile (:mod:`ant_evolution.profiles`) make the comparison like
 for like:
@@ -24,13 +25,25 @@ for like:
   run's ``mutation_prob`` (perturbed when ``mutation_operator`` is ``perturb``, redrawn
   otherwise), structural additions and deletions with p = 0.05 (the mean of ANT's cell
   replication probability, uniform in 0..0.1), and the run's ``elitism``.
+
+:class:`NeatGenome` is neat-python's ``DefaultGenome`` with changes that leave every
+result as it was: crossover's check that an inherited connection closes no cycle, which
+the library does by rescanning every connection of the child (quadratic: about 0.1 s per
+child of 1,600 connections, most of a generation), is answered once per child from the
+fitter parent's graph instead, with the same answers; and the connection genes' copy,
+crossover and mutation are written out with the library's random draws. Children, random
+draws and runs are unchanged.
 """
 
 from __future__ import annotations
 
+import random
+import warnings
 from pathlib import Path
 
+import neat
 import numpy as np
+from neat.genes import DefaultConnectionGene
 
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS
 from ant_evolution.baselines.network import (
@@ -49,7 +62,7 @@ no_fitness_termination = True
 pop_size              = {population}
 reset_on_extinction   = True
 
-[DefaultGenome]
+[{genome_section}]
 num_inputs              = {inputs}
 num_outputs             = {outputs}
 num_hidden              = {hidden}
@@ -113,6 +126,159 @@ def neat_hidden(seed: int, neurons: tuple[int, int]) -> int:
     """Initial hidden nodes of a run: neurons (hidden + outputs) uniform in ``neurons``."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, 0x4EA7]))
     return max(0, int(rng.integers(neurons[0], neurons[1] + 1)) - N_BEHAVIOURS)
+
+
+class NeatConnectionGene(DefaultConnectionGene):
+    """neat-python's connection gene with ``copy``, ``crossover`` and ``mutate`` inlined.
+
+    The three are written out for the gene's two attributes (weight, enabled). Each makes
+    the library's random draws in the library's order (``neat/genes.py`` and
+    ``neat/attributes.py`` of neat-python 2.0.0: ``FloatAttribute`` and ``BoolAttribute``)
+    and gives the same gene; only the per-attribute ``getattr`` / ``setattr`` loops are
+    gone. NEAT copies and mutates every connection of every child, about 1,600 per
+    genome here, so these three are most of a generation's reproduction.
+    """
+
+    def copy(self):
+        """A copy of this gene."""
+        new = NeatConnectionGene.__new__(self.__class__)
+        new.key = self.key
+        new.innovation = self.innovation
+        new.weight = self.weight
+        new.enabled = self.enabled
+        return new
+
+    def crossover(self, gene2):
+        """Each attribute from either parent at random; the NEAT paper's 75 % disable rule."""
+        assert self.key == gene2.key and self.innovation == gene2.innovation
+        new = NeatConnectionGene.__new__(self.__class__)
+        new.key = self.key
+        new.innovation = self.innovation
+        new.weight = self.weight if random.random() > 0.5 else gene2.weight
+        new.enabled = self.enabled if random.random() > 0.5 else gene2.enabled
+        if (not self.enabled or not gene2.enabled) and random.random() < 0.75:
+            new.enabled = False
+        return new
+
+    def mutate(self, config):
+        """``FloatAttribute.mutate_value`` of the weight, then ``BoolAttribute``'s of enabled."""
+        weight_attr, _ = self._gene_attributes
+        mutate_rate = config.weight_mutate_rate
+        r = random.random()
+        if r < mutate_rate:
+            w = self.weight + random.gauss(0.0, config.weight_mutate_power)
+            self.weight = max(min(w, config.weight_max_value), config.weight_min_value)
+        elif r < config.weight_replace_rate + mutate_rate:
+            self.weight = weight_attr.init_value(config)
+        rate = config.enabled_mutate_rate
+        if self.enabled:
+            rate += config.enabled_rate_to_false_add
+        else:
+            rate += config.enabled_rate_to_true_add
+        if rate > 0 and random.random() < rate:
+            self.enabled = random.random() < 0.5
+
+
+class NeatGenome(neat.DefaultGenome):
+    """neat-python's ``DefaultGenome`` with a linear-time cycle check in crossover.
+
+    :meth:`configure_crossover` is the library's (neat-python 2.0.0,
+    ``neat/genome.py``, BSD-3-Clause) line for line, except for its check, per inherited
+    connection, that the connection closes no cycle (``creates_cycle(list(
+    self.connections), key)``, a rescan of every connection so far). Every inherited
+    connection is one of the fitter parent's, so when that parent's connections form no
+    cycle (one topological sort) no check can fail and none is made; otherwise each check
+    walks the child's successor lists kept as genes are added. Either way every check has
+    the library's answer, so the child and the random draws are the same. Connection
+    genes are :class:`NeatConnectionGene`.
+    """
+
+    @classmethod
+    def parse_config(cls, param_dict):
+        """The library's genome configuration, with :class:`NeatConnectionGene`."""
+        config = super().parse_config(param_dict)
+        config.connection_gene_type = NeatConnectionGene
+        return config
+
+    def configure_crossover(self, genome1, genome2, config):
+        """Configure a new genome by crossover from two parent genomes (NEAT, p. 108)."""
+        if genome1.fitness > genome2.fitness:
+            parent1, parent2 = genome1, genome2
+        else:
+            parent1, parent2 = genome2, genome1
+        parent1_innovations = {cg.innovation: cg for cg in parent1.connections.values()}
+        parent2_innovations = {cg.innovation: cg for cg in parent2.connections.values()}
+        all_innovations = set(parent1_innovations.keys()) | set(parent2_innovations.keys())
+        # Every gene added below has a key of parent1's. When the child starts empty and
+        # parent1's connections form no cycle, no subset of them does: no check can fail.
+        check = config.feed_forward and (bool(self.connections) or _has_cycle(parent1))
+        successors: dict[int, list[int]] = {}
+        if check:
+            for a, b in self.connections:
+                successors.setdefault(a, []).append(b)
+        for innovation_num in all_innovations:
+            cg1 = parent1_innovations.get(innovation_num)
+            if cg1 is None:
+                continue  # genes only in the less fit parent are not inherited
+            cg2 = parent2_innovations.get(innovation_num)
+            if cg2 is None:
+                gene = cg1.copy()
+            elif cg1.key != cg2.key:
+                warnings.warn(
+                    f"Innovation number collision: innovation {innovation_num} assigned to "
+                    f"both {cg1.key} and {cg2.key}. Treating as disjoint genes.",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
+                gene = cg1.copy()
+            else:
+                gene = cg1.crossover(cg2)
+            if check:
+                if _closes_cycle(successors, gene.key):
+                    continue
+                successors.setdefault(gene.key[0], []).append(gene.key[1])
+            self.connections[gene.key] = gene
+        for key, ng1 in parent1.nodes.items():
+            ng2 = parent2.nodes.get(key)
+            assert key not in self.nodes
+            self.nodes[key] = ng1.copy() if ng2 is None else ng1.crossover(ng2)
+
+
+def _has_cycle(genome) -> bool:
+    """True when the genome's connection keys (enabled or not) contain a directed cycle."""
+    indegree: dict[int, int] = {}
+    successors: dict[int, list[int]] = {}
+    for a, b in genome.connections:
+        successors.setdefault(a, []).append(b)
+        indegree[b] = indegree.get(b, 0) + 1
+        indegree.setdefault(a, 0)
+    ready = [v for v, d in indegree.items() if d == 0]
+    seen = 0
+    while ready:
+        v = ready.pop()
+        seen += 1
+        for b in successors.get(v, ()):
+            indegree[b] -= 1
+            if indegree[b] == 0:
+                ready.append(b)
+    return seen < len(indegree)
+
+
+def _closes_cycle(successors: dict[int, list[int]], key: tuple[int, int]) -> bool:
+    """``neat.graphs.creates_cycle`` over the graph whose successor lists are given."""
+    i, o = key
+    if i == o:
+        return True
+    seen = {o}
+    todo = [o]
+    while todo:
+        for b in successors.get(todo.pop(), ()):
+            if b == i:
+                return True
+            if b not in seen:
+                seen.add(b)
+                todo.append(b)
+    return False
 
 
 def modular_down(z: float) -> float:
@@ -205,7 +371,11 @@ def config_overrides(
 def neat_config_text(population: int, hidden: int, overrides: dict[str, str] | None = None) -> str:
     """The run's ``neat.ini``: the template with ``overrides`` (``key = value`` lines)."""
     text = NEAT_CONFIG_TEMPLATE.format(
-        population=population, inputs=N_SENSORS, outputs=N_BEHAVIOURS, hidden=hidden
+        population=population,
+        inputs=N_SENSORS,
+        outputs=N_BEHAVIOURS,
+        hidden=hidden,
+        genome_section=NeatGenome.__name__,
     )
     lines = []
     for line in text.splitlines():
@@ -218,11 +388,9 @@ def neat_config_text(population: int, hidden: int, overrides: dict[str, str] | N
 
 def neat_config(path: Path, population: int, hidden: int, overrides: dict[str, str] | None = None):
     """Write the run's neat-python configuration to ``path`` and load it."""
-    import neat
-
     path.write_text(neat_config_text(population, hidden, overrides), encoding="utf-8")
     config = neat.Config(
-        neat.DefaultGenome,
+        NeatGenome,
         neat.DefaultReproduction,
         neat.DefaultSpeciesSet,
         neat.DefaultStagnation,
@@ -233,52 +401,89 @@ def neat_config(path: Path, population: int, hidden: int, overrides: dict[str, s
     return config
 
 
-def compile_neat(genome, config) -> NetworkProgram:
-    """The network program of a neat-python genome (via ``FeedForwardNetwork.create``).
+_ACTIVATIONS = {"sigmoid": ACT_SIGMOID, "identity": ACT_IDENTITY}
+"""neat-python activation names that compile to a sum node, and their network-program codes."""
+_MODULAR_CODES = {f.__name__: i for i, f in enumerate(MODULAR)}
 
-    Input key ``-1 - i`` is sensor i; output key q is behaviour q. Nodes keep the order
-    neat-python evaluates them in; outputs neat-python never evaluates stay 0 (never fire).
+
+def compile_neat(genome, config) -> NetworkProgram:
+    """The network program of a neat-python genome, computed with numpy.
+
+    It is the network neat-python 2.0.0's ``FeedForwardNetwork.create`` builds: the
+    enabled connections; the nodes required for the outputs (the outputs and every node
+    with a path to one); each required node reads its enabled incoming connections in the
+    genome's order. Nodes are laid out by depth (0: no required predecessor), an
+    evaluation order as good as the library's layers, since a node's value depends on its
+    inputs' values alone. Input key ``-1 - i`` is sensor i; output key q is behaviour q.
     A node with one of the :data:`MODULAR` activations becomes ANT's neuron (weighted mean,
     modular activation with ``theta1`` = bias, ``theta2`` = response).
     """
-    import neat
-    from neat.activations import identity_activation, sigmoid_activation
-    from neat.aggregations import sum_aggregation
-
-    net = neat.nn.FeedForwardNetwork.create(genome, config)
-    index: dict[int, int] = {}
-    act, agg, theta, bias, resp, starts, srcs, ws = [], [], [], [], [], [0], [], []
-    for node, act_f, agg_f, b, r, links in net.node_evals:
-        if agg_f is not sum_aggregation:
-            raise ValueError(f"NEAT node {node}: only the sum aggregation compiles")
-        modular = next((i for i, f in enumerate(MODULAR) if f.__name__ == act_f.__name__), -1)
+    gc = config.genome_config
+    outputs = list(gc.output_keys)
+    node_keys = list(genome.nodes)
+    index = {key: j for j, key in enumerate(node_keys)}
+    n = len(node_keys)
+    links = [
+        (cg.key[0], index[cg.key[1]], cg.weight) for cg in genome.connections.values() if cg.enabled
+    ]
+    src_key = np.array([a for a, _, _ in links], dtype=np.int64)
+    dst = np.array([b for _, b, _ in links], dtype=np.int64)
+    weight = np.array([w for _, _, w in links], dtype=np.float64)
+    from_node = src_key >= 0  # input keys are negative
+    src = np.array([index[a] if a >= 0 else -1 for a in src_key], dtype=np.int64)
+    # required: the outputs and everything upstream of them
+    required = np.zeros(n, dtype=bool)
+    required[[index[q] for q in outputs if q in index]] = True
+    while True:
+        grow = from_node & required[dst] & ~required[np.maximum(src, 0)]
+        if not grow.any():
+            break
+        required[src[grow]] = True
+    # depth: longest path from a node without required predecessors
+    inner = from_node & required[dst] & required[np.maximum(src, 0)]
+    depth = np.zeros(n, dtype=np.int64)
+    for _ in range(n + 1):
+        nxt = depth.copy()
+        np.maximum.at(nxt, dst[inner], depth[src[inner]] + 1)
+        if np.array_equal(nxt, depth):
+            break
+        depth = nxt
+    else:
+        raise ValueError("NEAT genome: its enabled connections form a cycle")
+    order = np.flatnonzero(required)
+    order = order[np.argsort(depth[order], kind="stable")]
+    position = np.full(n, -1, dtype=np.int64)
+    position[order] = np.arange(order.size)
+    keep = required[dst]
+    e = np.flatnonzero(keep)
+    e = e[np.argsort(position[dst[e]], kind="stable")]  # by node, genome order within
+    edge_src = np.where(from_node[e], N_SENSORS + position[np.maximum(src[e], 0)], -1 - src_key[e])
+    counts = np.bincount(position[dst[e]], minlength=order.size)
+    act, agg, theta, bias, resp = [], [], [], [], []
+    for j in order:
+        key = node_keys[j]
+        ng = genome.nodes[key]
+        if ng.aggregation != "sum":
+            raise ValueError(f"NEAT node {key}: only the sum aggregation compiles")
+        modular = _MODULAR_CODES.get(ng.activation, -1)
+        if modular < 0 and ng.activation not in _ACTIVATIONS:
+            raise ValueError(f"NEAT node {key}: only sigmoid and identity activations compile")
+        act.append(modular if modular >= 0 else _ACTIVATIONS[ng.activation])
         agg.append(AGG_MEAN if modular >= 0 else AGG_SUM)
-        theta.append((b, r) if modular >= 0 else (0.0, 0.0))
-        if modular >= 0:
-            act.append(modular)
-        elif act_f is sigmoid_activation:
-            act.append(ACT_SIGMOID)
-        elif act_f is identity_activation:
-            act.append(ACT_IDENTITY)
-        else:
-            raise ValueError(f"NEAT node {node}: only sigmoid and identity activations compile")
-        for i, w in links:
-            srcs.append(-1 - i if i < 0 else N_SENSORS + index[i])
-            ws.append(w)
-        starts.append(len(srcs))
-        bias.append(b)
-        resp.append(r)
-        index[node] = len(act) - 1
-    n = len(act)
-    out = np.array([index.get(q, -1) for q in config.genome_config.output_keys], dtype=np.int64)
+        theta.append((ng.bias, ng.response) if modular >= 0 else (0.0, 0.0))
+        bias.append(ng.bias)
+        resp.append(ng.response)
+    m = order.size
     return NetworkProgram(
-        node_act=np.asarray(act, dtype=np.int64),
-        node_agg=np.asarray(agg, dtype=np.int64).reshape(n),
-        node_bias=np.asarray(bias, dtype=np.float64),
-        node_resp=np.asarray(resp, dtype=np.float64),
-        node_theta=np.asarray(theta, dtype=np.float64).reshape(n, 2),
-        edge_start=np.asarray(starts, dtype=np.int64),
-        edge_src=np.asarray(srcs, dtype=np.int64),
-        edge_w=np.asarray(ws, dtype=np.float64),
-        out_node=out,
+        node_act=np.asarray(act, dtype=np.int64).reshape(m),
+        node_agg=np.asarray(agg, dtype=np.int64).reshape(m),
+        node_bias=np.asarray(bias, dtype=np.float64).reshape(m),
+        node_resp=np.asarray(resp, dtype=np.float64).reshape(m),
+        node_theta=np.asarray(theta, dtype=np.float64).reshape(m, 2),
+        edge_start=np.concatenate(([0], np.cumsum(counts))).astype(np.int64),
+        edge_src=edge_src.astype(np.int64),
+        edge_w=weight[e],
+        out_node=np.array(
+            [position[index[q]] if q in index else -1 for q in outputs], dtype=np.int64
+        ),
     )

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ant_evolution.backends import Evaluator
+from ant_evolution.backends import CompileHere, Evaluator
 from ant_evolution.baselines import fixed
 from ant_evolution.baselines.fixed import FixedNetwork, FixedTopology, compile_fixed
 from ant_evolution.baselines.neat_baseline import (
@@ -302,8 +302,11 @@ class NeatStrategy:
         return state
 
     def compiler(self, state: NeatState) -> Callable:
-        """Genomes compile into programs in the workers, with the population's config."""
-        return functools.partial(compile_neat, config=state.population.config)
+        """Genomes compile into programs here, with the population's config.
+
+        The programs pickle far faster than the genomes.
+        """
+        return CompileHere(functools.partial(compile_neat, config=state.population.config))
 
     def title(self, state: NeatState) -> str:
         """Plot title."""

@@ -4,6 +4,7 @@ Example::
 
     ant-experiment training --scale medium --workers 2 --out runs/exp
     ant-experiment compare --scale medium --workers 2 --out runs/exp   # reuses training's runs
+    ant-experiment compare --scale tested --workers 2 --out runs/exp-tested   # the campaign
 
 Every experiment is resumable: run the same command again after an interruption.
 """

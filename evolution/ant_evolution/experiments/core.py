@@ -46,7 +46,7 @@ class Scale:
     """How big an experiment is.
 
     Attributes:
-        name: ``quick``, ``medium`` or ``paper``.
+        name: ``quick``, ``medium``, ``tested`` or ``paper``.
         population: P of every training run.
         generations: Generations of every training run.
         scenarios: Scenarios per generation (split over goal depths 1-3).
@@ -100,6 +100,26 @@ SCALES = {
         (1, 2, 3),
         (1, 8),
         10,
+    ),  # fmt: skip
+    # The campaign of the reproduction (docs/experiments.md, "The tested scale"): 10 runs
+    # per setting; 1,500 generations of P 100 x S 30 = 4.5 million scenario evaluations per
+    # run, what the v1 paper-scale run needed to reach 0.9 (4.3 million, generation 433).
+    "tested": Scale(
+        "tested",
+        100,
+        1500,
+        30,
+        300,
+        10,
+        (1, 2, 3, 4, 5),
+        tuple(range(1, 11)),
+        100,
+        10000,
+        (6, 8, 10),
+        (4, 6, 8, 10, 12),
+        (1, 2, 3),
+        (1, 8),
+        25,
     ),  # fmt: skip
     "paper": Scale(
         "paper",

@@ -23,6 +23,10 @@ run whole episodes without Python in the loop:
 * ``active``: ``bool [n]`` robots taking part (a disabled robot is invisible and idle).
 * ``rng``: ``uint64 [1]`` xorshift64* state for the random turn.
 * ``params``: ``int64 [N_PACKED]`` the packed :class:`~excavation_sim.rules.WorldRules`.
+* ``occupancy``: ``int16 [rows, cols]`` which active robot stands on each cell (``k + 1``,
+  0 free), derived from ``robots`` and ``active`` (:func:`occupancy`). The moves read it
+  instead of scanning every robot and keep it up to date; :func:`apply_all` builds it per
+  call, the episode kernel keeps one for a whole episode (:func:`step_robots`).
 """
 
 from __future__ import annotations
@@ -59,7 +63,6 @@ from ant_controller.sensing import (
     front_wheel,
     in_grid,
     is_tilted_down,
-    occupied_by_other,
     rear_wheel,
     sense,
 )
@@ -98,6 +101,37 @@ def seed_state(seed_bits: int) -> np.ndarray:
     return np.array([(seed_bits & 0xFFFFFFFFFFFFFFFF) or 0x9E3779B97F4A7C15], dtype=np.uint64)
 
 
+# --- occupancy --------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def occupancy(robots, active, occ):
+    """Fill ``occ`` (``int16 [rows, cols]``): ``k + 1`` under active robot k, 0 elsewhere."""
+    occ[:] = 0
+    for k in range(robots.shape[0]):
+        if active[k]:
+            stamp_footprint(occ, robots[k, ROW], robots[k, COL], k + 1)
+
+
+@nb.njit(cache=True, inline="always")
+def stamp_footprint(occ, row, col, value):
+    """Write ``value`` into the 2 x 2 footprint anchored at ``(row, col)``."""
+    occ[row, col] = value
+    occ[row, col + 1] = value
+    occ[row + 1, col] = value
+    occ[row + 1, col + 1] = value
+
+
+@nb.njit(cache=True, inline="always")
+def occupied(occ, k, r, c):
+    """True when on-grid cell ``(r, c)`` is under an active robot other than k.
+
+    The occupancy-grid form of :func:`ant_controller.sensing.occupied_by_other`.
+    """
+    v = occ[r, c]
+    return v != 0 and v != k + 1
+
+
 # --- moves ----------------------------------------------------------------------------------
 
 
@@ -115,7 +149,7 @@ def fill_amount(deficit, spare):
 
 
 @nb.njit(cache=True, inline="always")
-def try_forward(heights, robots, active, k, throttle, params):
+def try_forward(heights, robots, occ, k, throttle, params):
     """Move robot k one cell forward, pushing or cutting soil with the blade.
 
     The blade equations of the paper, per blade column i with front wheel cell W_i, old
@@ -132,7 +166,9 @@ def try_forward(heights, robots, active, k, throttle, params):
     The move is refused (robot stuck, nothing changes) when the new footprint leaves the
     grid or meets another robot, when an engaged blade would push soil off the grid or into
     another robot, when the soil then held against the blade exceeds the push capacity, or
-    when the wheels would climb a step higher than the climb limit.
+    when the wheels would climb a step higher than the climb limit. Only a move that is
+    made changes the soil (the episode kernel relies on it), and it moves robot k's
+    footprint in ``occ`` (:func:`occupancy`).
 
     Returns:
         True when the robot moved.
@@ -152,12 +188,12 @@ def try_forward(heights, robots, active, k, throttle, params):
     # New footprint cells are the old blade cells.
     for i in range(2):
         br, bc = front_cell(row, col, h, i)
-        if not in_grid(rows, cols, br, bc) or occupied_by_other(robots, active, k, br, bc):
+        if not in_grid(rows, cols, br, bc) or occupied(occ, k, br, bc):
             return False
         if engaged:
             nr = br + fr
             nc = bc + fc
-            if not in_grid(rows, cols, nr, nc) or occupied_by_other(robots, active, k, nr, nc):
+            if not in_grid(rows, cols, nr, nc) or occupied(occ, k, nr, nc):
                 return False
     bh = blade_offset(blade)
     moved0 = 0
@@ -196,17 +232,19 @@ def try_forward(heights, robots, active, k, throttle, params):
             br, bc = front_cell(row, col, h, i)
             heights[br, bc] -= moved
             heights[br + fr, bc + fc] += moved
-    robots[k, ROW] += fr
-    robots[k, COL] += fc
+    stamp_footprint(occ, row, col, 0)
+    stamp_footprint(occ, row + fr, col + fc, k + 1)
+    robots[k, ROW] = row + fr
+    robots[k, COL] = col + fc
     return True
 
 
 @nb.njit(cache=True, inline="always")
-def try_backward(heights, robots, active, k, throttle, params):
+def try_backward(heights, robots, occ, k, throttle, params):
     """Move robot k one cell backward; the blade leaves its soil where it is.
 
     Refused when the cells behind leave the grid, meet another robot, or stand higher
-    than the climb limit above the rear wheels.
+    than the climb limit above the rear wheels. A move made moves k's footprint in ``occ``.
     """
     row = robots[k, ROW]
     col = robots[k, COL]
@@ -218,31 +256,56 @@ def try_backward(heights, robots, active, k, throttle, params):
         rr, rc = rear_wheel(row, col, h, i)
         nr = rr - FORWARD[h, 0]
         nc = rc - FORWARD[h, 1]
-        if not in_grid(rows, cols, nr, nc) or occupied_by_other(robots, active, k, nr, nc):
+        if not in_grid(rows, cols, nr, nc) or occupied(occ, k, nr, nc):
             return False
         if heights[nr, nc] - heights[rr, rc] > climb:
             return False
-    robots[k, ROW] -= FORWARD[h, 0]
-    robots[k, COL] -= FORWARD[h, 1]
+    stamp_footprint(occ, row, col, 0)
+    stamp_footprint(occ, row - FORWARD[h, 0], col - FORWARD[h, 1], k + 1)
+    robots[k, ROW] = row - FORWARD[h, 0]
+    robots[k, COL] = col - FORWARD[h, 1]
     return True
 
 
 @nb.njit(cache=True, inline="always")
-def apply_behaviours(heights, robots, active, k, mask, rng, params):
+def _robot_word(robots, k):
+    """Robot k's heading, blade, memory and stuck bit packed into one integer."""
+    return (
+        robots[k, HEADING]
+        | robots[k, BLADE] << 8
+        | robots[k, MEMORY] << 16
+        | robots[k, STUCK] << 24
+    )
+
+
+@nb.njit(cache=True, inline="always")
+def step_robot(heights, robots, active, occ, k, mask, rng, params):
     """Run robot k's selected behaviours (bit mask) in Table 2 order.
 
     U1 (stuck) becomes 1 when any move attempted this timestep was refused and 0
     otherwise. Blade and memory commands apply in table order, so the last one wins.
+    ``occ``: the occupancy grid of ``robots`` and ``active`` (:func:`occupancy`), kept up
+    to date.
+
+    Returns:
+        False when the world is exactly as before (no move made, robot k's state
+        unchanged); True when anything may have changed.
     """
     if not active[k]:
-        return
+        return False
     throttle = (mask >> THROTTLE_UP) & 1 == 1
     stuck = 0
+    changed = (mask >> RANDOM_TURN) & 1 == 1  # the random turn draws from the generator
+    before = _robot_word(robots, k)
     if (mask >> MOVE_FORWARD) & 1:
-        if not try_forward(heights, robots, active, k, throttle, params):
+        if try_forward(heights, robots, occ, k, throttle, params):
+            changed = True
+        else:
             stuck = 1
     if (mask >> MOVE_BACKWARD) & 1:
-        if not try_backward(heights, robots, active, k, throttle, params):
+        if try_backward(heights, robots, occ, k, throttle, params):
+            changed = True
+        else:
             stuck = 1
     if (mask >> RANDOM_TURN) & 1:
         if next_random(rng) >> np.uint64(63):
@@ -263,6 +326,19 @@ def apply_behaviours(heights, robots, active, k, mask, rng, params):
         robots[k, BLADE] = BLADE_HOME
     robots[k, MEMORY] = next_memory(robots[k, MEMORY], mask)
     robots[k, STUCK] = stuck
+    return changed or _robot_word(robots, k) != before
+
+
+@nb.njit(cache=True)
+def apply_behaviours(heights, robots, active, k, mask, rng, params):
+    """:func:`step_robot` for one robot, with the occupancy grid built for the call.
+
+    Returns:
+        False when nothing changed.
+    """
+    occ = np.empty(heights.shape, dtype=np.int16)
+    occupancy(robots, active, occ)
+    return step_robot(heights, robots, active, occ, k, mask, rng, params)
 
 
 @nb.njit(cache=True, inline="always")
@@ -289,18 +365,38 @@ def sense_robot(heights, zones, goal, robots, active, k, out, params):
     )
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def sense_all(heights, zones, goal, robots, active, out, params):
     """Sensor vectors of every robot from one snapshot, ``out[n_robots, 14]``."""
     for k in range(robots.shape[0]):
         sense_robot(heights, zones, goal, robots, active, k, out[k], params)
 
 
+@nb.njit(cache=True, _nrt=False)
+def step_robots(heights, robots, active, occ, masks, rng, params):
+    """Apply every robot's behaviour mask in index order (robot 0 first).
+
+    ``occ`` is the occupancy grid of ``robots`` and ``active`` (:func:`occupancy`), kept
+    up to date. Returns False when nothing changed: then the next timestep, from the same
+    state, does exactly the same, and so does every one after it.
+    """
+    changed = False
+    for k in range(robots.shape[0]):
+        if step_robot(heights, robots, active, occ, k, masks[k], rng, params):
+            changed = True
+    return changed
+
+
 @nb.njit(cache=True)
 def apply_all(heights, robots, active, masks, rng, params):
-    """Apply every robot's behaviour mask in index order (robot 0 first)."""
-    for k in range(robots.shape[0]):
-        apply_behaviours(heights, robots, active, k, masks[k], rng, params)
+    """Apply every robot's behaviour mask in index order (robot 0 first).
+
+    Returns:
+        False when nothing changed (see :func:`step_robots`).
+    """
+    occ = np.empty(heights.shape, dtype=np.int16)
+    occupancy(robots, active, occ)
+    return step_robots(heights, robots, active, occ, masks, rng, params)
 
 
 @nb.njit(cache=True)
