@@ -134,6 +134,7 @@ def recorded_ticks(bag) -> list[int]:
     return [bag.decode("/clock", raw).clock.sec for _, _, raw in bag.messages(["/clock"])]
 
 
+@pytest.mark.pending
 def test_recorder_killed_and_restarted(tmp_path, capsys):
     """The killed bag is truncated and recoverable; a restart records into a new bag."""
     first, second = tmp_path / "bag", tmp_path / "bag2"
@@ -215,6 +216,7 @@ def full_reference():
     ).fitness
 
 
+@pytest.mark.pending
 def test_localizer_killed_and_restarted(tmp_path):
     """No poses: every robot idles (reported); the restarted localizer finds them again."""
     with FaultTrial(tmp_path, **FULL) as trial:
@@ -290,6 +292,7 @@ def test_sensor_stalls(tmp_path, full_reference, knob, seconds, timeout, loses_t
     assert stalled >= 5
 
 
+@pytest.mark.pending
 def test_camera_at_5_hz(tmp_path, full_reference):
     """A slow camera slows the lockstep trial down; nothing is lost."""
     with FaultTrial(tmp_path, **{**FULL, "command_timeout": 30.0}) as trial:
@@ -349,6 +352,7 @@ def evolve_outputs(out) -> dict:
     return {"checkpoint": ck, "best": (out / "best.json").read_text(), "history": history}
 
 
+@pytest.mark.pending
 def test_evolve_killed_during_checkpoint_writes(tmp_path):
     """SIGKILL in the middle of writes (and at random moments); --resume ends identical."""
     straight = tmp_path / "straight"

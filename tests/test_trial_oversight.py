@@ -198,6 +198,7 @@ def test_estop_at_tick_10_then_pause_resume_ends_as_an_uninterrupted_trial():
     assert result.holds >= 3  # e-stop, reset (disarmed), pause
 
 
+@pytest.mark.pending
 def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial():
     domain, steps = next_domain(), 200
     watch = Watcher(domain)
@@ -228,6 +229,7 @@ def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial(
     assert overridden, "the operator's blade set-point never reached the simulator"
 
 
+@pytest.mark.pending
 def test_supervisor_sigkilled_every_blade_homes_by_deadman_then_a_new_one_resumes():
     domain, steps = next_domain(), 25
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain))

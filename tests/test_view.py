@@ -87,6 +87,7 @@ class Client(threading.Thread):
             self.error = exc
 
 
+@pytest.mark.pending
 def test_client_decodes_robots_and_height_map_of_a_running_trial(ros):
     import foxglove
 
