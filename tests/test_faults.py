@@ -61,6 +61,7 @@ def test_server_killed_and_restarted(tmp_path):
     assert result["fitness"] == fitness and np.array_equal(result["heights"], heights)
 
 
+@pytest.mark.pending
 def test_controller_killed_and_restarted(tmp_path):
     """The robot idles (reported), its blade goes home, the restarted controller rejoins."""
     with FaultTrial(tmp_path, steps=30) as trial:
@@ -91,6 +92,7 @@ def test_blade_driver_killed_and_restarted(tmp_path):
     assert result["commands"][-1][1] != 0 or result["commands"][-2][1] != 0
 
 
+@pytest.mark.pending
 @pytest.mark.parametrize(
     "blade_driver",
     [
