@@ -115,7 +115,7 @@ def compare(ctx: Context) -> None:
     """ANT against NEAT and the fixed network: mean maximum fitness and P(fitness >= 0.9)."""
     s = ctx.scale
     n = _compare_robots(ctx)
-    methods = ("ant", "neat", "fixed")
+    methods = ("ant", "fixed", "neat")  # cheapest first: a cut-short campaign keeps the most
     runs = train_all(ctx, [(m, n) for m in methods], "compare")
     plt = pyplot()
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4), dpi=100)
