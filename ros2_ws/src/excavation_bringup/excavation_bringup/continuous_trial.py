@@ -164,6 +164,7 @@ def run_continuous(
                         Parameter("robots", value=spec.robots),
                         Parameter("height_unit", value=blueprint.height_unit),
                         Parameter("lockstep", value=True),
+                        Parameter("tilt_source", value="imu"),
                         sim_time,
                     ],
                 )

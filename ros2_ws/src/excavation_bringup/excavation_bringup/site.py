@@ -837,7 +837,11 @@ def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
 
 
 def controller_params(site: Site, k: int, lockstep: bool = False) -> dict[str, Any]:
-    """``ant_controller controller`` of robot ``k`` (its genome goes on the command line)."""
+    """``ant_controller controller`` of robot ``k`` (its genome goes on the command line).
+
+    R1 comes from the robot's IMU (``tilt_source: imu``); a dome whose robots carry none
+    sets ``overrides: {controller: {tilt_source: height_map}}``.
+    """
     return _merge(
         site,
         "controller",
@@ -846,6 +850,7 @@ def controller_params(site: Site, k: int, lockstep: bool = False) -> dict[str, A
             "robots": site.n_robots,
             "height_unit": float(site.worksite.soil_unit),
             "lockstep": bool(lockstep),
+            "tilt_source": "imu",  # R1 from /robot_k/imu (the robot's, or the simulator's)
         },
     )
 
