@@ -170,7 +170,11 @@ def run_continuous(
                 )
             )
             nodes.append(
-                BladeDriverNode(context=context, namespace=ns, parameter_overrides=[sim_time])
+                BladeDriverNode(
+                    context=context,
+                    namespace=ns,
+                    parameter_overrides=[Parameter("blade_after_motion", value=True), sim_time],
+                )
             )
             drive = ExecutorNode(
                 context=context,
