@@ -91,12 +91,20 @@ def test_gate_without_or_with_a_stale_imu_reading_does_not_decide():
     assert g.missing(0.6) is None and g.tilted() is False
 
 
-def test_lockstep_tick_waits_for_a_fresh_imu_reading():
+def test_lockstep_tick_waits_for_an_imu_reading_since_the_last_tick():
+    """Paired by arrival (as U1), not by age: the tick's snapshot may come late."""
     g = imu_gate(lockstep=True)
     g.on_imu(0.0, 0.0)
-    assert not g.lockstep_ready(3.0)  # the tick's snapshot is in, the IMU fell silent
-    g.on_imu(3.0, 0.2)  # a reading arrives: the tick is decided with it
-    assert g.lockstep_ready(3.0) and g.tilted() is True
+    assert g.lockstep_ready(30.0) and g.tilted() is False  # ages do not count in lockstep
+    g.on_pose(0, 31.0, (2, 2, 0), (1, 0))
+    g.on_heights(31.0, np.zeros((16, 16), dtype=np.int32), (1, 0))
+    g.on_joint(31.0, (3, 0), (1, 0))
+    g.on_stuck(31.0, False)
+    assert not g.lockstep_ready(31.0)  # tick 1 is in, the IMU fell silent: no decision
+    assert g.lockstep_waiting() == "no IMU reading since the last tick"
+    g.on_imu(31.5, 0.2)  # a reading arrives: the tick is decided with it
+    assert g.lockstep_waiting() is None
+    assert g.lockstep_ready(31.5) and g.tilted() is True
     height_map = InputGate(0, 1)
     assert height_map.tilted() is None  # the core's grid rule on the height map
 

@@ -9,7 +9,8 @@ Inputs (relative names resolve in the robot's namespace): ``pose``
 ``/worksite/height_map`` (Image 32FC1), ``/blueprint/goal``, ``/blueprint/zones``,
 ``/worksite/map_info`` (latched), ``blade/joint_states`` (JointState), ``stuck``
 (std_msgs/Bool), with ``tilt_source: imu`` ``imu`` (sensor_msgs/Imu: R1 is its nose-down
-pitch above ``tilt_threshold``; stale after ``imu_timeout``), and every robot's
+pitch above ``tilt_threshold``; stale after ``imu_timeout``, in lockstep mode when none has
+come since the last tick), and every robot's
 ``/robot_j/enabled`` (std_msgs/Bool, latched, from the team supervisor): a disabled robot
 is absent to this controller (the core's ``active`` mask) and its pose is not waited for,
 so a robot the localiser loses does not freeze the team; this robot disabled, the
@@ -221,7 +222,8 @@ class ControllerNode(Node):
         simulator tick, when :meth:`InputGate.lockstep_ready` says the tick is complete.
         """
         if self.lockstep and not lockstep_decision:
-            self.last_reason = self.missing_input() or self.last_reason
+            waiting = self.missing_input() or self.gate.lockstep_waiting()
+            self.last_reason = waiting or self.last_reason
             self.publish_diagnostics()
             return
         reason = self.missing_input()

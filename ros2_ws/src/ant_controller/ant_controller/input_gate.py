@@ -15,10 +15,11 @@ It answers two questions for the node:
 R1 (tilted nose down) has two sources (``tilt_source``): ``height_map``, the world model's
 rule on the tick's height map under the footprint (lockstep and grid trials, where no robot
 carries an IMU), and ``imu``, the pitch of ``/robot_k/imu`` above ``tilt_threshold``
-(continuous trials and the dome). An IMU reading is stale after ``imu_timeout`` seconds of
-the node's clock in both modes: it is the robot's own sensor, not part of a tick's
-snapshot (whose stamps are the tick's), so the lockstep barrier does not pair it by stamp;
-the tick is decided with the latest reading, and not at all while that one is stale.
+(continuous trials and the dome). Outside lockstep an IMU reading is stale after
+``imu_timeout``. In lockstep mode the IMU is the robot's own sensor, not part of the tick's
+snapshot (whose stamps are the tick's, reached through slow perception), so it pairs with
+the tick by arrival, as the unstamped stuck flag does: a tick is decided only with an IMU
+reading received since the last tick decided, and with the latest one.
 
 Disabled robots are absent (DESIGN.md "Operator oversight"): their poses are neither needed
 nor fresh-checked, and :meth:`InputGate.active` leaves them out of the sensor vector (the
@@ -80,7 +81,9 @@ class ControllerParams:
     tilt_threshold: float = param(
         TILT_THRESHOLD, "rad of nose-down IMU pitch above which R1 holds", low=0.0, high=1.5
     )
-    imu_timeout: float = param(0.5, "s: older IMU reading is stale (imu)", low=1e-3, high=3600.0)
+    imu_timeout: float = param(
+        0.5, "s: older IMU reading is stale (imu; lockstep: one since the last tick)", low=1e-3
+    )
     profile: str = param(
         "v1",
         "readings of the paper (H1 frame, hand-coded rules): v1 or paper, as the simulator's",
@@ -114,8 +117,8 @@ class InputGate:
         lockstep: Stamps, not ages, say what is fresh (one decision per tick).
         tilt_source: ``TILT_HEIGHT_MAP`` or ``TILT_IMU`` (where R1 comes from).
         tilt_threshold: Nose-down pitch (rad) above which the IMU says R1.
-        imu_timeout: Seconds of the node's clock after which an IMU reading is stale
-            (in lockstep mode too).
+        imu_timeout: Seconds after which an IMU reading is stale (outside lockstep; in
+            lockstep mode a reading must have come since the last tick decided).
     """
 
     robot_id: int
@@ -138,6 +141,7 @@ class InputGate:
     enabled: dict[int, bool] = field(default_factory=dict)
     stamps: dict[str, Stamp] = field(default_factory=dict)
     fresh_stuck: int = 0
+    fresh_imu: int = 0
     decided_stamp: Stamp | None = None
     went_back: bool = False
 
@@ -181,6 +185,7 @@ class InputGate:
     def on_imu(self, now: float, pitch: float) -> None:
         """The IMU's nose-down pitch (rad), arrived at ``now``."""
         self.imu = (now, float(pitch))
+        self.fresh_imu += 1
 
     def on_enabled(self, j: int, enabled: bool) -> None:
         """Robot ``j`` enabled or disabled by the supervisor."""
@@ -237,7 +242,7 @@ class InputGate:
         if self.tilt_source == TILT_IMU:
             if self.imu is None:
                 return "no IMU reading (imu)"
-            age = now - self.imu[0]  # the node's clock in both modes: not part of the tick
+            age = self._age(self.imu[0], now)  # lockstep: paired by arrival (lockstep_ready)
             if age > self.imu_timeout:
                 return f"IMU reading is stale ({age:.2f} s)"
         if self.heights[1].shape != self.zones.shape:
@@ -251,22 +256,45 @@ class InputGate:
             return "unknown terrain around the robot"
         return None
 
+    def _new_tick(self) -> Stamp | None:
+        """The stamp of a complete set of stamped tick inputs not yet decided, or ``None``."""
+        keys = [f"pose{j}" for j in range(self.robots) if self.is_enabled(j)]
+        stamps = {self.stamps.get(k) for k in keys + ["heights", "joint"]}
+        if len(stamps) != 1 or None in stamps:
+            return None
+        (stamp,) = stamps
+        if self.decided_stamp is not None and stamp == self.decided_stamp:
+            return None
+        return stamp
+
+    def _unpaired(self) -> str | None:
+        """What a lockstep tick still waits for among the inputs paired by arrival."""
+        if self.fresh_stuck == 0:
+            return "no stuck flag since the last tick"
+        if self.tilt_source == TILT_IMU and self.fresh_imu == 0:
+            return "no IMU reading since the last tick"
+        return None
+
+    def lockstep_waiting(self) -> str | None:
+        """Lockstep mode: the IMU reading a tick whose stamped inputs are in waits for."""
+        if self.tilt_source == TILT_IMU and self.fresh_imu == 0 and self._new_tick() is not None:
+            return "no IMU reading since the last tick"
+        return None
+
     def lockstep_ready(self, now: float) -> bool:
         """Every input of a new tick is in: decide it now (the tick is then marked decided).
 
         A tick's inputs are the poses of every enabled robot, the height map and the joint
         state stamped with the same time, newer than the last tick decided, plus a stuck
-        flag received since then. A complete set OLDER than the last tick decided means
-        the simulator's clock went back (it was restarted): that is decided too, as the first
-        tick of a new trial, and :attr:`went_back` says so (the node clears M1).
+        flag received since then (and, with ``tilt_source: imu``, an IMU reading received
+        since then: the robot's own sensor, paired with the tick by arrival as U1 is). A
+        complete set OLDER than the last tick decided means the simulator's clock went back
+        (it was restarted): that is decided too, as the first tick of a new trial, and
+        :attr:`went_back` says so (the node clears M1).
         """
         self.went_back = False
-        keys = [f"pose{j}" for j in range(self.robots) if self.is_enabled(j)]
-        stamps = {self.stamps.get(k) for k in keys + ["heights", "joint"]}
-        if len(stamps) != 1 or None in stamps or self.fresh_stuck == 0:
-            return False
-        (stamp,) = stamps
-        if self.decided_stamp is not None and stamp == self.decided_stamp:
+        stamp = self._new_tick()
+        if stamp is None or self._unpaired() is not None:
             return False
         went_back = self.decided_stamp is not None and stamp < self.decided_stamp
         if self.missing(now) is not None:
@@ -274,6 +302,7 @@ class InputGate:
         self.went_back = went_back
         self.decided_stamp = stamp
         self.fresh_stuck = 0
+        self.fresh_imu = 0
         return True
 
     def pose_array(self) -> np.ndarray:
