@@ -10,12 +10,11 @@ Inputs (relative names resolve in the robot's namespace): ``pose``
 ``/worksite/map_info`` (latched), ``blade/joint_states`` (JointState), ``stuck``
 (std_msgs/Bool), with ``tilt_source: imu`` ``imu`` (sensor_msgs/Imu: R1 is its nose-down
 pitch above ``tilt_threshold``; stale after ``imu_timeout``, in lockstep mode when none has
-come since the last tick), and every robot's
-``/robot_j/enabled`` (std_msgs/Bool, latched, from the team supervisor): a disabled robot
-is absent to this controller (the core's ``active`` mask) and its pose is not waited for,
-so a robot the localiser loses does not freeze the team; this robot disabled, the
-controller holds still. Output: ``behaviour``
-(std_msgs/UInt16, bit i = behaviour i + 1 of Table 2) and ``/diagnostics``.
+come since the last tick), and every robot's ``/robot_j/enabled`` (std_msgs/Bool,
+latched, from the team supervisor): a disabled robot is absent to this controller (the
+core's ``active`` mask) and its pose is not waited for, so a robot the localiser loses
+does not freeze the team; this robot disabled, the controller holds still. Output:
+``behaviour`` (std_msgs/UInt16, bit i = behaviour i + 1 of Table 2) and ``/diagnostics``.
 
 With ``lockstep: true`` (used with ``excavation_sim sim``) the node decides exactly once per
 simulator tick, when all of that tick's inputs have arrived (same stamp), and never

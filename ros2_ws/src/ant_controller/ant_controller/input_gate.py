@@ -267,17 +267,13 @@ class InputGate:
             return None
         return stamp
 
-    def _unpaired(self) -> str | None:
-        """What a lockstep tick still waits for among the inputs paired by arrival."""
-        if self.fresh_stuck == 0:
-            return "no stuck flag since the last tick"
-        if self.tilt_source == TILT_IMU and self.fresh_imu == 0:
-            return "no IMU reading since the last tick"
-        return None
+    def _imu_unpaired(self) -> bool:
+        """``tilt_source: imu`` and no IMU reading since the last tick decided."""
+        return self.tilt_source == TILT_IMU and self.fresh_imu == 0
 
     def lockstep_waiting(self) -> str | None:
         """Lockstep mode: the IMU reading a tick whose stamped inputs are in waits for."""
-        if self.tilt_source == TILT_IMU and self.fresh_imu == 0 and self._new_tick() is not None:
+        if self._imu_unpaired() and self._new_tick() is not None:
             return "no IMU reading since the last tick"
         return None
 
@@ -294,7 +290,7 @@ class InputGate:
         """
         self.went_back = False
         stamp = self._new_tick()
-        if stamp is None or self._unpaired() is not None:
+        if stamp is None or self.fresh_stuck == 0 or self._imu_unpaired():
             return False
         went_back = self.decided_stamp is not None and stamp < self.decided_stamp
         if self.missing(now) is not None:
