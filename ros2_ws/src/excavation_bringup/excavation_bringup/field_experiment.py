@@ -116,15 +116,30 @@ def _blueprint(name: str, plan: Plan, out: Path) -> tuple[object, str]:
 # --- trials ---------------------------------------------------------------------------------
 
 
-def grid_trial(ctl, blueprint, robots: int, steps: int, seed: int) -> dict:
-    """One grid trial: fitness after every tick (index 0: the start) and the heights."""
+def grid_trial(ctl, blueprint, robots: int, steps: int, seed: int, survey: bool = False) -> dict:
+    """One grid trial: fitness after every tick (index 0: the start) and the heights.
+
+    ``survey``: also the field metrics of two overhead-laser sweeps through the terrain
+    mapper, at the start and at the end (``surveyed``; the cells under a robot are unknown),
+    as the dome's before-and-after scans were taken.
+    """
     from ant_evolution.evaluate import ScenarioSet, advance
+    from ant_evolution.perception_bench import laser_survey
+    from terrain_mapper.metrics import field_metrics
 
     world = ScenarioSet.create(blueprint, robots, 1, steps, seed).world(0)
+    rng = np.random.default_rng(seed)
+    cell, unit = blueprint.cell_size, blueprint.height_unit
+    before = laser_survey(world.heights, world.robots, cell, unit, rng) if survey else None
     start = world.fitness()
     trace = np.zeros(steps)
     advance(world, ctl, steps, trace)
-    return {"trace": [start, *map(float, trace)], "heights": world.heights.tolist()}
+    out = {"trace": [start, *map(float, trace)], "heights": world.heights.tolist()}
+    if survey:
+        after = laser_survey(world.heights, world.robots, cell, unit, rng)
+        m = field_metrics(before, after, blueprint.zones, blueprint.goal * unit, unit / 4)
+        out["surveyed"] = m.as_dict()
+    return out
 
 
 def grid_heights_at(ctl, blueprint, robots: int, tick: int, seed: int) -> np.ndarray:
@@ -222,10 +237,11 @@ def run(setup: Setup, progress: bool = True) -> Path:
     jobs = [("grid", n, s) for n in plan.robots for s in range(plan.grid_seeds)]
     jobs += [("continuous", n, s) for n in plan.robots for s in range(plan.continuous_seeds)]
     trials: dict = {}
+    survey = setup.name == "field"
 
     def one(sim: str, n: int, seed: int) -> dict:
         if sim == "grid":
-            return grid_trial(ctl, blueprint, n, plan.steps, seed)
+            return grid_trial(ctl, blueprint, n, plan.steps, seed, survey=survey)
         return continuous_trial(
             setup.genome, spec, n, plan.steps, seed, setup.perception, setup.domain
         )
@@ -235,6 +251,8 @@ def run(setup: Setup, progress: bool = True) -> Path:
             bar.set_postfix(sim=sim, robots=n, seed=seed)
             key = {"genome": genome_key, "blueprint": blueprint.to_yaml(), "robots": n,
                    "steps": plan.steps, "seed": seed, "perception": setup.perception}  # fmt: skip
+            if sim == "grid" and survey:
+                key["survey"] = "laser"
             path = d / "trials" / f"{sim}-n{n}-s{seed}.json"
             trials[sim, n, seed] = _cached(
                 path, key, lambda sim=sim, n=n, seed=seed: one(sim, n, seed)
@@ -315,11 +333,14 @@ def write_outputs(setup: Setup, blueprint, ctl, trials: dict) -> None:
             )
     write_csv(d / f"{setup.name.replace('-', '_')}_summary.csv", summary)
     extras = _continuous_extras(trials)
-    peaks = _peak_metrics(setup, blueprint, ctl, summary) if setup.name == "landing-pad" else {}
     _figure(setup, trials)
-    text = (_landing_section if setup.name == "landing-pad" else _field_section)(
-        setup, summary, extras, peaks
-    )
+    if setup.name == "landing-pad":
+        text = _landing_section(
+            setup, summary, extras, _peak_metrics(setup, blueprint, ctl, summary)
+        )
+    else:
+        surveyed = [t["surveyed"] for (sim, _, _), t in sorted(trials.items()) if "surveyed" in t]
+        text = _field_section(setup, summary, extras, surveyed)
     write_text_atomic(d / "section.md", text.rstrip() + "\n")
     write_text_atomic(
         d / "scale.json",
@@ -470,7 +491,7 @@ Continuous trials:
 """
 
 
-def _field_section(setup: Setup, summary, extras, peaks) -> str:
+def _field_section(setup: Setup, summary, extras, surveyed: list[dict]) -> str:
     p = setup.plan
     lines = [
         "| | towards the goal depth (right) | above the goal (wrong) | below the goal | "
@@ -481,10 +502,17 @@ def _field_section(setup: Setup, summary, extras, peaks) -> str:
     ]
     for r in summary:
         lines.append(
-            f"| {r['simulator']}, {r['trials']} trials, tick {p.steps} | "
+            f"| {r['simulator']} (n = {r['trials']}), tick {p.steps} | "
             f"{_pct(r['final_towards_goal'])} | {_pct(r['final_above_goal'])} | "
             f"{_pct(r['final_below_goal'])} | {_pct(r['final_indeterminate'])} | "
             f"{_pct(r['final_dump_share'])} |"
+        )
+    if surveyed:
+        m = _mean_metrics(surveyed)
+        lines.append(
+            f"| grid (n = {len(surveyed)}), tick {p.steps}, overhead-laser sweeps at the start "
+            f"and the end | {_pct(m['towards_goal'])} | {_pct(m['above_goal'])} | "
+            f"{_pct(m['below_goal'])} | {_pct(m['indeterminate'])} | {_pct(m['dump_share'])} |"
         )
     extra = "\n".join(f"* {_extras_line(extras, n)}" for n in p.robots if n in extras)
     return f"""### Field: 2 robots, grid against continuous motion with full perception
