@@ -340,7 +340,9 @@ def write_outputs(setup: Setup, blueprint, ctl, trials: dict) -> None:
         )
     else:
         surveyed = [t["surveyed"] for (sim, _, _), t in sorted(trials.items()) if "surveyed" in t]
-        text = _field_section(setup, summary, extras, surveyed)
+        over_time = _metrics_over_time(setup, blueprint, ctl)
+        write_csv(d / "field_metrics_over_time.csv", over_time)
+        text = _field_section(setup, summary, extras, surveyed, over_time)
     write_text_atomic(d / "section.md", text.rstrip() + "\n")
     write_text_atomic(
         d / "scale.json",
@@ -367,6 +369,21 @@ def _peak_metrics(setup: Setup, blueprint, ctl, summary: list[dict]) -> dict:
         ]
         out[n] = _mean_metrics(ms)
     return out
+
+
+def _metrics_over_time(setup: Setup, blueprint, ctl) -> list[dict]:
+    """The grid trials' field metrics (mean over seeds) at nine ticks of the span."""
+    p, rows = setup.plan, []
+    for n in p.robots:
+        for share in (0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.75, 1.0):
+            tick = max(1, round(p.steps * share))
+            ms = [
+                _metrics(blueprint, grid_heights_at(ctl, blueprint, n, tick, s))
+                for s in range(p.grid_seeds)
+            ]
+            mean = _mean_metrics(ms)
+            rows.append({"robots": n, "tick": tick, **{k: round(v, 6) for k, v in mean.items()}})
+    return rows
 
 
 def _continuous_extras(trials: dict) -> dict:
@@ -424,7 +441,8 @@ def _extras_line(extras: dict, n: int) -> str:
     if not e:
         return ""
     return (
-        f"{n} robots: {statistics.mean(e['aborted']):.0f} primitives aborted per trial, stuck "
+        f"{n} robot{'s' if n > 1 else ''}: {statistics.mean(e['aborted']):.0f} primitives "
+        "aborted per trial, stuck "
         f"in {_pct(statistics.mean(e['stuck']))} of robot-ticks, "
         f"{statistics.mean(e['sim']):.1f} s of sim time and {statistics.mean(e['wall']):.2f} s "
         f"of wall time per tick, {e['missed']} missed or late words"
@@ -491,7 +509,9 @@ Continuous trials:
 """
 
 
-def _field_section(setup: Setup, summary, extras, surveyed: list[dict]) -> str:
+def _field_section(
+    setup: Setup, summary, extras, surveyed: list[dict], over_time: list[dict]
+) -> str:
     p = setup.plan
     lines = [
         "| | towards the goal depth (right) | above the goal (wrong) | below the goal | "
@@ -515,6 +535,15 @@ def _field_section(setup: Setup, summary, extras, surveyed: list[dict]) -> str:
             f"{_pct(m['below_goal'])} | {_pct(m['indeterminate'])} | {_pct(m['dump_share'])} |"
         )
     extra = "\n".join(f"* {_extras_line(extras, n)}" for n in p.robots if n in extras)
+    time_lines = [
+        "| robots | tick | towards the goal | above | below | deposited soil in dump zones |",
+        "|---:|---:|---:|---:|---:|---:|",
+    ]
+    time_lines += [
+        f"| {r['robots']} | {r['tick']} | {_pct(r['towards_goal'])} | {_pct(r['above_goal'])} | "
+        f"{_pct(r['below_goal'])} | {_pct(r['dump_share'])} |"
+        for r in over_time
+    ]
     return f"""### Field: 2 robots, grid against continuous motion with full perception
 
 `genomes/best.json` (the 4-robot controller) with 2 robots on the training blueprint at
@@ -529,6 +558,11 @@ Field metrics of the dig cells at the end (true heights against the flat start; 
 quarter of a soil unit):
 
 {chr(10).join(lines)}
+
+The grid trials' field metrics over the span (true heights, mean over the
+{p.grid_seeds} trials):
+
+{chr(10).join(time_lines)}
 
 Continuous trials:
 
