@@ -402,31 +402,41 @@ def _continuous_extras(trials: dict) -> dict:
 
 
 def _figure(setup: Setup, trials: dict) -> None:
+    """Left: the grid over all its scenarios; right: both simulators on the shared ones."""
     from ant_evolution.experiments.core import pyplot
 
     plan = setup.plan
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 4.2), dpi=100)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2), dpi=100, sharey=True)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     ticks = np.arange(plan.steps + 1)
+    paired = range(plan.continuous_seeds)
     for i, n in enumerate(plan.robots):
         col = colours[i % len(colours)]
         label = f"{n} robot{'s' if n > 1 else ''}"
         g = _curves(trials, "grid", n, range(plan.grid_seeds))
-        ax.plot(ticks, g.mean(0), color=col, ls="--", lw=1.2,
-                label=f"{label}, grid ({plan.grid_seeds})")  # fmt: skip
+        m, sd = g.mean(0), g.std(0)
+        left.plot(ticks, m, color=col, lw=1.5, label=label)
+        left.fill_between(ticks, m - sd, m + sd, color=col, alpha=0.08)
         if plan.continuous_seeds:
-            c = _curves(trials, "continuous", n, range(plan.continuous_seeds))
-            ax.plot(ticks, c.mean(0), color=col, lw=1.8,
-                    label=f"{label}, continuous ({plan.continuous_seeds})")  # fmt: skip
-    ax.set(xlabel="timestep (tick)", ylabel="fitness (mean over trials)", ylim=(0, 1.02))
+            c = _curves(trials, "continuous", n, paired)
+            right.plot(ticks, c.mean(0), color=col, lw=3.0, alpha=0.45,
+                       label=f"{label}, continuous")  # fmt: skip
+            right.plot(ticks, _curves(trials, "grid", n, paired).mean(0), color=col, lw=1.0,
+                       ls="--", label=f"{label}, grid")  # fmt: skip
     what = "full perception" if setup.perception == "full" else "truth poses and heights"
-    ax.set_title(
-        f"{setup.name}: grid (dashed) against continuous motion, default slip and noise, {what}",
+    left.set_title(f"grid simulator, mean +- std of {plan.grid_seeds} scenarios", fontsize=9)
+    right.set_title(
+        f"its first {plan.continuous_seeds}: continuous motion (thick) and grid (dashed)\n"
+        f"continuous: default slip and noise, {what}",
         fontsize=8,
     )
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
+    left.set_ylabel("fitness")
+    for ax in (left, right):
+        ax.set(xlabel="timestep (tick)", ylim=(0, 1.02))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"{setup.name}: genome {Path(setup.genome).name}", fontsize=9)
     fig.tight_layout()
     fig.savefig(setup.dir / f"{setup.name.replace('-', '_')}.png")
     plt.close(fig)
@@ -468,8 +478,8 @@ def _landing_section(setup: Setup, summary, extras, peaks) -> str:
     p = setup.plan
     metric_lines = [
         "| robots | grid at its peak: towards / above / below goal | grid at the end | "
-        "continuous at the end |",
-        "|---:|---|---|---|",
+        "grid (paired) at the end | continuous at the end |",
+        "|---:|---|---|---|---|",
     ]
 
     def tab(m: dict) -> str:
@@ -478,12 +488,14 @@ def _landing_section(setup: Setup, summary, extras, peaks) -> str:
     for n in p.robots:
         g = next(r for r in summary if r["simulator"] == "grid" and r["robots"] == n)
         c = next((r for r in summary if r["simulator"] == "continuous" and r["robots"] == n), None)
+        gp = next(r for r in summary if r["simulator"] == "grid (paired)" and r["robots"] == n)
 
         def final(r: dict) -> dict:
             return {k: r[f"final_{k}"] for k in ("towards_goal", "above_goal", "below_goal")}
 
         metric_lines.append(
-            f"| {n} | {tab(peaks[n])} | {tab(final(g))} | {tab(final(c)) if c else 'n/a'} |"
+            f"| {n} | {tab(peaks[n])} | {tab(final(g))} | {tab(final(gp)) if c else 'n/a'} | "
+            f"{tab(final(c)) if c else 'n/a'} |"
         )
     extra = "\n".join(f"* {_extras_line(extras, n)}" for n in p.robots if n in extras)
     return f"""### Landing pad: grid against continuous motion (1-{max(p.robots)} robots)
