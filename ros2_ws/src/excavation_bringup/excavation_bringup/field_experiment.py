@@ -74,10 +74,10 @@ class Plan:
 
 PLANS = {
     # The paper's spans: the pad's peak near 200 timesteps and the "gradual drop" after it
-    # (600 ticks, three times the peak); the dome run lasted 5 hours, about 2,000 ticks of the
-    # dome robots (8.7 s of sim time per tick, docs/benchmarks.md).
-    ("landing-pad", "tested"): Plan((1, 2, 3, 4), 600, 20, 2, 5),
-    ("field", "tested"): Plan((2,), 2000, 20, 2, 10),
+    # (600 ticks, three times the peak); the dome run lasted 5 hours: 3,700 ticks of two
+    # continuous-motion robots (4.9 s of sim time per tick, measured in this experiment).
+    ("landing-pad", "tested"): Plan((1, 2, 3, 4), 600, 20, 4, 5),
+    ("field", "tested"): Plan((2,), 3700, 20, 2, 20),
     ("landing-pad", "quick"): Plan((1, 2), 20, 2, 1, 5),
     ("field", "quick"): Plan((2,), 20, 2, 1, 5),
 }
@@ -90,7 +90,7 @@ def landing_pad_site():
     9 x 10 cells 2 units deep, a ramp of 4 x 5 cells 1 unit deep, a 1-cell dump band
     (17 x 14 cells), the size of the 8 x 8 training pit and its goal depths. The paper's
     default reading (0.5 m cells, 0.25 m units: 18 x 21 cells, 8 units deep) leaves the
-    4-robot controller at fitness below 0.03 after 1,000 steps. The cells are then built on
+    4-robot controller below fitness 0.03 after 1,000 steps (docs/experiments.md). The cells are then built on
     the dome's 0.25 m cells and 0.25 m units, so the continuous-motion robots drive the
     cells they are tuned for (docs/field.md): a quarter-scale pad.
     """
