@@ -88,10 +88,11 @@ def landing_pad_site():
 
     :func:`blueprint_server.blueprint.landing_pad` on 1 m cells with 1 m soil units: a pad of
     9 x 10 cells 2 units deep, a ramp of 4 x 5 cells 1 unit deep, a 1-cell dump band
-    (17 x 14 cells), the size of the 8 x 8 training pit and its goal depths. The paper's
-    default reading (0.5 m cells, 0.25 m units: 18 x 21 cells, 8 units deep) leaves the
-    4-robot controller below fitness 0.03 after 1,000 steps (docs/experiments.md). The cells are then built on
-    the dome's 0.25 m cells and 0.25 m units, so the continuous-motion robots drive the
+    (17 x 14 cells), the size of the 8 x 8 training pit and its goal depths. The suite's
+    default pad (``resolve_blueprint("landing-pad")``: 0.5 m cells, 0.25 m units, 18 x 21
+    cells 8 units deep) leaves the 4-robot controller below fitness 0.03 after 1,000 steps
+    (docs/experiments.md). The cells are then built on the dome's 0.25 m cells and 0.25 m
+    units, so the continuous-motion robots drive the
     cells they are tuned for (docs/field.md): a quarter-scale pad.
     """
     from blueprint_server.blueprint import Blueprint, landing_pad
