@@ -344,6 +344,7 @@ def write_outputs(setup: Setup, blueprint, ctl, trials: dict) -> None:
         over_time = _metrics_over_time(setup, blueprint, ctl)
         write_csv(d / "field_metrics_over_time.csv", over_time)
         text = _field_section(setup, summary, extras, surveyed, over_time)
+    text = text.replace("Continuous trials:\n", f"Continuous trials: {_parity(trials)}\n", 1)
     write_text_atomic(d / "section.md", text.rstrip() + "\n")
     write_text_atomic(
         d / "scale.json",
@@ -385,6 +386,32 @@ def _metrics_over_time(setup: Setup, blueprint, ctl) -> list[dict]:
             mean = _mean_metrics(ms)
             rows.append({"robots": n, "tick": tick, **{k: round(v, 6) for k, v in mean.items()}})
     return rows
+
+
+def _parity(trials: dict) -> str:
+    """How many continuous trials ran tick for tick as their grid trial; where the rest left it."""
+    same, other = 0, []
+    for (sim, n, seed), t in sorted(trials.items()):
+        if sim != "continuous":
+            continue
+        grid = trials["grid", n, seed]
+        g = grid["trace"]
+        if t["trace"] == g and t["heights"] == grid["heights"]:
+            same += 1
+            continue
+        first = next(
+            (i for i, (a, b) in enumerate(zip(t["trace"], g, strict=True)) if a != b), len(g) - 1
+        )
+        other.append(
+            f"{n} robot{'s' if n > 1 else ''} seed {seed}: from tick {first} on (final "
+            f"{t['trace'][-1]:.3f} against {g[-1]:.3f})"
+        )
+    total = same + len(other)
+    text = (
+        f"{same} of {total} continuous trials had the grid trial's fitness at every tick "
+        "and its final height map"
+    )
+    return text + (f"; the others differ {'; '.join(other)}." if other else ".")
 
 
 def _continuous_extras(trials: dict) -> dict:
