@@ -94,3 +94,22 @@ def test_more_continuous_than_grid_seeds_is_refused(tmp_path, capsys):
         main(["field", "--grid-seeds", "1", "--continuous-seeds", "2", "--out", str(tmp_path)])
     assert exc.value.code == 2
     assert "--continuous-seeds" in capsys.readouterr().err
+
+
+def test_laser_survey_sees_the_ground_but_not_under_the_robots():
+    from ant_evolution.evaluate import ScenarioSet
+    from ant_evolution.perception_bench import laser_survey
+    from blueprint_server.blueprint import default_blueprint
+    from excavation_sim.world import COL, ROW
+
+    bp = default_blueprint(2)
+    world = ScenarioSet.create(bp, 2, 1, 10, 4).world(0)
+    world.heights[3, 3] = -2
+    cell, unit = bp.cell_size, bp.height_unit
+    surveyed = laser_survey(world.heights, world.robots, cell, unit, np.random.default_rng(0))
+    assert surveyed.shape == bp.shape
+    seen = np.isfinite(surveyed)
+    for r, c in world.robots[:, [ROW, COL]]:
+        assert not seen[r : r + 2, c : c + 2].any()  # a robot's footprint hides the ground
+    assert seen.mean() > 0.8
+    assert np.allclose(surveyed[seen], (world.heights * unit)[seen], atol=unit / 4)

@@ -346,9 +346,12 @@ def write_outputs(setup: Setup, blueprint, ctl, trials: dict) -> None:
         text = _field_section(setup, summary, extras, surveyed, over_time)
     text = text.replace("Continuous trials:\n", f"Continuous trials: {_parity(trials)}\n", 1)
     write_text_atomic(d / "section.md", text.rstrip() + "\n")
+    plan_dict = asdict(plan)
+    if setup.name != "field":
+        del plan_dict["depth"]  # the pad has its own depths
     write_text_atomic(
         d / "scale.json",
-        json.dumps({"scale": setup.scale, **asdict(setup.plan), "genome": setup.genome,
+        json.dumps({"scale": setup.scale, **plan_dict, "genome": setup.genome,
                     "blueprint": blueprint.name, "perception": setup.perception}, indent=1),
     )  # fmt: skip
 
