@@ -47,6 +47,8 @@ from excavation_common.limits import int_in
 
 GENOME = Path("genomes/best.json")
 NAMES = ("landing-pad", "field")
+SOLVED = 0.95
+"""The fitness a trial counts as done at (``ticks_to_095``: its first tick at or above)."""
 PAPER_FIELD = {"towards_goal": 0.72, "above_goal": 0.24, "indeterminate": 0.04}
 """The paper's field-experiment metrics table (2 robots, 5 hours in the dome)."""
 
@@ -319,6 +321,7 @@ def write_outputs(setup: Setup, blueprint, ctl, trials: dict) -> None:
             mean = c.mean(0)
             peak = int(np.argmax(mean))
             final = _metrics_rows(blueprint, trials, sim, n, seeds)
+            reach = [int(np.argmax(t >= SOLVED)) for t in c if (t >= SOLVED).any()]
             summary.append(
                 {
                     "simulator": sim,
@@ -329,6 +332,8 @@ def write_outputs(setup: Setup, blueprint, ctl, trials: dict) -> None:
                     "final_fitness": round(float(mean[-1]), 6),
                     "final_std": round(float(c[:, -1].std()), 6),
                     "drop_after_peak": round(float(mean[peak] - mean[-1]), 6),
+                    "reached_095": len(reach),
+                    "ticks_to_095_median": float(np.median(reach)) if reach else float("nan"),
                     **{f"final_{k}": round(v, 6) for k, v in final.items()},
                 }
             )
@@ -449,16 +454,24 @@ def _figure(setup: Setup, trials: dict) -> None:
         m, sd = g.mean(0), g.std(0)
         left.plot(ticks, m, color=col, lw=1.5, label=label)
         left.fill_between(ticks, m - sd, m + sd, color=col, alpha=0.08)
-        if plan.continuous_seeds:
-            c = _curves(trials, "continuous", n, paired)
+        if not plan.continuous_seeds:
+            continue
+        c, g = _curves(trials, "continuous", n, paired), _curves(trials, "grid", n, paired)
+        if len(plan.robots) == 1:  # one robot count: every trial, a colour per scenario
+            for k in paired:
+                colour = colours[k % len(colours)]
+                right.plot(ticks, c[k], color=colour, lw=3.0, alpha=0.45,
+                           label=f"seed {k}, continuous")  # fmt: skip
+                right.plot(ticks, g[k], color=colour, lw=1.0, ls="--", label=f"seed {k}, grid")
+        else:
             right.plot(ticks, c.mean(0), color=col, lw=3.0, alpha=0.45,
                        label=f"{label}, continuous")  # fmt: skip
-            right.plot(ticks, _curves(trials, "grid", n, paired).mean(0), color=col, lw=1.0,
-                       ls="--", label=f"{label}, grid")  # fmt: skip
+            right.plot(ticks, g.mean(0), color=col, lw=1.0, ls="--", label=f"{label}, grid")
     what = "full perception" if setup.perception == "full" else "truth poses and heights"
     left.set_title(f"grid simulator, mean +- std of {plan.grid_seeds} scenarios", fontsize=9)
     right.set_title(
-        f"its first {plan.continuous_seeds}: continuous motion (thick) and grid (dashed)\n"
+        f"{'each' if len(plan.robots) == 1 else 'mean'} of its first {plan.continuous_seeds}: "
+        "continuous motion (thick) and grid (dashed)\n"
         f"continuous: default slip and noise, {what}",
         fontsize=8,
     )
@@ -492,15 +505,17 @@ def _extras_line(extras: dict, n: int) -> str:
 
 def _summary_table(summary: list[dict]) -> str:
     lines = [
-        "| robots | simulator | trials | peak tick | peak fitness | final fitness (mean +- std) "
-        "| drop after the peak |",
-        "|---:|---|---:|---:|---:|---:|---:|",
+        "| robots | simulator | trials | peak tick (mean curve) | peak fitness | final fitness "
+        f"(mean +- std) | drop after the peak | trials reaching {SOLVED} | ticks to {SOLVED} "
+        "(median) |",
+        "|---:|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in summary:
+        t = r["ticks_to_095_median"]
         lines.append(
             f"| {r['robots']} | {r['simulator']} | {r['trials']} | {r['peak_tick']} | "
             f"{r['peak_fitness']:.3f} | {r['final_fitness']:.3f} +- {r['final_std']:.3f} | "
-            f"{r['drop_after_peak']:.3f} |"
+            f"{r['drop_after_peak']:.3f} | {r['reached_095']} | {'-' if t != t else f'{t:.0f}'} |"
         )
     return "\n".join(lines)
 
