@@ -308,7 +308,7 @@ def write_outputs(setup: Setup, blueprint, ctl, trials: dict) -> None:
     plan, d = setup.plan, setup.dir
     rows = []
     for (sim, n, seed), t in sorted(trials.items()):
-        for tick in range(0, plan.steps + 1, plan.every):
+        for tick in sorted({*range(0, plan.steps + 1, plan.every), plan.steps}):
             rows.append({"simulator": sim, "robots": n, "seed": seed, "tick": tick,
                          "fitness": round(t["trace"][tick], 6)})  # fmt: skip
     write_csv(d / f"{setup.name.replace('-', '_')}.csv", rows)
