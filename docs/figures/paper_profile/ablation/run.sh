@@ -1,6 +1,6 @@
 #!/bin/bash
 # Which paper-profile switch keeps the tested-scale ANT population on the idle plateau?
-cd "${1:-runs/ablation}"
+mkdir -p "${1:-runs/ablation}" && cd "${1:-runs/ablation}"  # run with the .venv activated
 B=ant-evolve
 V1=$(python -c "from ant_evolution.profiles import PROFILES as P; print(' '.join(f'{k}={v}' for k,v in P['v1'].items() if P['paper'][k]!=v))")
 for seed in 1000 1001 1002; do
