@@ -205,3 +205,32 @@ def test_backoff_doubles_up_to_the_maximum_and_resets():
     assert b.due(0.0) and b.failed(10.0) == 0.5
     with pytest.raises(ValueError):
         Backoff(2.0, 1.0)
+
+
+def test_time_going_back_restarts_the_core_like_a_fresh_one():
+    """A restarted simulator (time back to 0): the old setting, set-point and override go."""
+    core = BladeDriverCore(DriverParams(override_timeout=30.0))
+    core.command(word(BLADE_BELOW_CMD, MOVE_FORWARD), 0.0)
+    for t in range(1, 13):
+        core.command(word(BLADE_BELOW_CMD, MOVE_FORWARD), float(t))
+        core.update(float(t), 7.0)
+    core.override(0.05, 12.0)  # an operator set-point, valid until t = 42 on the old clock
+    assert core.update(12.0, 7.0) != pytest.approx(0.10)
+    assert not core.went_back(12.0) and core.went_back(0.0)
+    fresh = BladeDriverCore(DriverParams(override_timeout=30.0))
+    for t, w in enumerate((word(BLADE_LEVEL_CMD), word(MOVE_FORWARD), 0)):
+        core.command(w, float(t))
+        fresh.command(w, float(t))
+        assert core.update(float(t), 2.0) == fresh.update(float(t), 2.0)
+        assert core.state == fresh.state
+    assert core.restarts == 1 and core.state.override is None
+    assert core.update(2.0, 2.0) == pytest.approx(0.0)  # level, no old override, no ramp
+
+
+def test_update_with_an_earlier_time_homes_without_a_command():
+    """Wall clock set back on hardware: no word yet in the new time, so the blade goes home."""
+    core = BladeDriverCore()
+    core.command(word(BLADE_BELOW_CMD), 100.0)
+    assert core.update(100.0, 0.0) == pytest.approx(-0.02)
+    assert core.update(50.0, 0.0) == pytest.approx(0.10)  # restart: home, no rate limit
+    assert core.state.source == "no command yet" and core.restarts == 1

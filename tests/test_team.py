@@ -81,3 +81,18 @@ def test_stamps_not_arrival_order_decide():
         for k in (3, 1, 0, 2):
             team.on_pose(k, float(t))
             assert all(team.enabled(j) for j in range(4))
+
+
+def test_clock_going_back_restarts_the_stamps():
+    """A restarted simulator: stamps from 0 again. The policy follows the new clock at once."""
+    team = Team(2, lost_timeout=1.5, lost_grace=2.0)
+    for t in range(40):
+        feed(team, float(t), [0, 1])
+    assert team.enable(0, False).success  # the operator disables robot 0
+    for t in range(5):  # the new trial: both seen, robot 1 is not disabled by the old stamps
+        feed(team, float(t), [0, 1])
+        assert team.enabled(1) and team.pose_age(1) == 0.0
+    for t in range(5, 9):  # robot 1 unseen in the new time: lost after 1.5 s, not 35 s
+        feed(team, float(t), [0])
+    assert team.members[1].lost and team.members[1].disabled_reason == "lost"
+    assert not team.enabled(0) and team.members[0].disabled_reason == "operator"

@@ -38,7 +38,12 @@ Backends (parameter ``backend``):
   ``override_timeout`` of sim time), so every tick of a streamed override gets it. While the
   gate is closed the driver sends home with ``frame_id`` :data:`~excavation_common.safety.HELD`
   instead and leaves its core untouched; when the gate opens it sends the tick's own
-  set-point, so a paused lockstep trial ends as an unpaused one does.
+  set-point, so a paused lockstep trial ends as an unpaused one does. A tick stamped before
+  the last one (the simulator restarted: its time went back) is a new trial: the driver
+  drops the old set-point, word and override and its core starts afresh (blade home).
+
+On either backend the core restarts when the time it is given goes back
+(:meth:`~blade_driver.core.BladeDriverCore.restart`; ``clock_restarts`` on ``/diagnostics``).
 """
 
 from __future__ import annotations
@@ -304,9 +309,24 @@ class BladeDriverNode(LifecycleNode):
             self.publish_diagnostics()
             return
         self.errors.pop(topic, None)
+        if self.tick_stamp is not None and _seconds(msg.header.stamp) < _seconds(self.tick_stamp):
+            self.restart(msg.header.stamp)
         self.tick_stamp = msg.header.stamp
         self.joint_pub.publish(joint_state(self.position, self.force, msg.header.stamp))
         self.send_sim_setpoint()
+
+    def restart(self, stamp: TimeMsg) -> None:
+        """Sim backend: the simulator's time went back (it restarted): a new trial.
+
+        The set-point, the controller's word and any operator set-point of the old trial are
+        dropped and the core starts afresh (blade home, as at start).
+        """
+        self.get_logger().warning(
+            f"sim time went back ({_seconds(self.tick_stamp):.3f} s -> {_seconds(stamp):.3f} s):"
+            " a new trial; set-point dropped, blade home"
+        )
+        self.core.restart()
+        self.word_tick = self.open_setpoint = self.pending_override = self.last_sent = None
 
     def send_sim_setpoint(self) -> None:
         """Sim backend: the current tick's set-point, if it is due and not yet sent.
@@ -420,6 +440,7 @@ class BladeDriverNode(LifecycleNode):
             "force": "unknown" if self.force is None else f"{self.force:.3f}",
             "commands": self.commands,
             "override_clipped": s.clipped,
+            "clock_restarts": self.core.restarts,
         }
         if p.backend == "serial":
             values |= {

@@ -21,7 +21,10 @@ its own MotionGate and makes it absent to the other robots' controllers); seen a
 within ``lost_grace`` it rejoins by itself; lost for longer, it is disabled and rejoins only
 when it is seen again and the operator enables it. Stamps, not arrival times, make the rule
 independent of how loaded the machine is, and in a lockstep trial (one pose per tick,
-stamped with sim time) the same in every run.
+stamped with sim time) the same in every run. A robot's pose stamped more than
+``lost_timeout`` before its own newest means the clock went back (a restarted simulator):
+the stamps are forgotten and counted afresh (:meth:`Team.restart_stamps`), so the policy
+follows the new clock instead of waiting for it to catch up with the old one.
 """
 
 from __future__ import annotations
@@ -182,6 +185,8 @@ class Team:
         """A pose of robot ``k`` stamped ``stamp`` (s) arrived."""
         self._check(k)
         member = self.members[k]
+        if member.last_stamp is not None and stamp < member.last_stamp - self.lost_timeout:
+            self.restart_stamps()
         if member.last_stamp is None or stamp > member.last_stamp:
             member.last_stamp = stamp
         if self._first_stamp is None:
@@ -189,6 +194,16 @@ class Team:
         if self._newest_stamp is None or stamp > self._newest_stamp:
             self._newest_stamp = stamp
         self.update_lost()
+
+    def restart_stamps(self) -> None:
+        """Forget every pose stamp (the clock went back): no robot is lost until counted anew.
+
+        The operator's disables stay, and so does a disable by the policy (the robot rejoins
+        only when the operator enables it).
+        """
+        for member in self.members:
+            member.last_stamp, member.lost = None, False
+        self._first_stamp = self._newest_stamp = None
 
     def pose_age(self, k: int) -> float:
         """Seconds (stamps) robot ``k``'s newest pose lags the team's newest (0: none yet)."""
