@@ -437,7 +437,7 @@ def test_evolve_killed_during_checkpoint_writes(tmp_path):
 # parameters (its restart). ``run_continuous(..., fault=...)`` calls the fault between spins.
 
 
-MOTION_LIMIT = 5.0
+MOTION_LIMIT = 15.0
 
 
 class ComposedFault:
@@ -455,17 +455,20 @@ class ComposedFault:
         self.restarted: int | None = None
         self.parameters = None
         self.wheels: list[tuple[int, float]] = []  # while dead: (sim ns, |cmd_vel| of robot)
+        self.dead = None
+        self.dead_for = 0
 
     def __call__(self, nodes, executor) -> None:
         from excavation_bringup.team_tick_node import TeamTickNode
         from excavation_sim.dynamics_node import DynamicsNode
 
         team_tick = next(n for n in nodes if isinstance(n, TeamTickNode))
-        if team_tick.core.params.motion_limit != MOTION_LIMIT:
-            # The tick leaves a robot out after motion_limit s of sim time (120 by default);
-            # with a dead executor the clock crawls, so the row waits 5 s to fit the suite.
-            team_tick.core.params = replace(team_tick.core.params, motion_limit=MOTION_LIMIT)
         tick = team_tick.core.tick
+        if self.dead is not None:
+            self.dead_for += 1
+            if self.dead_for > 20:  # destroyed once the events queued for it have run
+                self.dead.destroy_node()
+                self.dead = None
         if self.killed is not None and self.restarted is None:
             dynamics = next(n for n in nodes if isinstance(n, DynamicsNode))
             robot = int(self.namespace.rsplit("_", 1)[1])
@@ -477,8 +480,11 @@ class ComposedFault:
             self.context = old.context
             executor.remove_node(old)
             nodes.remove(old)
-            old.destroy_node()
+            self.dead = old
             self.killed = tick
+            # The tick leaves a robot out after motion_limit s of sim time (120 by default);
+            # the row waits 15 s (a primitive takes a few) to fit the suite.
+            team_tick.core.params = replace(team_tick.core.params, motion_limit=MOTION_LIMIT)
         elif self.killed is not None and self.restarted is None and tick >= self.killed + self.down:
             self.restarted = tick
             node = self.make(self, list(self.parameters.values()))
