@@ -553,3 +553,73 @@ def test_drive_executor_killed_and_restarted():
     assert after and max(after) == 0.0  # its wheels stopped (cmd_vel timeout 0.5 s)
     words = np.array(result.commands)
     assert words[fault.restarted + 1 :, 1].any()  # robot 1's controller kept deciding
+
+
+class TeamTickRestarted(Exception):
+    """The restarted team tick ran its ticks: the trial ends here (carries that node)."""
+
+    def __init__(self, node) -> None:
+        super().__init__("restarted team tick finished")
+        self.node = node
+
+
+def test_team_tick_killed_and_restarted():
+    """The team tick dies: no snapshot, no goals, every robot stands once its primitive ends;
+    the restarted tick begins again at tick 0 on the site as it is (a new trial)."""
+    from rclpy.parameter import Parameter
+
+    from excavation_bringup.team_tick import Phase
+    from excavation_bringup.team_tick_node import TeamTickNode
+    from excavation_sim.dynamics_node import DynamicsNode
+
+    steps = 8
+    state = {"restarted": None, "speeds": []}
+
+    def make(fault, parameters):
+        node = TeamTickNode(
+            context=fault.context,
+            parameter_overrides=[Parameter(p.name, value=p.value) for p in parameters],
+        )
+        state["restarted"] = node
+        return node
+
+    class TickFault(ComposedFault):
+        def __call__(self, nodes, executor) -> None:
+            new = state["restarted"]
+            if new is not None:
+                if new.core.phase is Phase.FINISHED:
+                    raise TeamTickRestarted(new)
+                return
+            dynamics = next(n for n in nodes if isinstance(n, DynamicsNode))
+            if self.killed is None:
+                if next(n for n in nodes if isinstance(n, TeamTickNode)).core.tick >= self.at:
+                    old = self.find(nodes)
+                    self.parameters = old.get_parameters_by_prefix("")
+                    self.context = old.context
+                    executor.remove_node(old)
+                    nodes.remove(old)
+                    self.dead, self.killed = old, dynamics.now_ns
+                return
+            self.dead_for += 1
+            if self.dead is not None and self.dead_for > 20:
+                self.dead.destroy_node()
+                self.dead = None
+            state["speeds"].append((dynamics.now_ns, float(np.abs(dynamics.sim.commands).sum())))
+            if dynamics.now_ns - self.killed > 20e9:  # 20 s of sim time without a team tick
+                node = make(self, list(self.parameters.values()))
+                nodes.append(node)
+                executor.add_node(node)
+
+    fault = TickFault("team_tick", "/", at=3, down=0, make=None)
+    with pytest.raises(TeamTickRestarted) as done:
+        continuous_trial(steps, 3, fault)
+    new = done.value.node
+    speeds = state["speeds"]
+    standing = [s for ns, s in speeds if ns - fault.killed > 15e9]
+    print(
+        f"team tick killed, restarted after 20 s of sim time; the new one ran {new.core.tick} "
+        f"ticks, missed {new.core.missed}"
+    )
+    assert standing and max(standing) == 0.0  # every robot stood still without a team tick
+    assert len(new.core.records) == steps  # the restarted tick ran a whole trial
+    assert any(any(r.words) for r in new.core.records)  # and the robots acted in it
