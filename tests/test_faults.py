@@ -130,9 +130,11 @@ def test_supervisor_killed_and_restarted(tmp_path):
     ``ant-operator arm`` (tests/test_trial_oversight.py). A held tick keeps its words, so the
     trial ends as an undisturbed one.
     """
-    steps, seed = 30, 3
+    # Long enough that the trial cannot end before the deadman stops it (truth perception
+    # runs some 20 ticks a second, and the watcher may hear its first tick late).
+    steps, seed = 200, 3
     with FaultTrial(tmp_path, steps=steps, seed=seed) as trial:
-        trial.wait_tick(5)
+        assert trial.wait_tick(5) < steps // 2
         assert trial.kill("supervisor") == -9
         trial.wait_for(
             lambda: any("heartbeat lost" in m for m in trial.messages(SIM)),

@@ -250,8 +250,8 @@ class BladeDriverNode(LifecycleNode):
     def apply_gate(self) -> None:
         """Act at once when the gate closes (blade home) or opens (follow the controller)."""
         reason = self.gate.reason(self._wall())
-        if reason == self.hold:
-            return
+        if MotionGate.kind(reason) == MotionGate.kind(self.hold):
+            return  # the same state (a lost heartbeat's age grows: not a change)
         self.hold = reason
         if reason is not None:
             self.get_logger().warning(f"blade home: {reason}")
