@@ -234,3 +234,18 @@ def test_update_with_an_earlier_time_homes_without_a_command():
     assert core.update(100.0, 0.0) == pytest.approx(-0.02)
     assert core.update(50.0, 0.0) == pytest.approx(0.10)  # restart: home, no rate limit
     assert core.state.source == "no command yet" and core.restarts == 1
+
+
+def test_gate_reason_kind_ignores_the_growing_age():
+    """A lost heartbeat is one hold, not a new one each time its age is asked."""
+    from excavation_common.safety import MotionGate
+
+    gate = MotionGate(deadman=0.5)
+    gate.active = True
+    gate.on_enabled(True)
+    gate.on_heartbeat("armed", 0.0)
+    assert gate.reason(0.2) is None and MotionGate.kind(None) is None
+    first, later = gate.reason(1.0), gate.reason(2.0)
+    assert first != later and MotionGate.kind(first) == MotionGate.kind(later) == "heartbeat lost"
+    gate.on_heartbeat("paused", 2.0)
+    assert MotionGate.kind(gate.reason(2.1)) == "team paused"
