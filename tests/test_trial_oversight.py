@@ -114,16 +114,16 @@ class Watcher:
                     break
         return out
 
-    def resting_home(self, since: float) -> dict[int, float]:
+    def resting_home(self, since: float, deadman: float = 0.5) -> dict[int, float]:
         """Robot -> wall time its blade went home, for robots whose last set-point is home
-        (held) with none open since ``since``. (A driver sends one held set-point per tick: one
-        sent in this tick before ``since``, by a heartbeat gap on a loaded machine, is not
-        sent again.)"""
+        (held), asked once the deadman has passed since ``since`` (before that they may still
+        send open set-points). A driver sends one held set-point per tick, so one sent in
+        this tick before ``since`` (a heartbeat gap on a loaded machine) is not sent again."""
+        if time.monotonic() - since <= 2 * deadman:
+            return {}
         out = {}
         for k, msgs in self.servo.items():
             if not msgs or msgs[-1][3] != HELD:
-                continue
-            if any(w >= since and f != HELD for w, _, _, f in msgs):
                 continue
             i = len(msgs) - 1
             while i > 0 and msgs[i - 1][3] == HELD:
