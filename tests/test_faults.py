@@ -101,9 +101,11 @@ def test_simulator_killed_and_restarted(tmp_path, blade_driver):
     The controllers (and blade drivers) see every input go back in time together and follow
     the new clock (a new trial); the new run ends as an undisturbed trial would.
     """
-    steps, seed = 80, 3
+    # 300 ticks: a truth-perception trial runs some 20 ticks a second and the watcher may
+    # hear its first tick late; 80 could end before the kill.
+    steps, seed = 300, 3
     with FaultTrial(tmp_path, steps=steps, seed=seed, blade_driver=blade_driver) as trial:
-        trial.wait_tick(12)
+        assert trial.wait_tick(12) < steps - 50
         assert trial.kill("sim") == -9
         trial.wait_seconds(2.0)
         trial.restart("sim")
