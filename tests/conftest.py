@@ -17,9 +17,39 @@ _SPAN = 200 // _WORKERS
 _DOMAINS = itertools.count(os.getpid() % _SPAN)
 
 
+def _udp_ports() -> set[int]:
+    """Local UDP ports bound on this machine (``/proc/net/udp``, ``udp6``)."""
+    ports = set()
+    for name in ("/proc/net/udp", "/proc/net/udp6"):
+        try:
+            with open(name) as f:
+                lines = f.read().splitlines()[1:]
+        except OSError:
+            continue
+        ports |= {int(line.split()[1].rsplit(":", 1)[1], 16) for line in lines if line.strip()}
+    return ports
+
+
+def domain_in_use(domain: int, ports: set[int] | None = None) -> bool:
+    """Some DDS participant on this machine uses ``domain`` (another session's test, say).
+
+    RTPS gives participant p of domain d the unicast port 7410 + 250 d + 2 p; a trial has a
+    few dozen participants at most.
+    """
+    ports = _udp_ports() if ports is None else ports
+    base = 7410 + 250 * domain
+    return any(base + 2 * p in ports for p in range(64))
+
+
 def next_domain() -> int:
-    """A ROS domain id no other test of this session (or other xdist worker) uses."""
-    return 20 + _WORKER * _SPAN + next(_DOMAINS) % _SPAN
+    """A ROS domain id no other test of this session (or other xdist worker) uses, skipping
+    domains a participant on this machine already uses (engineers share the machine)."""
+    ports = _udp_ports()
+    for _ in range(_SPAN):
+        domain = 20 + _WORKER * _SPAN + next(_DOMAINS) % _SPAN
+        if not domain_in_use(domain, ports):
+            return domain
+    return domain
 
 
 @pytest.fixture

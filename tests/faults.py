@@ -235,6 +235,43 @@ class FaultTrial:
         finally:
             self.watcher.node.destroy_client(client)
 
+    def call(self, service: str, timeout: float = 60.0) -> str:
+        """Call a ``std_srvs/Trigger`` service (e.g. ``/supervisor/pause``); its message.
+
+        Raises:
+            RuntimeError: The service is not there, does not answer, or refuses.
+        """
+        from std_srvs.srv import Trigger
+
+        client = self.watcher.node.create_client(Trigger, service)
+        try:
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise RuntimeError(f"{service} is not available")
+            future = client.call_async(Trigger.Request())
+            deadline = time.monotonic() + timeout
+            while not future.done() and time.monotonic() < deadline:
+                time.sleep(0.02)
+            if not future.done():
+                raise RuntimeError(f"{service} did not answer")
+            if not future.result().success:
+                raise RuntimeError(f"{service} refused: {future.result().message}")
+            return future.result().message
+        finally:
+            self.watcher.node.destroy_client(client)
+
+    def wait_for(self, condition, timeout: float = 240.0, what: str = "condition") -> None:
+        """Wait until ``condition()`` holds, checking the nodes.
+
+        Raises:
+            TimeoutError: Not within ``timeout`` s.
+        """
+        deadline = time.monotonic() + timeout
+        while not condition():
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{what}: not within {timeout} s (at tick {self.tick})")
+            self.processes.check()
+            time.sleep(0.05)
+
     def statuses(self, name: str, since_tick: int = -1) -> list[Status]:
         """The ``/diagnostics`` statuses of ``name`` (exact), heard at tick >= ``since_tick``."""
         with self.watcher.lock:

@@ -238,3 +238,47 @@ def test_after_drive_holds_repeated_words_of_one_tick_as_one():
         after.word((5, 0), w)
     assert after.held == [((5, 0), level)]
     assert after.drive_ended((5, 0)) == [level]
+
+
+def test_time_going_back_restarts_the_core_like_a_fresh_one():
+    """A restarted simulator (time back to 0): the old setting, set-point and override go."""
+    core = BladeDriverCore(DriverParams(override_timeout=30.0))
+    core.command(word(BLADE_BELOW_CMD, MOVE_FORWARD), 0.0)
+    for t in range(1, 13):
+        core.command(word(BLADE_BELOW_CMD, MOVE_FORWARD), float(t))
+        core.update(float(t), 7.0)
+    core.override(0.05, 12.0)  # an operator set-point, valid until t = 42 on the old clock
+    assert core.update(12.0, 7.0) != pytest.approx(0.10)
+    assert not core.went_back(12.0) and core.went_back(0.0)
+    fresh = BladeDriverCore(DriverParams(override_timeout=30.0))
+    for t, w in enumerate((word(BLADE_LEVEL_CMD), word(MOVE_FORWARD), 0)):
+        core.command(w, float(t))
+        fresh.command(w, float(t))
+        assert core.update(float(t), 2.0) == fresh.update(float(t), 2.0)
+        assert core.state == fresh.state
+    assert core.restarts == 1 and core.state.override is None
+    assert core.update(2.0, 2.0) == pytest.approx(0.0)  # level, no old override, no ramp
+
+
+def test_update_with_an_earlier_time_homes_without_a_command():
+    """Wall clock set back on hardware: no word yet in the new time, so the blade goes home."""
+    core = BladeDriverCore()
+    core.command(word(BLADE_BELOW_CMD), 100.0)
+    assert core.update(100.0, 0.0) == pytest.approx(-0.02)
+    assert core.update(50.0, 0.0) == pytest.approx(0.10)  # restart: home, no rate limit
+    assert core.state.source == "no command yet" and core.restarts == 1
+
+
+def test_gate_reason_kind_ignores_the_growing_age():
+    """A lost heartbeat is one hold, not a new one each time its age is asked."""
+    from excavation_common.safety import MotionGate
+
+    gate = MotionGate(deadman=0.5)
+    gate.active = True
+    gate.on_enabled(True)
+    gate.on_heartbeat("armed", 0.0)
+    assert gate.reason(0.2) is None and MotionGate.kind(None) is None
+    first, later = gate.reason(1.0), gate.reason(2.0)
+    assert first != later and MotionGate.kind(first) == MotionGate.kind(later) == "heartbeat lost"
+    gate.on_heartbeat("paused", 2.0)
+    assert MotionGate.kind(gate.reason(2.1)) == "team paused"

@@ -53,13 +53,14 @@ def feed(team, stamp, robots):
 def test_lost_robot_stops_at_once_rejoins_within_grace():
     team = Team(3, lost_timeout=1.5, lost_grace=3.0)
     feed(team, 0.0, [0, 1, 2])
-    feed(team, 1.0, [0, 1])  # robot 2 misses one tick: 1 s behind, not lost
+    feed(team, 1.0, [0, 1])  # robot 2 misses one tick
+    feed(team, 2.0, [0, 1])  # ...and another: 1 s behind the team's previous frame
     assert team.enabled(2) and not team.members[2].lost
-    feed(team, 2.0, [0, 1])  # 2 s behind: lost, stopped at once
+    feed(team, 3.0, [0, 1])  # 2 s behind: lost, stopped at once
     assert not team.enabled(2) and team.members[2].operator_enabled
     assert "lost" in team.describe(2)
     assert not team.enable(2, True).success  # cannot be enabled while lost
-    feed(team, 3.0, [0, 1, 2])  # seen again within the grace period: rejoins by itself
+    feed(team, 4.0, [0, 1, 2])  # seen again within the grace period: rejoins by itself
     assert team.enabled(2)
 
 
@@ -81,3 +82,40 @@ def test_stamps_not_arrival_order_decide():
         for k in (3, 1, 0, 2):
             team.on_pose(k, float(t))
             assert all(team.enabled(j) for j in range(4))
+
+
+def test_clock_going_back_restarts_the_stamps():
+    """A restarted simulator: stamps from 0 again. The policy follows the new clock at once."""
+    team = Team(2, lost_timeout=1.5, lost_grace=2.0)
+    for t in range(40):
+        feed(team, float(t), [0, 1])
+    assert team.enable(0, False).success  # the operator disables robot 0
+    for t in range(5):  # the new trial: both seen, robot 1 is not disabled by the old stamps
+        feed(team, float(t), [0, 1])
+        assert team.enabled(1) and team.pose_age(1) <= 0.0
+    for t in range(5, 10):  # robot 1 unseen in the new time: disabled after 3.5 s, not 38 s
+        feed(team, float(t), [0])
+    assert team.members[1].lost and team.members[1].disabled_reason == "lost"
+    assert not team.enabled(0) and team.members[0].disabled_reason == "operator"
+
+
+def test_the_first_pose_after_a_gap_makes_nobody_lost():
+    """No robot seen for 10 s (camera stalled, localiser restarted), then a frame comes."""
+    team = Team(3, lost_timeout=1.5, lost_grace=2.0)
+    for t in range(5):
+        feed(team, float(t), [0, 1, 2])
+    for k in (2, 0, 1):  # the frame after the gap, one pose after another
+        team.on_pose(k, 14.0)
+        assert all(team.enabled(j) for j in range(3)), k
+    for t in range(15, 20):  # robot 1 is not in the frames after that: lost, then disabled
+        feed(team, float(t), [0, 2])
+    assert team.members[1].lost and team.members[1].disabled_reason == "lost"
+
+
+def test_poses_taken_out_of_step_make_nobody_lost():
+    """A busy supervisor takes robot 0's pose of tick t, then robot 1's of tick t + 2."""
+    team = Team(2, lost_timeout=1.5)
+    for t in range(0, 30, 2):
+        team.on_pose(0, float(t))
+        team.on_pose(1, float(t + 2))
+        assert team.enabled(0) and team.enabled(1)

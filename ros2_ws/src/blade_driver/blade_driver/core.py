@@ -27,7 +27,10 @@ On top of that nominal setting the driver adds what a real blade needs:
   operator asks.
 
 Time is whatever the caller passes: wall-clock seconds on hardware, simulated seconds in a
-lockstep trial, so the same core is deterministic in both.
+lockstep trial, so the same core is deterministic in both. Time that goes back (a restarted
+simulator, a clock reset) starts the core afresh (:meth:`BladeDriverCore.restart`): the old
+setting, set-point, override and watchdog belong to another run, so the blade goes home and
+waits for new commands, as at start.
 """
 
 from __future__ import annotations
@@ -262,6 +265,7 @@ class BladeDriverCore:
     params: DriverParams = field(default_factory=DriverParams)
     state: DriverState = field(default_factory=DriverState)
     pushing: bool = False
+    restarts: int = 0
     _pid: Pid | None = None
     _last_update: float | None = None
 
@@ -270,6 +274,29 @@ class BladeDriverCore:
         self._pid = Pid(p.kp, p.ki, p.kd, p.trim_limit)
         self.state.setpoint = p.home
 
+    def went_back(self, now: float) -> bool:
+        """``now`` is earlier than a time the core has already seen."""
+        s = self.state
+        seen = (self._last_update, s.last_command, s.override_time)
+        return any(t is not None and now < t for t in seen)
+
+    def restart(self) -> None:
+        """Start afresh, as at construction (time went back: another run begins).
+
+        The setting and the set-point go home, the watchdog and the override are forgotten,
+        the force loop resets and the next :meth:`update` has no rate limit; only the
+        ``clipped`` count survives. ``restarts`` counts the restarts.
+        """
+        self.state = DriverState(setpoint=self.params.home, clipped=self.state.clipped)
+        self.pushing = False
+        self._pid.reset()
+        self._last_update = None
+        self.restarts += 1
+
+    def _follow(self, now: float) -> None:
+        if self.went_back(now):
+            self.restart()
+
     def command(self, word: int, now: float, blade: bool = True) -> None:
         """A behaviour word from the controller.
 
@@ -277,6 +304,7 @@ class BladeDriverCore:
         with :meth:`apply_blade`); the word still feeds the watchdog and says whether the
         robot pushes (the force loop runs while it drives).
         """
+        self._follow(now)
         if blade:
             self.apply_blade(word)
         self.pushing = bool((int(word) >> MOVE_FORWARD) & 1)
@@ -292,6 +320,7 @@ class BladeDriverCore:
         p = self.params
         if not math.isfinite(position):
             raise DriverConfigError("blade/commands", "data[0]", position, "must be finite")
+        self._follow(now)
         clipped = min(p.position_max, max(p.position_min, float(position)))
         if clipped != position:
             self.state.clipped += 1
@@ -324,11 +353,13 @@ class BladeDriverCore:
 
         Returns:
             The servo set-point (m), within the limits; after the first call and unless
-            held it moves at most ``max_speed * (now - previous now)``.
+            held it moves at most ``max_speed * (now - previous now)``. A ``now`` earlier
+            than the core has seen restarts it first (:meth:`restart`).
         """
+        self._follow(now)
         p, s = self.params, self.state
         first = self._last_update is None
-        dt = 0.0 if first else max(0.0, now - self._last_update)
+        dt = 0.0 if first else now - self._last_update
         self._last_update = now
         if hold is not None:
             target, s.source, s.trim = p.home, f"hold: {hold}", 0.0

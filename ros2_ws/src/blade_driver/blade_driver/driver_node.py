@@ -38,7 +38,12 @@ Backends (parameter ``backend``):
   ``override_timeout`` of sim time), so every tick of a streamed override gets it. While the
   gate is closed the driver sends home with ``frame_id`` :data:`~excavation_common.safety.HELD`
   instead and leaves its core untouched; when the gate opens it sends the tick's own
-  set-point, so a paused lockstep trial ends as an unpaused one does.
+  set-point, so a paused lockstep trial ends as an unpaused one does. A tick stamped before
+  the last one (the simulator restarted: its time went back) is a new trial: the driver
+  drops the old set-point, word and override and its core starts afresh (blade home).
+
+On either backend the core restarts when the time it is given goes back
+(:meth:`~blade_driver.core.BladeDriverCore.restart`; ``clock_restarts`` on ``/diagnostics``).
 
 In the field (``blade_after_motion: true``: continuous trials, the dome) a tick's blade bits
 wait until the tick's drive has ended, as the world model runs a word's moves before its
@@ -265,8 +270,8 @@ class BladeDriverNode(LifecycleNode):
     def apply_gate(self) -> None:
         """Act at once when the gate closes (blade home) or opens (follow the controller)."""
         reason = self.gate.reason(self._wall())
-        if reason == self.hold:
-            return
+        if MotionGate.kind(reason) == MotionGate.kind(self.hold):
+            return  # the same state (a lost heartbeat's age grows: not a change)
         self.hold = reason
         if reason is not None:
             self.get_logger().warning(f"blade home: {reason}")
@@ -352,9 +357,27 @@ class BladeDriverNode(LifecycleNode):
             self.publish_diagnostics()
             return
         self.errors.pop(topic, None)
+        if self.tick_stamp is not None and _seconds(msg.header.stamp) < _seconds(self.tick_stamp):
+            self.restart(msg.header.stamp)
         self.tick_stamp = msg.header.stamp
         self.joint_pub.publish(joint_state(self.position, self.force, msg.header.stamp))
         self.send_sim_setpoint()
+
+    def restart(self, stamp: TimeMsg) -> None:
+        """Sim backend: the simulator's time went back (it restarted): a new trial.
+
+        The set-point, the controller's word and any operator set-point of the old trial are
+        dropped (so are blade bits held for the drive) and the core starts afresh (blade
+        home, as at start).
+        """
+        self.get_logger().warning(
+            f"sim time went back ({_seconds(self.tick_stamp):.3f} s -> {_seconds(stamp):.3f} s):"
+            " a new trial; set-point dropped, blade home"
+        )
+        self.core.restart()
+        self.word_tick = self.open_setpoint = self.pending_override = self.last_sent = None
+        if self.after is not None:
+            self.after = AfterDrive()  # held blade bits belong to the old trial's ticks
 
     def send_sim_setpoint(self) -> None:
         """Sim backend: the current tick's set-point, if it is due and not yet sent.
@@ -472,6 +495,7 @@ class BladeDriverNode(LifecycleNode):
             "commands": self.commands,
             "override_clipped": s.clipped,
             "blade_waits_for_drive": self.after is not None and self.after.holding(),
+            "clock_restarts": self.core.restarts,
         }
         if p.backend == "serial":
             values |= {

@@ -43,7 +43,7 @@ def controller_remaps(robot: int, robots: int) -> list[str]:
 
 
 def run_continuous(
-    ctl, spec: TrialSpec, exact: bool = False, events_executor: bool = True
+    ctl, spec: TrialSpec, exact: bool = False, events_executor: bool = True, fault=None
 ) -> TrialResult:
     """Run the trial of ``spec`` through executors, team tick and ``dynamics``.
 
@@ -55,6 +55,9 @@ def run_continuous(
             instead of the ``SingleThreadedExecutor``, whose wait-set rebuild per callback
             makes a trial of some 1,500 callbacks per tick about 20 times slower
             (docs/benchmarks.md).
+        fault: Called as ``fault(nodes, executor)`` between spins (the fault matrix,
+            tests/test_faults.py): it may remove and destroy a node (a crash) and add a new
+            one to both (its restart).
 
     Raises:
         TimeoutError: When the trial does not finish within ``spec.timeout`` seconds.
@@ -199,6 +202,8 @@ def run_continuous(
                     f"{tick.core.phase.value})"
                 )
             executor.spin_once(timeout_sec=0.05)
+            if fault is not None:
+                fault(nodes, executor)
         world = dynamics.sim.world
         records = tick.core.records
         return TrialResult(

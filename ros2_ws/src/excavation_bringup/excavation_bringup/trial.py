@@ -93,13 +93,28 @@ LOST_GRACE = 2.0
 """Further seconds (2 ticks) before a lost robot is disabled for the rest of the trial."""
 
 
-def _supervisor_params(robots: int, armed: bool) -> dict:
-    return {
+def _supervisor_params(robots: int, armed: bool, watch_poses: bool | None = None) -> dict:
+    """The trial's supervisor parameters (``watch_poses``: the node's default when None)."""
+    values = {
         "robots": robots,
         "lost_timeout": LOST_TIMEOUT,
         "lost_grace": LOST_GRACE,
         "arm_at_start": armed,
     }
+    if watch_poses is not None:
+        values["watch_poses"] = watch_poses
+    return values
+
+
+def _lockstep_watches_poses(spec: TrialSpec) -> bool:
+    """Whether a lockstep trial's supervisor runs the lost-robot policy.
+
+    Only with ``perception="full"``, where the localizer can lose a robot. With truth
+    perception the simulator publishes every robot's pose of a tick together, so no robot
+    can be lost; the policy could only misjudge one from the order in which a busy
+    supervisor takes the poses of a trial running faster than real time.
+    """
+    return spec.perception == "full"
 
 
 def _controller_args(controller_spec: str) -> list[str]:
@@ -248,7 +263,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
             )
             nodes.append(recorder)
         if spec.supervisor == "internal":
-            values = _supervisor_params(robots, armed=True)
+            values = _supervisor_params(robots, True, _lockstep_watches_poses(spec))
             nodes.append(
                 SupervisorNode(
                     context=context,
@@ -375,7 +390,7 @@ def process_commands(spec: TrialSpec, workdir: Path) -> dict[str, list[str]]:
         commands["supervisor"] = node(
             "supervisor",
             "team_supervisor.supervisor_node",
-            **_supervisor_params(spec.robots, armed=True),
+            **_supervisor_params(spec.robots, True, _lockstep_watches_poses(spec)),
         )
     commands["server"] = node("server", "blueprint_server.server_node", blueprint=spec.blueprint)
     commands["sim"] = node(

@@ -95,6 +95,14 @@ class MotionGate:
             return "robot disabled" if self.enabled is False else "no enable state yet"
         return None
 
+    @staticmethod
+    def kind(reason: str | None) -> str | None:
+        """A reason without its details: ``"heartbeat lost (0.61 s old)"`` -> ``"heartbeat lost"``.
+
+        What a caller compares to tell a change of state from a growing age.
+        """
+        return None if reason is None else reason.split(" (")[0]
+
     def allowed(self, now: float) -> bool:
         """True when nothing stops the robot at ``now``."""
         return self.reason(now) is None

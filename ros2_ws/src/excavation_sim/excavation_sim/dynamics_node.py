@@ -11,7 +11,10 @@ every command is zero (the team waits for its controllers or a camera frame) the
 runs at most ``idle_time_factor`` times real time, so that waiting costs neither CPU nor
 a race of sim time.
 
-Subscribes, per robot k: ``/robot_k/cmd_vel`` (TwistStamped), ``/robot_k/drive/throttle``
+Subscribes, per robot k: ``/robot_k/cmd_vel`` (TwistStamped; none for ``cmd_vel_timeout``
+sim seconds stops the robot's wheels, as diff_drive_controller's ``cmd_vel_timeout`` does,
+and the steps stop waiting for it until it sends again),
+``/robot_k/drive/throttle``
 (Bool, latched: high-power mode), ``/robot_k/blade/servo_command`` (JointState, a blade
 set-point stamped with its tick, from the ``blade_driver`` sim backend) and
 ``/robot_k/drive/status`` (GoalStatus): with ``blade_after_motion`` a set-point takes effect
@@ -71,6 +74,13 @@ class DynamicsNodeParams:
     command_timeout: float = param(
         0.5, "wall seconds a step waits for every robot's cmd_vel", low=0.001, high=60.0
     )
+    cmd_vel_timeout: float = param(
+        0.5,
+        "sim seconds without a cmd_vel after which a robot's wheels stop "
+        "(diff_drive_controller's cmd_vel_timeout)",
+        low=0.001,
+        high=60.0,
+    )
     startup_period: float = param(0.5, "wall seconds the team is present before step 0", low=0.0)
     imu_period: float = param(0.1, "sim seconds between IMU messages", low=0.001, high=10.0)
     idle_time_factor: float = param(
@@ -119,6 +129,8 @@ class DynamicsNode(Node):
         self.steps = 0
         self.next_imu_ns = 0
         self.pending: list[tuple[int, int] | None] = [None] * self.n
+        self.command_ns: list[int | None] = [None] * self.n  # sim time of each last cmd_vel
+        self.timed_out: set[int] = set()
         self.done_tick: list[int] = [-1] * self.n
         self.snapshot_request: str | None = None
         self.snapshot_due: int | None = None
@@ -166,9 +178,13 @@ class DynamicsNode(Node):
     def on_cmd_vel(self, k: int, msg: TwistStamped) -> None:
         """Robot k's command; one stamped with the current step counts as its answer."""
         self.sim.command(k, float(msg.twist.linear.x), float(msg.twist.angular.z))
+        self.command_ns[k] = self.now_ns
+        if k in self.timed_out:
+            self.timed_out.discard(k)
+            self.get_logger().info(f"robot {k}: cmd_vel again")
         if self.started and _key(msg.header.stamp) >= self.now_ns:
             self.answered.add(k)
-            if len(self.answered) == self.n and self.due(time.monotonic()):
+            if self.all_answered() and self.due(time.monotonic()):
                 self.advance()
 
     def on_throttle(self, k: int, msg: Bool) -> None:
@@ -230,7 +246,7 @@ class DynamicsNode(Node):
                 self.wall_started = wall
                 self.publish_state()
             return
-        if len(self.answered) == self.n and self.due(wall):
+        if self.all_answered() and self.due(wall):
             self.advance()
         elif wall - self.wait_started > self.params.command_timeout:
             self.late += 1
@@ -243,8 +259,30 @@ class DynamicsNode(Node):
             return True
         return wall - self.wait_started >= self.physics.dt / factor
 
+    def all_answered(self) -> bool:
+        """Every robot answered this step, except those stopped for silence (not waited for)."""
+        return len(self.answered | self.timed_out) >= self.n
+
+    def stop_silent_robots(self) -> None:
+        """Zero the wheels of a robot whose last cmd_vel is older than ``cmd_vel_timeout``.
+
+        The base's own deadman (diff_drive_controller's ``cmd_vel_timeout``): a robot whose
+        executor died mid-motion must not drive on with its last command. Until it sends a
+        cmd_vel again the steps no longer wait for it (``command_timeout`` each).
+        """
+        limit = int(round(self.params.cmd_vel_timeout * 1e9))
+        for k, at in enumerate(self.command_ns):
+            if at is None or k in self.timed_out or self.now_ns - at <= limit:
+                continue
+            self.timed_out.add(k)
+            self.sim.command(k, 0.0, 0.0)
+            self.get_logger().warning(
+                f"robot {k}: no cmd_vel for {self.params.cmd_vel_timeout} s: wheels stopped"
+            )
+
     def advance(self) -> None:
         """Integrate one step and publish its state."""
+        self.stop_silent_robots()
         self.sim.step()
         self.now_ns += self.dt_ns
         self.steps += 1

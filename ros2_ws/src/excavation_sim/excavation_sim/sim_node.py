@@ -312,7 +312,7 @@ class SimNode(Node):
             return
         now = self._seconds()
         reason = self.team.reason(now)
-        if reason != self.hold_reason:
+        if MotionGate.kind(reason) != MotionGate.kind(self.hold_reason):  # not a growing age
             self.hold_reason = reason
             if reason is not None:
                 self.holds += 1

@@ -12,7 +12,8 @@ and ``/diagnostics`` (the team state and one value per robot). Every change goes
 once, not at the next heartbeat. Services (std_srvs/Trigger): ``~/estop``, ``~/reset``,
 ``~/arm``, ``~/pause``, ``~/resume`` and ``~/status`` (the state in words); per robot
 ``/robot_k/enable`` (std_srvs/SetBool). With ``watch_poses`` it subscribes every
-``/robot_k/pose`` and applies the lost-robot policy of :class:`team_supervisor.team.Team`.
+``/robot_k/pose`` (best effort, newest only) and applies the lost-robot policy of
+:class:`team_supervisor.team.Team`.
 
 The logic is :class:`team_supervisor.team.Team`; this node moves messages.
 """
@@ -29,7 +30,7 @@ from std_msgs.msg import Bool, Header
 from std_srvs.srv import SetBool, Trigger
 
 from excavation_common.params import param
-from excavation_common.ros import LATCHED, SENSOR_DATA, declare_params, diagnostics, spin_node
+from excavation_common.ros import LATCHED, LATEST_FRAME, declare_params, diagnostics, spin_node
 from excavation_common.safety import (
     ARMED,
     ENABLED_TOPIC,
@@ -40,6 +41,11 @@ from excavation_common.safety import (
 from team_supervisor.team import Reply, Team
 
 LEVELS = {ARMED: DiagnosticStatus.OK, ESTOPPED: DiagnosticStatus.ERROR}
+
+NEWEST_POSE = LATEST_FRAME
+"""QoS of the pose subscriptions: best effort, depth 1. The policy needs each robot's newest
+pose only; a deeper queue let a busy supervisor compare one robot's newest pose with another's
+from ticks ago (in a faster-than-real-time lockstep trial: a robot "lost" that was not)."""
 
 
 @dataclass(frozen=True)
@@ -88,7 +94,7 @@ class SupervisorNode(Node):
                     PoseWithCovarianceStamped,
                     f"/robot_{k}/pose",
                     lambda m, k=k: self.on_pose(k, m),
-                    SENSOR_DATA,
+                    NEWEST_POSE,
                 )
         self.published_enabled: list[bool | None] = [None] * p.robots
         self.published_estop: bool | None = None

@@ -14,14 +14,21 @@ Team state (:data:`excavation_common.safety.TEAM_STATES`)::
   clear an e-stop or arm a team that was never armed).
 
 Per robot: the operator's wish (``enable K`` / ``disable K``) and the lost-robot policy.
-A robot is *lost* when the newest pose of the team is more than ``lost_timeout`` seconds
-(pose header stamps) ahead of its own newest pose; a robot never seen counts from the
-team's first pose. A lost robot is stopped at once (its ``enabled`` goes false, which closes
+A robot is *lost* when the team's previous frame (the newest pose stamp before the newest
+one) is more than ``lost_timeout`` seconds (pose header stamps) ahead of the robot's own
+newest pose; a robot never seen counts from the team's first pose. The newest stamp itself
+is not the reference: the poses of one frame arrive one after another, and after a gap in
+which no robot was seen (a camera stall, a localiser restart) the first pose of the next
+frame would make every other robot lost (and, past the grace, disabled) before its own pose
+of that frame came in. A lost robot is stopped at once (its ``enabled`` goes false, which closes
 its own MotionGate and makes it absent to the other robots' controllers); seen again
 within ``lost_grace`` it rejoins by itself; lost for longer, it is disabled and rejoins only
 when it is seen again and the operator enables it. Stamps, not arrival times, make the rule
 independent of how loaded the machine is, and in a lockstep trial (one pose per tick,
-stamped with sim time) the same in every run.
+stamped with sim time) the same in every run. A robot's pose stamped more than
+``lost_timeout`` before its own newest means the clock went back (a restarted simulator):
+the stamps are forgotten and counted afresh (:meth:`Team.restart_stamps`), so the policy
+follows the new clock instead of waiting for it to catch up with the old one.
 """
 
 from __future__ import annotations
@@ -88,6 +95,7 @@ class Team:
     members: list[RobotState] = field(default_factory=list)
     _first_stamp: float | None = None
     _newest_stamp: float | None = None
+    _previous_stamp: float | None = None
 
     def __post_init__(self) -> None:
         if self.robots < 1:
@@ -182,20 +190,35 @@ class Team:
         """A pose of robot ``k`` stamped ``stamp`` (s) arrived."""
         self._check(k)
         member = self.members[k]
+        if member.last_stamp is not None and stamp < member.last_stamp - self.lost_timeout:
+            self.restart_stamps()
         if member.last_stamp is None or stamp > member.last_stamp:
             member.last_stamp = stamp
         if self._first_stamp is None:
             self._first_stamp = stamp
         if self._newest_stamp is None or stamp > self._newest_stamp:
-            self._newest_stamp = stamp
+            self._previous_stamp, self._newest_stamp = self._newest_stamp, stamp
         self.update_lost()
 
+    def restart_stamps(self) -> None:
+        """Forget every pose stamp (the clock went back): no robot is lost until counted anew.
+
+        The operator's disables stay, and so does a disable by the policy (the robot rejoins
+        only when the operator enables it).
+        """
+        for member in self.members:
+            member.last_stamp, member.lost = None, False
+        self._first_stamp = self._newest_stamp = self._previous_stamp = None
+
     def pose_age(self, k: int) -> float:
-        """Seconds (stamps) robot ``k``'s newest pose lags the team's newest (0: none yet)."""
-        if self._newest_stamp is None:
+        """Seconds (stamps) robot ``k``'s newest pose lags the team's previous frame.
+
+        0 (or less) while the team has fewer than two frames, or the robot is up to date.
+        """
+        if self._previous_stamp is None:
             return 0.0
         last = self.members[k].last_stamp
-        return self._newest_stamp - (last if last is not None else self._first_stamp)
+        return self._previous_stamp - (last if last is not None else self._first_stamp)
 
     def update_lost(self) -> list[int]:
         """Apply the lost-robot policy; returns the robots whose ``enabled`` changed."""
