@@ -97,7 +97,10 @@ def test_continuous_frames_seconds_apart_a_late_pose_is_not_lost():
     team.on_pose(0, t)  # robot 1 missing from a whole frame: still one frame
     assert team.enabled(1)
     t += 5.0
-    team.on_pose(0, t)  # a second frame without it, 10 s behind: lost and disabled
+    team.on_pose(0, t)  # a second frame without it, 10 s behind: lost, stopped
+    assert team.members[1].lost and team.members[1].operator_enabled
+    t += 5.0
+    team.on_pose(0, t)  # beyond the grace and one more frame: disabled
     assert team.members[1].lost and team.members[1].disabled_reason == "lost"
 
 
@@ -110,6 +113,8 @@ def test_a_robot_whose_executor_drives_is_not_lost_until_its_goal_ends():
     assert team.enabled(1)
     assert team.on_drive(1, False) == [1]  # its goal ended without a pose since: lost now
     assert not team.enabled(1) and team.members[1].operator_enabled
+    assert team.on_drive(1, True) == [] and not team.enabled(1)  # a new goal: still lost
+    team.on_drive(1, False)
     team.on_pose(1, 3.0)
     assert team.enabled(1)
     # An executor that says it drives for longer than busy_timeout counts no longer.

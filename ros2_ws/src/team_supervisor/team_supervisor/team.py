@@ -36,8 +36,9 @@ applies again with the age the robot has by then.
 A lost robot is stopped at once (its ``enabled`` goes false, which closes its own MotionGate
 and makes it absent to the other robots' controllers and to the team tick); seen again
 within ``lost_grace`` it rejoins by itself; lost for longer (age beyond ``lost_timeout +
-lost_grace``), it is disabled and rejoins only when it is seen again and the operator
-enables it. Stamps, not arrival times, make the rule independent of how loaded the machine
+lost_grace``, and at least one frame missed since it was lost, so that a frame can still
+find it however far apart frames come), it is disabled and rejoins only when it is seen
+again and the operator enables it. Stamps, not arrival times, make the rule independent of how loaded the machine
 is, and in a lockstep trial (one pose per tick, stamped with sim time) the same in every
 run. The stream itself is the reference: while no frame comes (a camera that stopped, a
 team standing still between snapshots) nobody is declared lost by the supervisor; the
@@ -269,12 +270,18 @@ class Team:
         for k, member in enumerate(self.members):
             before = member.enabled
             age = self.pose_age(k)
+            # A goal that starts once the robot is lost does not bring it back (its executor
+            # is stopped by the closed gate); only a pose does.
             member.lost = (
                 age > self.lost_timeout
                 and self.missed_frames(k) >= self.lost_frames
-                and not self.busy(k)
+                and (member.lost or not self.busy(k))
             )
-            if member.lost and age > self.lost_timeout + self.lost_grace:
+            if (
+                member.lost
+                and age > self.lost_timeout + self.lost_grace
+                and self.missed_frames(k) > self.lost_frames
+            ):
                 if member.operator_enabled:
                     member.operator_enabled, member.disabled_reason = False, "lost"
             if member.enabled != before:
