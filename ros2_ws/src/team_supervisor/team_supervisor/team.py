@@ -40,9 +40,9 @@ lost_grace``, and at least one frame missed since it was lost, so that a frame c
 find it however far apart frames come), it is disabled and rejoins only when it is seen
 again and the operator enables it. Stamps, not arrival times, make the rule independent
 of how loaded the machine is, and in a lockstep trial (one pose per tick, stamped with sim
-time) the same in every run. The stream itself is the reference: while no frame comes (a camera that stopped, a
-team standing still between snapshots) nobody is declared lost by the supervisor; the
-executors' own pose timeout stops a robot whose pose goes stale.
+time) the same in every run. The stream itself is the reference: while no frame comes (a
+camera that stopped, a team standing still between snapshots) nobody is declared lost by
+the supervisor; the executors' own pose timeout stops a robot whose pose goes stale.
 """
 
 from __future__ import annotations
