@@ -491,7 +491,12 @@ def test_disable_enable_and_drive_override_through_ant_operator():
     # supervisor's change to the enable; the others carried on.
     t_off = watch.supervisor_says(robot, "disabled (operator)")
     t_on = watch.supervisor_says(robot, "enabled", since=t_off)
-    assert stops(watch, t_off, t_on, robots=[robot])[robot] <= t_off + STOP_LIMIT
+    off = stops(watch, t_off, t_on, robots=[robot])[robot]
+    print(
+        f"disable robot {robot} at tick {off_at}: zero cmd_vel {1e3 * (off - t_off):.0f} ms sim "
+        f"after the supervisor's change; idle and absent until the enable at tick {on_at}"
+    )
+    assert off <= t_off + STOP_LIMIT
     assert (commands[off_at + 2 : on_at, robot] == 0).all()
     assert commands[off_at + 2 : on_at, [0, 2, 3]].any()
     assert commands[on_at + 2 :, robot].any()  # enabled again: it takes part
