@@ -16,14 +16,13 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
 import pytest
 from conftest import next_domain
 from test_continuous_trial import offline
-from test_supervisor_node import operator
+from test_trial_oversight import Watcher as LockstepWatcher
 
 from excavation_bringup.trial import LOST_GRACE, LOST_TIMEOUT, TrialSpec
 from excavation_common.safety import ESTOPPED, HELD
@@ -102,55 +101,41 @@ class Trial:
             self.process.join(timeout=30)
 
 
-class Watcher:
-    """The operator's side: its own context on the trial's domain, spun in this thread."""
+class Watcher(LockstepWatcher):
+    """The operator's side (tests/test_trial_oversight.py's, plus the continuous topics)."""
 
     def __init__(self, domain: int):
-        import rclpy
         from action_msgs.msg import GoalInfo
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import TwistStamped
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from sensor_msgs.msg import JointState
-        from std_msgs.msg import Bool, Header
+        from std_msgs.msg import Header
 
-        from excavation_common.ros import LATCHED
-
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain)
-        self.node = rclpy.create_node("test_operator", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.tick = -1
+        super().__init__(domain, ROBOTS)  # servo set-points, enables; ``tick`` is /clock's
+        self.team_tick = -1
         self.heartbeats: list[tuple[float, float, str]] = []  # (wall, stamp, state)
         self.cmd = {k: [] for k in range(ROBOTS)}  # (wall, stamp, vx, wz)
-        self.servo = {k: [] for k in range(ROBOTS)}  # (wall, value, frame_id)
         self.goals = {k: [] for k in range(ROBOTS)}  # wall
-        self.enabled = {k: [] for k in range(ROBOTS)}
         self.poses: list[tuple[float, float, float, float]] = []  # robot 0: (stamp, x, y, yaw)
         self.supervisor: list[tuple[float, dict]] = []  # (stamp, values)
         sub = self.node.create_subscription
 
-        def stamp(msg) -> float:
-            return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        def stamp(header) -> float:
+            return header.stamp.sec + header.stamp.nanosec * 1e-9
 
         def on_tick(msg):
-            self.tick = int(msg.frame_id)
+            self.team_tick = int(msg.frame_id)
 
         def on_diag(msg):
             for status in msg.status:
                 if status.name.endswith("supervisor"):
                     values = {v.key: v.value for v in status.values}
-                    self.supervisor.append((stamp(msg), values))
+                    self.supervisor.append((stamp(msg.header), values))
 
         sub(Header, "/team/tick", on_tick, 10)
         sub(
             Header,
             "/team/heartbeat",
-            lambda m: self.heartbeats.append(
-                (time.monotonic(), m.stamp.sec + m.stamp.nanosec * 1e-9, m.frame_id)
-            ),
+            lambda m: self.heartbeats.append((time.monotonic(), stamp(m), m.frame_id)),
             50,
         )
         sub(DiagnosticArray, "/diagnostics", on_diag, 50)
@@ -160,17 +145,9 @@ class Watcher:
                 TwistStamped,
                 f"{ns}/cmd_vel",
                 lambda m, k=k: self.cmd[k].append(
-                    (time.monotonic(), stamp(m), m.twist.linear.x, m.twist.angular.z)
+                    (time.monotonic(), stamp(m.header), m.twist.linear.x, m.twist.angular.z)
                 ),
                 200,
-            )
-            sub(
-                JointState,
-                f"{ns}/blade/servo_command",
-                lambda m, k=k: self.servo[k].append(
-                    (time.monotonic(), m.position[0], m.header.frame_id)
-                ),
-                50,
             )
             sub(
                 GoalInfo,
@@ -178,7 +155,6 @@ class Watcher:
                 lambda m, k=k: self.goals[k].append(time.monotonic()),
                 50,
             )
-            sub(Bool, f"{ns}/enabled", lambda m, k=k: self.enabled[k].append(m.data), LATCHED)
 
     def watch_pose(self, k: int) -> None:
         """Record robot ``k``'s per-step pose (the simulator's, 20 Hz of sim time)."""
@@ -212,42 +188,8 @@ class Watcher:
             if s > since and v.get(f"robot_{robot}", "").startswith(prefix)
         )
 
-    def spin_until(self, condition, timeout=300.0) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if condition():
-                return True
-            self.executor.spin_once(timeout_sec=0.01)
-        return condition()
-
     def spin_for(self, seconds: float) -> None:
         self.spin_until(lambda: False, timeout=seconds)
-
-    def call(self, name: str, timeout: float = 60.0, tries: int = 1):
-        """Call a Trigger service; ``tries`` > 1 re-sends an unanswered (idempotent) request."""
-        from std_srvs.srv import Trigger
-
-        client = self.node.create_client(Trigger, name)
-        assert client.wait_for_service(timeout_sec=timeout), name
-        for _ in range(tries):
-            sent = time.monotonic()
-            future = client.call_async(Trigger.Request())
-            if self.spin_until(future.done, timeout / tries):
-                break
-        assert future.done(), f"{name}: no answer"
-        self.node.destroy_client(client)
-        return future.result(), sent
-
-    def operator(self, domain: int, *args: str):
-        """``ant-operator ARGS`` as a separate process, spinning meanwhile."""
-        done = {}
-        thread = threading.Thread(
-            target=lambda: done.setdefault("r", operator(domain, *args, timeout="30"))
-        )
-        thread.start()
-        assert self.spin_until(lambda: not thread.is_alive(), timeout=150)
-        thread.join()
-        return done["r"]
 
     def moving(self) -> list[int]:
         """Robots whose newest ``cmd_vel`` moves them."""
@@ -255,21 +197,12 @@ class Watcher:
 
     def heartbeat_stamp(self, state: str, since: float) -> float:
         """Sim stamp of the first heartbeat saying ``state`` that arrived after wall ``since``."""
-        found = [s for w, s, f in self.heartbeats if w >= since and f == state]
-        assert self.spin_until(
-            lambda: (
-                found or found.extend(s for w, s, f in self.heartbeats if w >= since and f == state)
-            ),
-            60,
-        ), f"no heartbeat saying {state}"
-        return found[0]
 
-    def close(self):
-        import rclpy
+        def first():
+            return next((s for w, s, f in self.heartbeats if w >= since and f == state), None)
 
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        assert self.spin_until(lambda: first() is not None, 60), f"no heartbeat saying {state}"
+        return first()
 
 
 def stops(watch: Watcher, start: float, end: float = float("inf"), robots=None) -> dict[int, float]:
@@ -291,32 +224,43 @@ def stops(watch: Watcher, start: float, end: float = float("inf"), robots=None) 
     return out
 
 
+def intervene(watch: Watcher, tick: int, service: str, state: str, hold: float):
+    """At ``tick`` with a robot driving, call ``/supervisor/SERVICE``.
+
+    Returns the robots driving then, the wall time of the request and the sim stamp of the
+    supervisor's first heartbeat saying ``state``, after ``hold`` wall seconds.
+    """
+    assert watch.spin_until(lambda: watch.team_tick >= tick and watch.moving(), 400)
+    moving = watch.moving()
+    reply, sent = watch.call(f"/supervisor/{service}")
+    assert reply.success
+    watch.spin_for(hold)
+    return moving, sent, watch.heartbeat_stamp(state, sent - 0.5)
+
+
 def test_estop_at_tick_10_stops_every_executor_within_100_ms_then_reset_and_arm_continue():
     domain, steps = next_domain(), 16
     watch = Watcher(domain)
     trial = Trial(domain, steps)
     try:
-        assert watch.spin_until(lambda: watch.tick >= 10 and watch.moving(), 400)
-        moving = watch.moving()
-        reply, sent = watch.call("/supervisor/estop")
-        assert reply.success
-        watch.spin_for(1.0)
-        t_estop = watch.heartbeat_stamp(ESTOPPED, sent - 0.5)
-        held_tick = watch.tick
+        moving, sent, t_estop = intervene(watch, 10, "estop", ESTOPPED, 1.0)
+        held_tick = watch.team_tick
         goals_before = {k: len(g) for k, g in watch.goals.items()}
         watch.spin_for(1.0)
         assert watch.call("/supervisor/reset")[0].success
         watch.spin_for(1.0)  # reset alone: disarmed, nothing moves
-        assert watch.tick == held_tick
+        assert watch.team_tick == held_tick
         assert {k: len(g) for k, g in watch.goals.items()} == goals_before  # no goal granted
         _, armed_at = watch.call("/supervisor/arm")
         t_arm = watch.heartbeat_stamp("armed", armed_at - 0.5)
         zero = stops(watch, t_estop, t_arm)
         wall = {k: next(w for w, s, vx, wz in watch.cmd[k] if s >= zero[k]) - sent for k in zero}
         # Blades: every set-point between the e-stop and the arm is home, marked held.
-        blades = {k: [(v, f) for w, v, f in watch.servo[k] if sent <= w < armed_at] for k in zero}
+        blades = {
+            k: [(v, f) for w, _, v, f in watch.servo[k] if sent <= w < armed_at] for k in zero
+        }
         homed = {
-            k: next(w for w, _, f in watch.servo[k] if w >= sent and f == HELD) - sent
+            k: next(w for w, _, _, f in watch.servo[k] if w >= sent and f == HELD) - sent
             for k in range(ROBOTS)
         }
         print(
@@ -343,16 +287,11 @@ def test_pause_and_resume_mid_motion_end_as_an_unpaused_trial():
     watch = Watcher(domain)
     trial = Trial(domain, steps)
     try:
-        assert watch.spin_until(lambda: watch.tick >= 5 and watch.moving(), 400)
-        moving = watch.moving()
-        reply, sent = watch.call("/supervisor/pause")
-        assert reply.success
-        watch.spin_for(1.5)
-        t_pause = watch.heartbeat_stamp("paused", sent - 0.5)
-        paused_tick = watch.tick
+        moving, sent, t_pause = intervene(watch, 5, "pause", "paused", 1.5)
+        paused_tick = watch.team_tick
         _, resumed = watch.call("/supervisor/resume")
         t_resume = watch.heartbeat_stamp("armed", resumed - 0.5)
-        assert watch.tick == paused_tick
+        assert watch.team_tick == paused_tick
         zero = stops(watch, t_pause, t_resume)
         print(
             f"pause at tick {paused_tick} (robots {moving} driving): zero cmd_vel "
@@ -389,18 +328,18 @@ def test_supervisor_sigkilled_every_robot_stops_by_the_deadman():
     trial = Trial(domain, steps, time_factor=2.0, supervisor="external")
     try:
         assert watch.call("/supervisor/arm")[0].success
-        assert watch.spin_until(lambda: watch.tick >= 4 and watch.moving(), 400)
+        assert watch.spin_until(lambda: watch.team_tick >= 4 and watch.moving(), 400)
         moving = watch.moving()
         sup.send_signal(signal.SIGKILL)
         killed = time.monotonic()
         sup.wait()
         watch.spin_for(2.0)
         t_last = watch.sim_now()  # the newest heartbeat: none comes after the kill
-        held_tick = watch.tick
+        held_tick = watch.team_tick
         zero = stops(watch, t_last + DEADMAN + STEP)
         wall = {k: next(w for w, s, _, _ in watch.cmd[k] if s >= zero[k]) - killed for k in zero}
         watch.spin_for(1.0)
-        assert watch.tick == held_tick  # the team tick holds too: no new tick
+        assert watch.team_tick == held_tick  # the team tick holds too: no new tick
         print(
             f"supervisor SIGKILLed at tick {held_tick} (robots {moving} driving): every "
             f"executor at zero {max(zero.values()) - t_last:.2f} s sim after the last "
@@ -425,7 +364,7 @@ def test_robot_hidden_from_the_camera_stops_is_disabled_and_the_others_finish():
     watch = Watcher(domain)
     trial = Trial(domain, steps, exact=False, perception="full", timeout=900.0)
     try:
-        assert watch.spin_until(lambda: watch.tick >= 3, 600)
+        assert watch.spin_until(lambda: watch.team_tick >= 3, 600)
         client = watch.node.create_client(SetParameters, "/sensors/set_parameters")
         assert client.wait_for_service(timeout_sec=60)
         value = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="2:front,2:rear")
@@ -433,9 +372,11 @@ def test_robot_hidden_from_the_camera_stops_is_disabled_and_the_others_finish():
             SetParameters.Request(parameters=[ParameterMsg(name="occlude", value=value)])
         )
         assert watch.spin_until(future.done, 60) and future.result().results[0].successful
-        hidden_at = watch.tick
-        assert watch.spin_until(lambda: watch.enabled[hidden] and not watch.enabled[hidden][-1])
-        lost_at = watch.tick
+        hidden_at = watch.team_tick
+        assert watch.spin_until(
+            lambda: watch.enabled[hidden] and not watch.enabled[hidden][-1], 600
+        )
+        lost_at = watch.team_tick
         assert watch.spin_until(trial.done, 900)
         result = trial.result()
         watch.spin_for(0.5)
@@ -467,12 +408,12 @@ def test_disable_enable_and_drive_override_through_ant_operator():
     watch.watch_pose(0)
     trial = Trial(domain, steps, time_factor=2.0)  # ant-operator streams at 10 Hz of wall time
     try:
-        assert watch.spin_until(lambda: watch.tick >= 2, 400)
+        assert watch.spin_until(lambda: watch.team_tick >= 2, 400)
         assert watch.operator(domain, "disable", str(robot)).returncode == 0
-        off_at = watch.tick
-        assert watch.spin_until(lambda: watch.tick >= off_at + 4, 400)
+        off_at = watch.team_tick
+        assert watch.spin_until(lambda: watch.team_tick >= off_at + 4, 400)
         assert "robot 1: disabled (operator)" in watch.operator(domain, "status").stdout
-        on_at = watch.tick
+        on_at = watch.team_tick
         assert watch.operator(domain, "enable", str(robot)).returncode == 0
         first = len(watch.cmd[0])
         started = time.monotonic()
