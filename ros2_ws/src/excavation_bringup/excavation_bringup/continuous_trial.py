@@ -184,12 +184,17 @@ def run_continuous(
                         Parameter("robots", value=spec.robots),
                         Parameter("height_unit", value=blueprint.height_unit),
                         Parameter("lockstep", value=True),
+                        Parameter("tilt_source", value="imu"),
                         sim_time,
                     ],
                 )
             )
             nodes.append(
-                BladeDriverNode(context=context, namespace=ns, parameter_overrides=[sim_time])
+                BladeDriverNode(
+                    context=context,
+                    namespace=ns,
+                    parameter_overrides=[Parameter("blade_after_motion", value=True), sim_time],
+                )
             )
             drive = ExecutorNode(
                 context=context,
