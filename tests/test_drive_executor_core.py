@@ -201,7 +201,7 @@ def test_stale_pose_gives_zero_twist_at_once_and_aborts():
     assert [e[2] for e in core.drain() if e[0] == "status"] == [EXECUTING, ABORTED]
 
 
-@pytest.mark.parametrize("stop", ["estop", "heartbeat", "disable", "pause", "inactive"])
+@pytest.mark.parametrize("stop", ["estop", "heartbeat", "disable", "inactive"])
 def test_gate_stops_at_once_and_nothing_moves_before_armed_again(stop):
     gate = armed_gate()
     core = DriveExecutorCore(ExecutorParams(), gate)
@@ -219,8 +219,6 @@ def test_gate_stops_at_once_and_nothing_moves_before_armed_again(stop):
         gate.on_estop(True)
     elif stop == "disable":
         gate.on_enabled(False)
-    elif stop == "pause":
-        gate.on_heartbeat(PAUSED, t)
     elif stop == "inactive":
         gate.active = False
     else:
@@ -238,6 +236,62 @@ def test_gate_stops_at_once_and_nothing_moves_before_armed_again(stop):
     gate.on_heartbeat(ARMED, t)
     core.submit(DriveGoal(2, 1 << MOVE_FORWARD), t)
     assert core.on_pose(plant.pose(), t, t).linear > 0
+
+
+def test_pause_suspends_the_goal_and_resume_ends_it_where_an_unpaused_one_ends():
+    def drive(pause_at: int | None, paused_for: float = 30.0):
+        gate = armed_gate()
+        core = DriveExecutorCore(ExecutorParams(time_allowance=6.0), gate)
+        plant = Plant(*robot_center(4, 4, CELL), heading_to_yaw(1))
+        core.submit(DriveGoal(0, (1 << MOVE_FORWARD) | (1 << TURN_RIGHT)), 0.0)
+        t, statuses, moved_while_paused = 0.0, [], 0.0
+        for i in range(2000):
+            if i == pause_at:
+                gate.on_heartbeat(PAUSED, t)
+                assert core.check(t) == Twist2D()  # stops at once
+                end = t + paused_for
+                while t < end:  # longer than the time allowance: it must not count
+                    gate.on_heartbeat(PAUSED, t)
+                    twist = core.on_pose(plant.pose(), t, t)
+                    moved_while_paused += abs(twist.linear) + abs(twist.angular)
+                    t += DT
+                assert core.busy  # still executing: suspended, not aborted
+            gate.on_heartbeat(ARMED, t)
+            twist = core.on_pose(plant.pose(), t, t)
+            statuses += [e[2] for e in core.drain() if e[0] == "status"]
+            if not core.busy:
+                break
+            plant.apply(twist)
+            t += DT
+        return (
+            statuses,
+            robot_anchor(plant.x, plant.y, CELL),
+            yaw_to_heading(plant.yaw),
+            (moved_while_paused),
+        )
+
+    plain = drive(None)
+    assert plain[0] == [EXECUTING, SUCCEEDED]
+    for pause_at in (5, 20, 60):  # while driving, mid-cell, while turning
+        paused = drive(pause_at)
+        assert paused[0] == [EXECUTING, SUCCEEDED], pause_at
+        assert paused[1:3] == plain[1:3] and paused[3] == 0.0
+
+
+def test_pause_then_estop_aborts_and_a_goal_sent_while_paused_waits_for_the_resume():
+    gate = armed_gate()
+    core = DriveExecutorCore(ExecutorParams(), gate)
+    pose = Pose2D(*robot_center(4, 4, CELL), 0.0)
+    gate.on_heartbeat(PAUSED, 0.0)
+    core.submit(DriveGoal(0, 1 << MOVE_FORWARD), 0.0)
+    assert core.on_pose(pose, 0.0, 0.0) == Twist2D() and core.busy
+    gate.on_heartbeat(ARMED, 0.1)
+    assert core.on_pose(pose, 0.1, 0.1).linear > 0  # resumed: the goal drives
+    gate.on_heartbeat(PAUSED, 0.2)
+    assert core.check(0.2) == Twist2D() and core.busy
+    gate.on_estop(True)  # an e-stop during the pause is never a pause
+    assert core.check(0.3) == Twist2D() and not core.busy
+    assert [e[2] for e in core.drain() if e[0] == "status"] == [EXECUTING, ABORTED]
 
 
 def test_nothing_moves_before_the_first_armed_heartbeat():

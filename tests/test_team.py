@@ -119,3 +119,49 @@ def test_poses_taken_out_of_step_make_nobody_lost():
         team.on_pose(0, float(t))
         team.on_pose(1, float(t + 2))
         assert team.enabled(0) and team.enabled(1)
+
+
+def test_continuous_frames_seconds_apart_a_late_pose_is_not_lost():
+    """Frames come seconds of sim time apart (one per tick): robot 1's pose arriving after
+    robot 0's of the same frame, or missing from one frame, never makes it lost."""
+    team = Team(2, lost_timeout=1.5, lost_grace=2.0)
+    t = 0.0
+    for gap in (4.0, 7.5, 3.2, 12.0):
+        t += gap
+        team.on_pose(0, t)  # robot 1 is 'gap' seconds behind until its pose comes
+        assert team.enabled(1) and team.missed_frames(1) == 1
+        team.on_pose(1, t)
+    t += 5.0
+    team.on_pose(0, t)  # robot 1 missing from a whole frame: still one frame
+    assert team.enabled(1)
+    t += 5.0
+    team.on_pose(0, t)  # a second frame without it, 10 s behind: lost, stopped
+    assert team.members[1].lost and team.members[1].operator_enabled
+    t += 5.0
+    team.on_pose(0, t)  # beyond the grace and one more frame: disabled
+    assert team.members[1].lost and team.members[1].disabled_reason == "lost"
+
+
+def test_a_robot_whose_executor_drives_is_not_lost_until_its_goal_ends():
+    team = Team(2, lost_timeout=1.0, lost_grace=2.0, busy_timeout=10.0)
+    feed(team, 0.0, [0, 1])
+    assert team.on_drive(1, True) == []
+    for t in (0.5, 1.0, 1.5, 2.0, 2.5):
+        assert team.on_pose(0, t) == []  # robot 1's frames are late while it drives
+    assert team.enabled(1)
+    assert team.on_drive(1, False) == [1]  # its goal ended without a pose since: lost now
+    assert not team.enabled(1) and team.members[1].operator_enabled
+    assert team.on_drive(1, True) == [] and not team.enabled(1)  # a new goal: still lost
+    team.on_drive(1, False)
+    team.on_pose(1, 3.0)
+    assert team.enabled(1)
+    # An executor that says it drives for longer than busy_timeout counts no longer.
+    team.on_drive(1, True)
+    for i in range(23):
+        team.on_pose(0, 3.5 + 0.5 * i)
+    assert team.members[1].lost and team.members[1].disabled_reason == "lost"
+
+
+def test_lost_frames_must_be_at_least_one():
+    with pytest.raises(ValueError, match="lost_frames"):
+        Team(2, lost_frames=0)

@@ -123,14 +123,61 @@ def test_silent_controller_idles_and_a_robot_that_never_finishes_is_left_out():
     assert tt.late == [1, 0] and tt.stuck == [True, False] and tt.records[0].late == [0]
 
 
-def test_no_tick_starts_while_the_team_is_not_armed():
-    tt = make(robots=1)
+def test_no_tick_starts_while_the_team_is_not_armed_and_the_snapshot_is_taken_again():
+    tt = make(robots=1, settle=0.1)
     tt.start(0.0)
     feed_snapshot(tt, 0.5, [(2, 2, 0)])
     tt.armed = False
     assert tt.step(0.6, 0.0) == []
     tt.armed = True
-    assert "publish" in kinds(tt.step(0.7, 0.1))
+    # Held: the snapshot taken before (blades homed meanwhile) does not count; a new one.
+    assert tt.step(0.7, 0.1) == [("request", "tick 0", 0.7 + 0.1)]
+    assert tt.step(0.75, 0.2) == []
+    feed_snapshot(tt, 0.8, [(2, 2, 0)])
+    assert "publish" in kinds(tt.step(0.85, 0.3))
+
+
+def test_held_team_grants_no_goal_and_held_time_is_not_motion_time():
+    tt = make(robots=2, motion_limit=10.0)
+    tt.start(0.0)
+    feed_snapshot(tt, 0.1, [(2, 2, 0), (4, 3, 2)])  # overlapping reaches: 1 waits for 0
+    tt.step(0.2, 0.0)
+    tt.on_word(0, FWD)
+    tt.on_word(1, FWD)
+    tt.armed = False
+    assert tt.step(0.3, 0.1) == [] and tt.phase is Phase.WORDS  # words wait for the team
+    tt.armed = True
+    assert [a[1] for a in tt.step(0.4, 0.2) if a[0] == "goal"] == [0]
+    tt.armed = False  # paused while robot 0 drives: 60 s held, far beyond motion_limit
+    for t in range(1, 61):
+        assert tt.step(0.4 + t, 0.2 + t) == []
+    tt.on_status(0, 0, terminal=True, aborted=False, now=61.0)
+    assert tt.step(61.5, 62.0) == []  # robot 1 is not granted while held
+    tt.armed = True
+    assert [a[1] for a in tt.step(62.0, 63.0) if a[0] == "goal"] == [1]
+    assert tt.late == [0, 0]
+
+
+def test_absent_robots_are_not_waited_for():
+    tt = make(robots=3, word_timeout=30.0, first_word_timeout=30.0)
+    tt.absent = {1}
+    tt.start(0.0)
+    tt.on_pose(0, (2, 2, 0), 0.2, "p0")
+    tt.on_pose(2, (12, 12, 1), 0.2, "p2")  # no pose of robot 1 (hidden from the camera)
+    for k in range(3):
+        tt.on_blade(k, BLADE_HOME, 0.2, f"b{k}")
+    tt.on_heights(0.2, "heights")
+    publish = [a for a in tt.step(0.3, 0.0) if a[0] == "publish"]
+    assert publish and publish[0][3]["poses"] == ["p0", None, "p2"]
+    tt.on_word(0, FWD)
+    tt.on_word(1, FWD)  # a disabled robot's word does not count
+    tt.on_word(2, FWD)
+    goals = [(a[1], a[4]) for a in tt.step(0.4, 0.1) if a[0] == "goal"]
+    assert goals == [(0, FWD), (1, 0), (2, FWD)]  # told to idle, not awaited
+    assert tt.missed == [0, 0, 0]
+    tt.on_status(0, 0, terminal=True, aborted=False, now=1.0)
+    tt.absent.add(2)  # lost while driving: its executor has stopped it
+    assert kinds(tt.step(1.1, 0.2)) == ["request"] and tt.tick == 1
 
 
 def test_finishes_after_the_last_tick_s_snapshot():

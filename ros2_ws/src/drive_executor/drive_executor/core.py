@@ -22,9 +22,12 @@ Safety (DESIGN.md, "Operator oversight and safety"): every twist passes
 :class:`excavation_common.safety.MotionGate`; a closed gate (not active, e-stop, pause,
 disable, heartbeat lost) or a pose older than ``pose_timeout`` by its stamp gives a zero
 twist at once and aborts the goal; nothing moves until a new goal arrives with the gate
-open. A drive override (``drive/override``) wins over the goal while younger than
-``override_timeout`` (the goal aborts: the operator has taken the robot), clamped to the
-throttle limits; the gate still wins over the override.
+open. A pause alone *suspends* the goal instead: the robot stops at once, the goal stays
+executing, and on resume the running primitive carries on toward its target with its time
+allowance and progress window moved on by the time paused (a paused and resumed trial
+ends as an uninterrupted one). A drive override (``drive/override``) wins over the goal
+while younger than ``override_timeout`` (the goal aborts: the operator has taken the
+robot), clamped to the throttle limits; the gate still wins over the override.
 """
 
 from __future__ import annotations
@@ -131,6 +134,7 @@ class DriveExecutorCore:
         self.counters = Counters()
         self.stop_reason: str | None = "no goal yet"
         self.free_ticks = 0
+        self.suspended_at: float | None = None
 
     # --- inputs -----------------------------------------------------------------------------
 
@@ -163,7 +167,7 @@ class DriveExecutorCore:
             return
         why = self.gate.reason(now)
         if why is not None:
-            self.abort(why)
+            self.stop(why, now)
 
     def on_word(self, word: int, now: float) -> None:
         """Free mode: run a behaviour word when idle (a word while busy is dropped)."""
@@ -222,9 +226,10 @@ class DriveExecutorCore:
         why = self.gate.reason(now)
         if why is not None:
             self.stop_reason = why
-            if self.goal is not None:
-                self.abort(why)
+            self.stop(why, now)
             return STOP
+        if self.suspended_at is not None:
+            self.resume(now)
         if self.override is not None and now - self.override[1] <= self.params.override_timeout:
             if self.goal is not None:
                 self.abort("drive override in charge")
@@ -256,6 +261,22 @@ class DriveExecutorCore:
         v, w = self.params.throttle_speed, self.params.throttle_turn_rate
         return Twist2D(max(-v, min(v, twist.linear)), max(-w, min(w, twist.angular)))
 
+    def stop(self, why: str, now: float) -> None:
+        """The gate closed: suspend the goal on a pause, abort it otherwise."""
+        if self.goal is None:
+            return
+        if self.gate.paused(now):
+            if self.suspended_at is None:
+                self.suspended_at = now
+        else:
+            self.abort(why)
+
+    def resume(self, now: float) -> None:
+        """The gate opened after a pause: the suspended primitive's clock moves on."""
+        if self.current is not None and self.suspended_at is not None:
+            self.current.shift(now - self.suspended_at)
+        self.suspended_at = None
+
     def abort(self, why: str) -> None:
         """Stop the running goal: zero twist, goal aborted, robot stuck."""
         if self.goal is None:
@@ -280,6 +301,7 @@ class DriveExecutorCore:
         self.goal = None
         self.current = None
         self.queue.clear()
+        self.suspended_at = None
 
     def drain(self) -> list[tuple]:
         """The events since the last call."""

@@ -154,6 +154,20 @@ class Primitive:
         self.last_twist = twist
         return Status.RUNNING, twist
 
+    def shift(self, seconds: float) -> None:
+        """Move the primitive's clock on by ``seconds`` (it was suspended: a pause).
+
+        The time allowance and the progress window count only the time it ran; it starts
+        again from standstill (the robot was stopped).
+        """
+        if self.started is None:
+            return
+        self.started += seconds
+        self.check_time += seconds
+        if self.last_time is not None:
+            self.last_time += seconds
+        self.last_twist = STOP
+
     def _fail(self, why: str) -> tuple[Status, Twist2D]:
         self.failure = why
         self.last_twist = STOP

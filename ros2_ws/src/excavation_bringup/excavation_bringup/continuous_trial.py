@@ -15,6 +15,13 @@ With ``exact`` physics (no slip, no noise) the result equals the lockstep grid t
 ``ant-eval``'s (tests/test_continuous_trial.py): moves are the world model's own, random
 turns come from the world's stream (the team tick draws them), and conflicting robots move
 in robot-index order.
+
+Oversight (docs/operator.md): the supervisor's lost-robot policy watches ``/robot_k/pose``
+and each executor's ``drive/status`` (:class:`team_supervisor.team.Team`); the team tick
+leaves a disabled or lost robot out and holds while the team is not armed; a pause
+suspends the executors' goals, so a paused trial resumed ends as an unpaused one.
+``supervisor="external"`` starts none: run ``ros2 run team_supervisor supervisor`` with
+``use_sim_time`` and arm it (and a ``time_factor``, so that its heartbeat keeps up).
 """
 
 from __future__ import annotations
@@ -43,7 +50,12 @@ def controller_remaps(robot: int, robots: int) -> list[str]:
 
 
 def run_continuous(
-    ctl, spec: TrialSpec, exact: bool = False, events_executor: bool = True, fault=None
+    ctl,
+    spec: TrialSpec,
+    exact: bool = False,
+    events_executor: bool = True,
+    time_factor: float = 0.0,
+    fault=None,
 ) -> TrialResult:
     """Run the trial of ``spec`` through executors, team tick and ``dynamics``.
 
@@ -55,6 +67,10 @@ def run_continuous(
             instead of the ``SingleThreadedExecutor``, whose wait-set rebuild per callback
             makes a trial of some 1,500 callbacks per tick about 20 times slower
             (docs/benchmarks.md).
+        time_factor: The simulator's clock at most this many times real time (0: as fast as
+            the team answers; 1: as in the dome). Nodes in other processes that follow sim
+            time (an external supervisor's heartbeat, against the 0.5 s sim-time deadman)
+            need it.
         fault: Called as ``fault(nodes, executor)`` between spins (the fault matrix,
             tests/test_faults.py): it may remove and destroy a node (a crash) and add a new
             one to both (its restart).
@@ -114,6 +130,7 @@ def run_continuous(
                 Parameter("pose_prefix", value=TRUTH_PREFIX if full else ""),
                 Parameter("snapshot_prefix", value=SNAPSHOT_PREFIX if full else ""),
                 Parameter("idle_time_factor", value=IDLE_TIME_FACTOR),
+                Parameter("time_factor", value=float(time_factor)),
             ]
             + [Parameter(name, value=value) for name, value in vars(physics).items()],
         )
@@ -123,7 +140,12 @@ def run_continuous(
             from excavation_bringup.perception import perception_nodes
 
             perception = perception_nodes(
-                context, spec.robots, spec.seed, blueprint, truth_prefix=SNAPSHOT_PREFIX
+                context,
+                spec.robots,
+                spec.seed,
+                blueprint,
+                spec.occlude,
+                truth_prefix=SNAPSHOT_PREFIX,
             )
             for node in perception:
                 node.set_parameters([sim_time])
@@ -141,18 +163,17 @@ def run_continuous(
             ],
         )
         nodes.append(tick)
-        nodes.append(
-            SupervisorNode(
-                context=context,
-                # The lost-robot policy reads pose stamps per tick (the lockstep trial's);
-                # here poses come per motion step, so it stays off in this trial.
-                parameter_overrides=[
-                    Parameter(k, value=v)
-                    for k, v in _supervisor_params(spec.robots, armed=True).items()
-                ]
-                + [Parameter("watch_poses", value=False), sim_time],
+        if spec.supervisor == "internal":
+            nodes.append(
+                SupervisorNode(
+                    context=context,
+                    parameter_overrides=[
+                        Parameter(k, value=v)
+                        for k, v in _supervisor_params(spec.robots, armed=True).items()
+                    ]
+                    + [sim_time],
+                )
             )
-        )
         executors = []
         for k in range(spec.robots):
             ns = f"/robot_{k}"

@@ -25,6 +25,16 @@ turns that back into ticks the controllers can run on unchanged, in their lockst
    behaviour waits for nobody and blocks nobody. A robot whose executor does not finish
    within ``motion_limit`` seconds is reported and the tick goes on without it (stuck).
 
+Oversight (DESIGN.md, "Operator oversight and safety"): the tick runs only while the team is
+:attr:`TeamTick.armed` (the node sets it from the supervisor's heartbeat, with the 0.5 s
+deadman, and the e-stop). Not armed, no snapshot is taken, no word is turned into goals and
+no further goal is granted; a pause while robots drive leaves their goals to their
+executors (which stop and carry on after the resume), and time not armed does not count
+toward ``motion_limit``. A snapshot the team was held for is asked for again once it is
+armed, so that it shows the site as the armed team left it. Robots in :attr:`TeamTick.absent`
+(disabled or lost: ``/robot_k/enabled`` false) are not waited for: the snapshot needs no
+pose of theirs, their word is 0 and their motion counts as done at once.
+
 Times: ``now`` is the node clock (sim time in CI), ``wall`` a monotonic wall clock for the
 controllers' answers. The node turns the returned actions into messages.
 """
@@ -164,6 +174,7 @@ class TeamTick:
     blades: dict[int, Latest] = field(default_factory=dict)
     words: dict[int, int] = field(default_factory=dict)
     armed: bool = True
+    absent: set[int] = field(default_factory=set)
     records: list[TickRecord] = field(default_factory=list)
     stuck: list[bool] = field(default_factory=list)
     late: list[int] = field(default_factory=list)
@@ -179,6 +190,8 @@ class TeamTick:
     _done: set[int] = field(default_factory=set)
     _turns: list[int] = field(default_factory=list)
     _final: bool = False
+    _held: bool = False
+    _last_now: float | None = None
 
     def __post_init__(self) -> None:
         n = self.params.robots
@@ -223,6 +236,10 @@ class TeamTick:
 
     def step(self, now: float, wall: float) -> list[tuple]:
         """Advance as far as the inputs allow."""
+        last, self._last_now = self._last_now, now
+        if not self.armed and self.phase is Phase.MOTION and last is not None:
+            for k in self._granted:  # time not armed does not count toward motion_limit
+                self._granted[k] += max(0.0, now - last)
         if self.phase is Phase.SNAPSHOT:
             return self._step_snapshot(now, wall)
         if self.phase is Phase.WORDS:
@@ -239,7 +256,8 @@ class TeamTick:
         """What the snapshot still lacks (``None``: complete)."""
         after = self._after + self.params.settle - STAMP_SLACK
         n = self.params.robots
-        for k in range(n):
+        present = [k for k in range(n) if k not in self.absent]
+        for k in present:
             if k not in self.poses or self.poses[k].stamp < after:
                 return f"pose of robot {k}"
             if k not in self.blades or self.blades[k].stamp < after:
@@ -247,14 +265,19 @@ class TeamTick:
         if self.heights is None or self.heights.stamp < after:
             return "height map"
         if now - self._after < self.params.blade_wait:
-            for k in range(n):
+            for k in present:
                 if self._expected[k] is not None and self.blades[k].value != self._expected[k]:
                     return f"blade of robot {k} at its setting"
         return None
 
     def _step_snapshot(self, now: float, wall: float) -> list[tuple]:
         if not self.armed:
+            self._held = True
             return []
+        if self._held:  # the team was held: a snapshot of the site as it stands now
+            self._held = False
+            self._after, self._after_wall = now, wall
+            return self._request(wall)
         missing = self.snapshot_ready(now)
         out: list[tuple] = []
         if missing is not None:
@@ -269,14 +292,15 @@ class TeamTick:
         if self._final:
             self.phase = Phase.FINISHED
             return out + [("finished",)]
+        n = self.params.robots
         snapshot = {
-            "poses": [self.poses[k].payload for k in range(self.params.robots)],
+            "poses": [self.poses[k].payload if k in self.poses else None for k in range(n)],
             "heights": self.heights.payload,
-            "blades": [self.blades[k].payload for k in range(self.params.robots)],
+            "blades": [self.blades[k].payload if k in self.blades else None for k in range(n)],
             "stuck": list(self.stuck),
         }
-        self._grid = [self.poses[k].value for k in range(self.params.robots)]
-        self._settings = [self.blades[k].value for k in range(self.params.robots)]
+        self._grid = [self.poses[k].value if k in self.poses else (0, 0, 0) for k in range(n)]
+        self._settings = [self.blades[k].value if k in self.blades else None for k in range(n)]
         self.phase = Phase.WORDS
         self.words = {}
         self._wall = wall
@@ -284,25 +308,28 @@ class TeamTick:
         return out + [("publish", self.tick, self.tick * self.params.tick_period, snapshot)]
 
     def _has_everything(self) -> bool:
-        n = self.params.robots
+        present = [k for k in range(self.params.robots) if k not in self.absent]
         return (
             self.heights is not None
-            and all(k in self.poses for k in range(n))
-            and all(k in self.blades for k in range(n))
+            and all(k in self.poses for k in present)
+            and all(k in self.blades for k in present)
         )
 
     def _step_words(self, now: float, wall: float) -> list[tuple]:
         n = self.params.robots
         limit = self.params.first_word_timeout if self.tick == 0 else self.params.word_timeout
-        if len(self.words) < n and wall - self._wall < limit:
+        present = set(range(n)) - self.absent
+        if not present <= set(self.words) and wall - self._wall < limit:
             return []
+        if not self.armed:
+            return []  # the words wait for the team (held: nothing moves)
         out: list[tuple] = []
-        silent = sorted(set(range(n)) - set(self.words))
+        silent = sorted(present - set(self.words))
         for k in silent:
             self.missed[k] += 1
         if silent:
             out.append(("report", f"tick {self.tick}: no word from robots {silent}; they idle"))
-        words = [self.words.get(k, 0) for k in range(n)]
+        words = [self.words.get(k, 0) if k in present else 0 for k in range(n)]
         self._turns = draw_turns(words, self.rng)
         self._waits = schedule(self._grid, words, self.params.reach)
         self._expected = [
@@ -319,16 +346,22 @@ class TeamTick:
 
     def _grant(self, now: float) -> list[tuple]:
         out = []
+        if not self.armed:
+            return out
         stamp = self.tick * self.params.tick_period
         for k in range(self.params.robots):
             if k in self._granted or not self._waits[k] <= self._done:
                 continue
             self._granted[k] = now
             out.append(("goal", k, self.tick, stamp, self._words_list[k], self._turns[k]))
+            if k in self.absent:  # told (its executor and the simulator keep in step), not awaited
+                self._done.add(k)
         return out
 
     def _step_motion(self, now: float, wall: float) -> list[tuple]:
         out: list[tuple] = []
+        for k in self.absent & set(self._granted):
+            self._done.add(k)  # disabled or lost while driving: its executor has stopped it
         for k, granted in self._granted.items():
             if k not in self._done and now - granted > self.params.motion_limit:
                 self._done.add(k)

@@ -3,8 +3,10 @@
 Reads, per robot k: ``/robot_k/pose`` (the localiser's, or the simulator's truth),
 ``/robot_k/{blade_in}`` (JointState: the measured blade; ``blade/plant_state`` from
 ``dynamics``), ``/robot_k/behaviour`` (the controller's word) and ``/robot_k/drive/status``;
-``/worksite/height_map`` (the mapper's, or the simulator's) and ``/team/heartbeat`` (a new
-tick starts only while the team is ``armed``).
+``/worksite/height_map`` (the mapper's, or the simulator's); the supervisor's
+``/team/heartbeat``, ``/team/estop`` and ``/robot_k/enabled``: the tick runs only while the
+team is armed (a heartbeat saying ``armed`` younger than the 0.5 s deadman, no e-stop), and a
+robot disabled or lost is absent (:class:`~excavation_bringup.team_tick.TeamTick`).
 
 Publishes for each tick t, stamped ``t * tick_period``: ``{output_prefix}/robot_k/pose``,
 ``{output_prefix}/robot_k/stuck`` (U1: the executor aborted), ``{output_prefix}/worksite/
@@ -39,7 +41,7 @@ from excavation_common.constants import BladeGeometry
 from excavation_common.messages import MessageError, blade_from_joint, pose_to_grid
 from excavation_common.params import param
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
-from excavation_common.safety import ARMED, HEARTBEAT_TOPIC
+from excavation_common.safety import ENABLED_TOPIC, ESTOP_TOPIC, HEARTBEAT_TOPIC, MotionGate
 from excavation_sim.world import scenario_start
 
 
@@ -96,8 +98,11 @@ class TeamTickNode(Node):
             sub(JointState, f"{ns}/{t.blade_in}", lambda m, k=k: self.on_blade(k, m), 10)
             sub(UInt16, f"{ns}/behaviour", lambda m, k=k: self.core.on_word(k, m.data), 10)
             sub(GoalStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
+            sub(Bool, f"{ns}/{ENABLED_TOPIC}", lambda m, k=k: self.on_enabled(k, m), LATCHED)
         sub(Image, "/worksite/height_map", self.on_heights, LATCHED)
         sub(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
+        self.team = MotionGate(active=True, enabled=True)
+        sub(Bool, ESTOP_TOPIC, lambda m: self.team.on_estop(m.data), LATCHED)
         self.core.armed = False
         self.heights_pub = self.create_publisher(Image, f"{out}/worksite/height_map", LATCHED)
         self.tick_pub = self.create_publisher(Header, "/team/tick", 10)
@@ -144,8 +149,16 @@ class TeamTickNode(Node):
             )
 
     def on_heartbeat(self, msg: Header) -> None:
-        """The team state: ticks start only while armed."""
-        self.core.armed = msg.frame_id == ARMED
+        """The team state: the tick runs only while armed."""
+        self.team.on_heartbeat(msg.frame_id, self._now())
+        self.core.armed = self.team.allowed(self._now())
+
+    def on_enabled(self, k: int, msg: Bool) -> None:
+        """Robot k enabled (waited for) or disabled or lost (absent)."""
+        if msg.data:
+            self.core.absent.discard(k)
+        else:
+            self.core.absent.add(k)
 
     # --- the tick ---------------------------------------------------------------------------
 
@@ -165,6 +178,7 @@ class TeamTickNode(Node):
     def poll(self) -> None:
         """Start the ticks once the team is present; then run the state machine."""
         now, wall = self._now(), time.monotonic()
+        self.core.armed = self.team.allowed(now)
         if self.core.phase is Phase.WAITING:
             if not self.team_present():
                 self.ready_since = None

@@ -106,3 +106,11 @@ class MotionGate:
     def allowed(self, now: float) -> bool:
         """True when nothing stops the robot at ``now``."""
         return self.reason(now) is None
+
+    def paused(self, now: float) -> bool:
+        """True when a pause is what closes the gate (a resume carries on where it stopped).
+
+        An e-stop, a lost heartbeat or an inactive node come first: each of them is never
+        merely a pause.
+        """
+        return self.reason(now) == f"team {PAUSED}"

@@ -9,7 +9,8 @@ seconds of sim time and publishes ``/clock`` and every robot's pose. It waits fo
 executors answer: faster than real time, and every node runs on ``use_sim_time``. While
 every command is zero (the team waits for its controllers or a camera frame) the clock
 runs at most ``idle_time_factor`` times real time, so that waiting costs neither CPU nor
-a race of sim time.
+a race of sim time; ``time_factor`` caps it always (1: real time, as in the dome, for
+nodes in other processes that must keep up with sim time, such as a supervisor's heartbeat).
 
 Subscribes, per robot k: ``/robot_k/cmd_vel`` (TwistStamped; none for ``cmd_vel_timeout``
 sim seconds stops the robot's wheels, as diff_drive_controller's ``cmd_vel_timeout`` does,
@@ -86,6 +87,11 @@ class DynamicsNodeParams:
     idle_time_factor: float = param(
         0.0,
         "while every command is zero, run at most this many times real time (0: no limit)",
+        low=0.0,
+    )
+    time_factor: float = param(
+        0.0,
+        "run at most this many times real time, moving or not (0: as fast as the team answers)",
         low=0.0,
     )
     pose_prefix: str = param("", "prefix of the per-step poses (with full perception: /truth)")
@@ -253,11 +259,14 @@ class DynamicsNode(Node):
             self.advance()
 
     def due(self, wall: float) -> bool:
-        """False while the team stands still and the idle time factor holds the clock back."""
-        factor = self.params.idle_time_factor
-        if factor <= 0 or self.sim.commands.any():
+        """False while a time factor holds the clock back (the idle one while all stand still)."""
+        factors = [self.params.time_factor]
+        if not self.sim.commands.any():
+            factors.append(self.params.idle_time_factor)
+        factors = [f for f in factors if f > 0]
+        if not factors:
             return True
-        return wall - self.wait_started >= self.physics.dt / factor
+        return wall - self.wait_started >= self.physics.dt / min(factors)
 
     def all_answered(self) -> bool:
         """Every robot answered this step, except those stopped for silence (not waited for)."""

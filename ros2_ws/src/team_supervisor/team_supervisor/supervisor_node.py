@@ -12,7 +12,9 @@ and ``/diagnostics`` (the team state and one value per robot). Every change goes
 once, not at the next heartbeat. Services (std_srvs/Trigger): ``~/estop``, ``~/reset``,
 ``~/arm``, ``~/pause``, ``~/resume`` and ``~/status`` (the state in words); per robot
 ``/robot_k/enable`` (std_srvs/SetBool). With ``watch_poses`` it subscribes every
-``/robot_k/pose`` (best effort, newest only) and applies the lost-robot policy of
+``/robot_k/pose`` (best effort, newest only) and ``/robot_k/drive/status``
+(action_msgs/GoalStatus: a robot whose executor runs a goal is not lost for a late frame)
+and applies the lost-robot policy of
 :class:`team_supervisor.team.Team`.
 
 The logic is :class:`team_supervisor.team.Team`; this node moves messages.
@@ -23,6 +25,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass
 
+from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
@@ -61,6 +64,12 @@ class SupervisorParams:
     lost_grace: float = param(
         5.0, "further s lost before the robot is disabled", low=0.0, high=3600.0
     )
+    lost_frames: int = param(
+        2, "frames of the pose stream (distinct stamps) a lost robot has missed", low=1, high=64
+    )
+    busy_timeout: float = param(
+        60.0, "s of the pose stream a goal executing keeps its robot from being lost", low=0.0
+    )
     enabled_at_start: bool = param(True, "robots start enabled (the team still starts disarmed)")
     arm_at_start: bool = param(False, "arm the team at start (unattended simulated trials only)")
     diagnostics_period: float = param(1.0, "s between diagnostics", low=0.05, high=60.0)
@@ -73,7 +82,14 @@ class SupervisorNode(Node):
         super().__init__("supervisor", **kwargs)
         self.params = declare_params(self, SupervisorParams)
         p = self.params
-        self.team = Team(p.robots, p.lost_timeout, p.lost_grace, p.enabled_at_start)
+        self.team = Team(
+            p.robots,
+            p.lost_timeout,
+            p.lost_grace,
+            p.enabled_at_start,
+            lost_frames=p.lost_frames,
+            busy_timeout=p.busy_timeout,
+        )
         self.estop_pub = self.create_publisher(Bool, ESTOP_TOPIC, LATCHED)
         self.heartbeat_pub = self.create_publisher(Header, HEARTBEAT_TOPIC, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -95,6 +111,12 @@ class SupervisorNode(Node):
                     f"/robot_{k}/pose",
                     lambda m, k=k: self.on_pose(k, m),
                     NEWEST_POSE,
+                )
+                self.create_subscription(
+                    GoalStatus,
+                    f"/robot_{k}/drive/status",
+                    lambda m, k=k: self.on_drive(k, m),
+                    10,
                 )
         self.published_enabled: list[bool | None] = [None] * p.robots
         self.published_estop: bool | None = None
@@ -176,9 +198,14 @@ class SupervisorNode(Node):
     def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
         """A robot's pose: feeds the lost-robot policy."""
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        before = [self.team.enabled(j) for j in range(self.team.robots)]
-        self.team.on_pose(k, stamp)
-        changed = [j for j in range(self.team.robots) if self.team.enabled(j) != before[j]]
+        self.report_lost(self.team.on_pose(k, stamp))
+
+    def on_drive(self, k: int, msg: GoalStatus) -> None:
+        """A robot's executor status: a goal executing keeps it from being lost."""
+        self.report_lost(self.team.on_drive(k, msg.status == GoalStatus.STATUS_EXECUTING))
+
+    def report_lost(self, changed: list[int]) -> None:
+        """Log and announce the robots the lost-robot policy stopped or let rejoin."""
         if changed:
             for j in changed:
                 self.get_logger().warning(f"robot {j}: {self.team.describe(j)}")

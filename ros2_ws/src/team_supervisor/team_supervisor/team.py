@@ -14,28 +14,50 @@ Team state (:data:`excavation_common.safety.TEAM_STATES`)::
   clear an e-stop or arm a team that was never armed).
 
 Per robot: the operator's wish (``enable K`` / ``disable K``) and the lost-robot policy.
-A robot is *lost* when the team's previous frame (the newest pose stamp before the newest
-one) is more than ``lost_timeout`` seconds (pose header stamps) ahead of the robot's own
-newest pose; a robot never seen counts from the team's first pose. The newest stamp itself
-is not the reference: the poses of one frame arrive one after another, and after a gap in
-which no robot was seen (a camera stall, a localiser restart) the first pose of the next
-frame would make every other robot lost (and, past the grace, disabled) before its own pose
-of that frame came in. A lost robot is stopped at once (its ``enabled`` goes false, which closes
-its own MotionGate and makes it absent to the other robots' controllers); seen again
-within ``lost_grace`` it rejoins by itself; lost for longer, it is disabled and rejoins only
-when it is seen again and the operator enables it. Stamps, not arrival times, make the rule
-independent of how loaded the machine is, and in a lockstep trial (one pose per tick,
-stamped with sim time) the same in every run. A robot's pose stamped more than
-``lost_timeout`` before its own newest means the clock went back (a restarted simulator):
-the stamps are forgotten and counted afresh (:meth:`Team.restart_stamps`), so the policy
-follows the new clock instead of waiting for it to catch up with the old one.
+The policy reads the pose stream (every ``/robot_k/pose``: the localiser's, one message per
+robot per camera frame, or a simulator's) by its header stamps, which are sim time in a
+simulated trial. A robot is *lost* when both hold:
+
+* its pose **age** is more than ``lost_timeout``: the newest stamp of the stream (any robot's)
+  is that far ahead of its own newest pose (a robot never seen counts from the stream's
+  first stamp);
+* it has **missed** at least ``lost_frames`` frames: that many distinct stamps of the stream
+  are newer than its own newest pose. The poses of one frame arrive one after another, and
+  a frame may come seconds of sim time after the last (the continuous trial renders one per
+  tick, once the robots stand still), so one late or missing pose is never enough;
+
+and its drive executor is not **busy**: an executor that reports a goal executing on
+``/robot_k/drive/status`` is closing its loop on the robot's pose, and stops the robot by
+itself (its ``pose_timeout``) and aborts the goal when that pose goes stale, so a late frame
+while it drives does not make the robot lost; this holds for at most ``busy_timeout``
+seconds of the stream (an executor that died mid-goal). When the goal ends, the rule
+applies again with the age the robot has by then.
+
+A lost robot is stopped at once (its ``enabled`` goes false, which closes its own MotionGate
+and makes it absent to the other robots' controllers and to the team tick); seen again
+within ``lost_grace`` it rejoins by itself; lost for longer (age beyond ``lost_timeout +
+lost_grace``, and at least one frame missed since it was lost, so that a frame can still
+find it however far apart frames come), it is disabled and rejoins only when it is seen
+again and the operator enables it. Stamps, not arrival times, make the rule independent
+of how loaded the machine is, and in a lockstep trial (one pose per tick, stamped with sim
+time) the same in every run. The stream itself is the reference: while no frame comes (a
+camera that stopped, a team standing still between snapshots) nobody is declared lost by
+the supervisor; the executors' own pose timeout stops a robot whose pose goes stale.
+A robot's pose stamped more than ``lost_timeout`` before its own newest means the clock
+went back (a restarted simulator): the stamps are forgotten and counted afresh
+(:meth:`Team.restart_stamps`), so the policy follows the new clock instead of waiting for
+it to catch up with the old one.
 """
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass, field
 
 from excavation_common.safety import ARMED, DISARMED, ESTOPPED, PAUSED
+
+FRAMES_KEPT = 64
+"""Distinct stamps the policy remembers (enough to count ``lost_frames`` missed frames)."""
 
 
 @dataclass(frozen=True)
@@ -59,13 +81,17 @@ class RobotState:
         operator_enabled: The operator's wish (and the lost policy's disable after grace).
         disabled_reason: Why it is disabled (``"operator"`` or ``"lost"``), if it is.
         last_stamp: Stamp (s) of its newest pose, ``None`` before the first.
-        lost: No pose for longer than ``lost_timeout`` (stamps).
+        lost: No pose for longer than ``lost_timeout`` (stamps) and ``lost_frames`` frames.
+        busy: Its executor reports a goal executing.
+        busy_since: The stream's newest stamp when the goal started (``None``: no stamp yet).
     """
 
     operator_enabled: bool = True
     disabled_reason: str | None = None
     last_stamp: float | None = None
     lost: bool = False
+    busy: bool = False
+    busy_since: float | None = None
 
     @property
     def enabled(self) -> bool:
@@ -81,6 +107,8 @@ class Team:
         robots: Team size (robots ``0 .. robots - 1``).
         lost_timeout: Seconds of pose stamps after which a silent robot is lost (stopped).
         lost_grace: Further seconds after which a lost robot is disabled.
+        lost_frames: Frames of the stream (distinct stamps) a robot must miss to be lost.
+        busy_timeout: Seconds of the stream an executing goal keeps its robot from being lost.
         state: One of ``disarmed``, ``armed``, ``paused``, ``estop``.
         estop_reason: What latched the e-stop.
         members: One :class:`RobotState` per robot.
@@ -90,16 +118,21 @@ class Team:
     lost_timeout: float = 1.0
     lost_grace: float = 5.0
     enabled_at_start: bool = True
+    lost_frames: int = 2
+    busy_timeout: float = 60.0
     state: str = DISARMED
     estop_reason: str = ""
     members: list[RobotState] = field(default_factory=list)
     _first_stamp: float | None = None
     _newest_stamp: float | None = None
-    _previous_stamp: float | None = None
+    _frames: list[float] = field(default_factory=list)
+    """The stream's newest distinct stamps, ascending (at most :data:`FRAMES_KEPT`)."""
 
     def __post_init__(self) -> None:
         if self.robots < 1:
             raise ValueError(f"robots = {self.robots}: must be >= 1")
+        if not 1 <= self.lost_frames <= FRAMES_KEPT:
+            raise ValueError(f"lost_frames = {self.lost_frames}: must be 1..{FRAMES_KEPT}")
         if not self.members:
             self.members = [
                 RobotState(
@@ -186,8 +219,8 @@ class Team:
         self._check(k)
         return self.members[k].enabled
 
-    def on_pose(self, k: int, stamp: float) -> None:
-        """A pose of robot ``k`` stamped ``stamp`` (s) arrived."""
+    def on_pose(self, k: int, stamp: float) -> list[int]:
+        """A pose of robot ``k`` stamped ``stamp`` (s) arrived; returns :meth:`update_lost`."""
         self._check(k)
         member = self.members[k]
         if member.last_stamp is not None and stamp < member.last_stamp - self.lost_timeout:
@@ -197,8 +230,22 @@ class Team:
         if self._first_stamp is None:
             self._first_stamp = stamp
         if self._newest_stamp is None or stamp > self._newest_stamp:
-            self._previous_stamp, self._newest_stamp = self._newest_stamp, stamp
-        self.update_lost()
+            self._newest_stamp = stamp
+        i = bisect.bisect_left(self._frames, stamp)
+        if i == len(self._frames) or self._frames[i] != stamp:
+            self._frames.insert(i, stamp)
+            del self._frames[:-FRAMES_KEPT]
+        return self.update_lost()
+
+    def on_drive(self, k: int, executing: bool) -> list[int]:
+        """Robot ``k``'s executor reports a goal executing (or ended): :meth:`update_lost`."""
+        self._check(k)
+        member = self.members[k]
+        if executing and not member.busy:
+            member.busy, member.busy_since = True, self._newest_stamp
+        elif not executing:
+            member.busy, member.busy_since = False, None
+        return self.update_lost()
 
     def restart_stamps(self) -> None:
         """Forget every pose stamp (the clock went back): no robot is lost until counted anew.
@@ -207,18 +254,32 @@ class Team:
         only when the operator enables it).
         """
         for member in self.members:
-            member.last_stamp, member.lost = None, False
-        self._first_stamp = self._newest_stamp = self._previous_stamp = None
+            member.last_stamp, member.lost, member.busy_since = None, False, None
+        self._first_stamp = self._newest_stamp = None
+        self._frames.clear()
 
     def pose_age(self, k: int) -> float:
-        """Seconds (stamps) robot ``k``'s newest pose lags the team's previous frame.
-
-        0 (or less) while the team has fewer than two frames, or the robot is up to date.
-        """
-        if self._previous_stamp is None:
+        """Seconds (stamps) robot ``k``'s newest pose lags the team's newest (0: none yet)."""
+        if self._newest_stamp is None:
             return 0.0
         last = self.members[k].last_stamp
-        return self._previous_stamp - (last if last is not None else self._first_stamp)
+        return self._newest_stamp - (last if last is not None else self._first_stamp)
+
+    def missed_frames(self, k: int) -> int:
+        """Frames of the stream (distinct stamps) newer than robot ``k``'s newest pose."""
+        last = self.members[k].last_stamp
+        if last is None:
+            return len(self._frames)
+        return len(self._frames) - bisect.bisect_right(self._frames, last)
+
+    def busy(self, k: int) -> bool:
+        """Robot ``k``'s executor runs a goal that started within ``busy_timeout``."""
+        member = self.members[k]
+        if not member.busy:
+            return False
+        if member.busy_since is None or self._newest_stamp is None:
+            return True
+        return self._newest_stamp - member.busy_since <= self.busy_timeout
 
     def update_lost(self) -> list[int]:
         """Apply the lost-robot policy; returns the robots whose ``enabled`` changed."""
@@ -226,8 +287,18 @@ class Team:
         for k, member in enumerate(self.members):
             before = member.enabled
             age = self.pose_age(k)
-            member.lost = age > self.lost_timeout
-            if member.lost and age > self.lost_timeout + self.lost_grace:
+            # A goal that starts once the robot is lost does not bring it back (its executor
+            # is stopped by the closed gate); only a pose does.
+            member.lost = (
+                age > self.lost_timeout
+                and self.missed_frames(k) >= self.lost_frames
+                and (member.lost or not self.busy(k))
+            )
+            if (
+                member.lost
+                and age > self.lost_timeout + self.lost_grace
+                and self.missed_frames(k) > self.lost_frames
+            ):
                 if member.operator_enabled:
                     member.operator_enabled, member.disabled_reason = False, "lost"
             if member.enabled != before:

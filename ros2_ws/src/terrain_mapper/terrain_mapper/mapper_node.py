@@ -21,7 +21,9 @@ publishes it only with ``publish_map_info`` (off by default; for a mapper run al
 A scan that turns the tilt back against the sweep's direction ends a sweep early (one of
 its scans was lost), so the count never drifts out of step. A sweep is fused once every
 robot's pose is at least as new as the sweep's first scan (so the masks are where the
-robots were), or ``pose_wait`` seconds after its last scan with the poses it has. A scan
+robots were), or ``pose_wait`` seconds after its last scan with the poses it has; a robot
+the team supervisor has disabled or lost (``/robot_k/enabled`` false, latched) is not
+waited for, and stays masked where it was last seen. A scan
 with no valid return, a malformed scan or mount state, or a sweep that measured no cell is
 reported on ``/diagnostics`` (status ``/mapper``, WARN or ERROR) and publishes nothing; the node
 keeps running.
@@ -45,9 +47,11 @@ from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, JointState, LaserScan
+from std_msgs.msg import Bool
 
 from excavation_common.messages import grid_to_image, map_info
 from excavation_common.ros import LATCHED, SENSOR_DATA, declare_params, diagnostics, spin_node
+from excavation_common.safety import ENABLED_TOPIC
 from terrain_mapper.errors import MapperError
 from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, yaw_of
 from terrain_mapper.mapper import MapperParams, TerrainMapper, scan_ranges_check
@@ -131,12 +135,16 @@ class MapperNode(Node):
         )
         self.create_subscription(LaserScan, c.scan_topic, self.on_scan, qos)
         self.create_subscription(JointState, c.mount_topic, self.on_mount, qos)
+        self.disabled: set[int] = set()
         for k in range(self.n):
             self.create_subscription(
                 PoseWithCovarianceStamped,
                 f"/robot_{k}/pose",
                 lambda m, k=k: self.on_pose(k, m),
                 10,
+            )
+            self.create_subscription(
+                Bool, f"/robot_{k}/{ENABLED_TOPIC}", lambda m, k=k: self.on_enabled(k, m), LATCHED
             )
         if self.info_pub is not None:
             self.info_pub.publish(
@@ -169,6 +177,13 @@ class MapperNode(Node):
             self.scans, (_ns(msg.header.stamp), time.monotonic(), msg), key=lambda e: e[0]
         )
         self.match()
+
+    def on_enabled(self, k: int, msg: Bool) -> None:
+        """Robot k enabled (waited for) or disabled or lost (not waited for)."""
+        if msg.data:
+            self.disabled.discard(k)
+        else:
+            self.disabled.add(k)
 
     def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
         """A robot's pose (for the footprint mask)."""
@@ -279,7 +294,11 @@ class MapperNode(Node):
             return
         stamp, finished = self.pending
         key = _key(stamp)
-        current = all(k in self.poses and self.poses[k][0] >= key for k in range(self.n))
+        current = all(
+            k in self.poses and self.poses[k][0] >= key
+            for k in range(self.n)
+            if k not in self.disabled
+        )
         if current or time.monotonic() - finished >= self.pose_wait:
             if not current:
                 stale = [k for k in range(self.n) if k not in self.poses or self.poses[k][0] < key]
