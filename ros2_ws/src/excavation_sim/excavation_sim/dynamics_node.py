@@ -27,10 +27,17 @@ pitch of R1 when the robot stands tilted nose down) and ``/robot_k/blade/plant_s
 ``snapshot_prefix`` when it differs from ``pose_prefix`` (the ``sensors`` node renders
 exactly those), the blade plant states, ``/worksite/fitness`` and ``/worksite/markers``;
 ``/diagnostics``.
+
+With ``result_file`` set, every snapshot also rewrites that JSON file (atomically) with the
+world as the snapshot shows it: ``fitness``, ``heights`` (soil units), ``snapshots`` (the
+fitness of every snapshot by its request label, ``"tick t"``), ``sim_seconds``, ``steps``
+and ``late_steps``. ``ant-trial --drive continuous --processes`` and ``ant-dome up --sim``
+read it.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 import time
@@ -48,6 +55,7 @@ from std_msgs.msg import Bool, Float32, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from excavation_common.constants import BladeGeometry
+from excavation_common.files import write_text_atomic
 from excavation_common.messages import blade_joint, grid_to_image
 from excavation_common.params import param
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
@@ -84,6 +92,7 @@ class DynamicsNodeParams:
     )
     max_force: float = param(10.0, "push force of a full blade, N", low=0.001)
     diagnostics_period: float = param(1.0, "wall seconds between diagnostics", low=0.05)
+    result_file: str = param("", "JSON rewritten at every snapshot: the world it shows")
 
 
 def _stamp(ns: int) -> TimeMsg:
@@ -322,6 +331,19 @@ class DynamicsNode(Node):
         self.snapshot_due = None
         self.fitness_pub.publish(Float32(data=float(fitness)))
         self.markers_pub.publish(self.markers(stamp))
+        if self.params.result_file:
+            write_text_atomic(self.params.result_file, json.dumps(self.result()))
+
+    def result(self) -> dict:
+        """The world now: fitness, heights, the fitness of every snapshot, sim time, steps."""
+        return {
+            "fitness": float(self.sim.world.fitness()),
+            "heights": self.sim.world.heights.tolist(),
+            "snapshots": dict(self.snapshots),
+            "sim_seconds": self.now_ns * 1e-9,
+            "steps": self.steps,
+            "late_steps": self.late,
+        }
 
     def markers(self, stamp: TimeMsg) -> MarkerArray:
         """One cube per robot at its true pose (for RViz or Foxglove)."""
