@@ -50,7 +50,7 @@ FINAL = "team_tick"
 WORLD_FILE = "world.json"
 COUNTERS_WAIT = 30.0
 """Wall seconds to wait, after the last tick, for every executor's next diagnostics report
-(one per second of sim time, which runs at ``IDLE_TIME_FACTOR`` x real time then)."""
+(one per wall second)."""
 DYNAMICS_COMMAND_TIMEOUT = 60.0
 """Wall seconds a ``dynamics`` step waits for every executor's ``cmd_vel`` (the most the
 parameter allows): between processes on a loaded machine an answer can take longer than the
