@@ -63,6 +63,14 @@ of sim time is 50 ms of wall time: a supervisor process held up that long by a l
 machine would trip the deadman (seen: "heartbeat lost (0.55 s old)" aborted both robots'
 moves); 5 s of sim time is about the field's 0.5 s of wall time. Composed, every node
 shares one executor and one clock, and the field's value holds."""
+SIM_BLADE_WAIT = 20.0
+"""Seconds of sim time the team tick waits for every blade to reach its setting before it
+takes a snapshot anyway, when the nodes are processes (the composed trial: 2 s). The
+blade's way from controller to blade driver to simulator and back is a few messages
+between processes; the simulator's clock runs 10 x real time while the team stands
+still, so 2 s of sim time is 0.2 s of wall time, which a loaded machine exceeds, and a
+snapshot with a blade not yet at its setting changes what the controllers decide next.
+A fallback only: a blade that arrives ends the wait."""
 EXECUTOR_STATUS = re.compile(r"/robot_(\d+)/executor")
 
 
@@ -137,6 +145,7 @@ def continuous_commands(spec: TrialSpec, workdir: Path, exact: bool) -> dict[str
         FINAL,
         "excavation_bringup.team_tick_node",
         **tick_parameters(spec),
+        blade_wait=SIM_BLADE_WAIT,
         result_file=str(workdir / "result.json"),
         **sim,
     )

@@ -816,10 +816,12 @@ def executor_params(site: Site, k: int) -> dict[str, Any]:
 
 def team_tick_params(site: Site, ticks: int, result_file: str) -> dict[str, Any]:
     """``excavation_bringup team_tick`` for ``--sim``: ``ticks`` ticks, then ``result_file``."""
+    from excavation_bringup.continuous_processes import SIM_BLADE_WAIT
     from excavation_bringup.continuous_trial import tick_parameters
 
     return {
         **tick_parameters(_sim_spec(site, ticks)),
+        "blade_wait": SIM_BLADE_WAIT,
         "first_word_timeout": float(site.sim.first_command_timeout),
         "result_file": str(result_file),
     }

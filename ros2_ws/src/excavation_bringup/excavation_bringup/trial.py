@@ -11,8 +11,11 @@ composed on one executor in one process (the way ``executors/composed.py`` of ro
 composes nodes; this environment has no launch); ``--processes`` starts each node as its own
 process, as separate ``ros2 run`` commands would, and collects the result from the
 simulator's ``result_file``. Either way it runs ``--steps`` ticks, prints the fitness and
-stops every node. The result equals ``ant-eval --scenarios 1`` with the same seed
-(``tests/test_trial.py``).
+stops every node. ``--drive continuous`` runs drive executors, the team tick and the
+continuous-motion simulator instead of the lockstep one
+(:mod:`excavation_bringup.continuous_trial`; with ``--processes``
+:mod:`excavation_bringup.continuous_processes`); ``--record BAG`` records either kind.
+The result equals ``ant-eval --scenarios 1`` with the same seed (``tests/test_trial.py``).
 
 Examples::
 
