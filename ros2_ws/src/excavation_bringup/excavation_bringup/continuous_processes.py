@@ -55,22 +55,28 @@ DYNAMICS_COMMAND_TIMEOUT = 60.0
 """Wall seconds a ``dynamics`` step waits for every executor's ``cmd_vel`` (the most the
 parameter allows): between processes on a loaded machine an answer can take longer than the
 composed trial's 0.5 s, and a step taken without it would integrate the previous command."""
-SIM_DEADMAN = 5.0
+MAX_TIME_FACTOR = 20.0
+"""``dynamics`` runs at most 20 times real time when the nodes are processes (composed: no
+cap; it reaches some 40 x). Every node judges heartbeats and waits on the simulator's
+clock, so a process held up for some wall time misses that many times more sim time: the
+cap bounds it."""
+SIM_DEADMAN = 10.0
 """Seconds of sim time without a team heartbeat that stop an executor or home a blade, in
-a simulation whose nodes are processes (the field's limit is 0.5 s). Between processes
-``dynamics`` runs some 10 times faster than real time while the robots drive, so 0.5 s
-of sim time is 50 ms of wall time: a supervisor process held up that long by a loaded
-machine would trip the deadman (seen: "heartbeat lost (0.55 s old)" aborted both robots'
-moves); 5 s of sim time is about the field's 0.5 s of wall time. Composed, every node
-shares one executor and one clock, and the field's value holds."""
-SIM_BLADE_WAIT = 20.0
+a simulation whose nodes are processes (the field's limit is 0.5 s): with the clock at most
+:data:`MAX_TIME_FACTOR` times real time, at least the field's 0.5 s of wall time. With the
+field's 0.5 s of sim time, 25 ms of wall time at 20 x, a supervisor process held up by a
+loaded machine tripped it (seen: "heartbeat lost (0.55 s old)" aborted both robots'
+moves). Composed, every node shares one executor and one clock, and the field's value
+holds."""
+SIM_BLADE_WAIT = 60.0
 """Seconds of sim time the team tick waits for every blade to reach its setting before it
 takes a snapshot anyway, when the nodes are processes (the composed trial: 2 s). The
 blade's way from controller to blade driver to simulator and back is a few messages
 between processes; the simulator's clock runs 10 x real time while the team stands
-still, so 2 s of sim time is 0.2 s of wall time, which a loaded machine exceeds, and a
-snapshot with a blade not yet at its setting changes what the controllers decide next.
-A fallback only: a blade that arrives ends the wait."""
+still, so 2 s of sim time is 0.2 s of wall time, which a loaded machine exceeds (seen: the
+4-robot trial's words diverged from the grid's), and a snapshot with a blade not yet at
+its setting changes what the controllers decide next. A fallback only: a blade that
+arrives ends the wait."""
 EXECUTOR_STATUS = re.compile(r"/robot_(\d+)/executor")
 
 
@@ -99,6 +105,7 @@ def continuous_commands(spec: TrialSpec, workdir: Path, exact: bool) -> dict[str
         "excavation_sim.dynamics_node",
         **dynamics_parameters(spec, exact),
         command_timeout=min(float(spec.command_timeout), DYNAMICS_COMMAND_TIMEOUT),
+        max_time_factor=MAX_TIME_FACTOR,
         result_file=str(workdir / WORLD_FILE),
     )
     if spec.perception == "full":

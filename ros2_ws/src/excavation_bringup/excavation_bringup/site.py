@@ -794,12 +794,13 @@ def dynamics_params(site: Site, result_file: str) -> dict[str, Any]:
     (what the synthetic camera and laser render); it writes ``result_file`` (the world at
     every snapshot).
     """
-    from excavation_bringup.continuous_processes import DYNAMICS_COMMAND_TIMEOUT
+    from excavation_bringup.continuous_processes import DYNAMICS_COMMAND_TIMEOUT, MAX_TIME_FACTOR
     from excavation_bringup.continuous_trial import dynamics_parameters
 
     return {
         **dynamics_parameters(_sim_spec(site, site.sim.ticks), site.sim.exact),
         "command_timeout": min(float(site.sim.command_timeout), DYNAMICS_COMMAND_TIMEOUT),
+        "max_time_factor": MAX_TIME_FACTOR,
         "result_file": str(result_file),
     }
 

@@ -9,7 +9,8 @@ seconds of sim time and publishes ``/clock`` and every robot's pose. It waits fo
 executors answer: faster than real time, and every node runs on ``use_sim_time``. While
 every command is zero (the team waits for its controllers or a camera frame) the clock
 runs at most ``idle_time_factor`` times real time, so that waiting costs neither CPU nor
-a race of sim time.
+a race of sim time; ``max_time_factor`` caps it while robots move (nodes in separate
+processes judge heartbeats on this clock: a cap bounds how much sim time a process's lag is).
 
 Subscribes, per robot k: ``/robot_k/cmd_vel`` (TwistStamped), ``/robot_k/drive/throttle``
 (Bool, latched: high-power mode), ``/robot_k/blade/servo_command`` (JointState, a blade
@@ -84,6 +85,9 @@ class DynamicsNodeParams:
         0.0,
         "while every command is zero, run at most this many times real time (0: no limit)",
         low=0.0,
+    )
+    max_time_factor: float = param(
+        0.0, "while robots move, run at most this many times real time (0: no limit)", low=0.0
     )
     pose_prefix: str = param("", "prefix of the per-step poses (with full perception: /truth)")
     snapshot_prefix: str = param("", "prefix of the snapshot height map and poses")
@@ -245,9 +249,10 @@ class DynamicsNode(Node):
             self.advance()
 
     def due(self, wall: float) -> bool:
-        """False while the team stands still and the idle time factor holds the clock back."""
-        factor = self.params.idle_time_factor
-        if factor <= 0 or self.sim.commands.any():
+        """False while the idle (team still) or maximal time factor holds the clock back."""
+        p = self.params
+        factor = p.max_time_factor if self.sim.commands.any() else p.idle_time_factor
+        if factor <= 0:
             return True
         return wall - self.wait_started >= self.physics.dt / factor
 
