@@ -9,12 +9,17 @@ import time
 import pytest
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-_DOMAINS = itertools.count(100 + os.getpid() % 60)
+# Under pytest-xdist (`make test` runs `-n 2`) each worker takes its own block of domains,
+# handed out in order from a place its process id picks, so no two workers share one.
+_WORKERS = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
+_WORKER = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw") or 0)
+_SPAN = 200 // _WORKERS
+_DOMAINS = itertools.count(os.getpid() % _SPAN)
 
 
 def next_domain() -> int:
-    """A ROS domain id no other test of this session uses."""
-    return next(_DOMAINS) % 200 + 20
+    """A ROS domain id no other test of this session (or other xdist worker) uses."""
+    return 20 + _WORKER * _SPAN + next(_DOMAINS) % _SPAN
 
 
 @pytest.fixture

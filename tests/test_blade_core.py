@@ -17,7 +17,7 @@ from ant_controller.layout import (
     BLADE_LEVEL_CMD,
     MOVE_FORWARD,
 )
-from blade_driver.core import BladeDriverCore, DriverParams, Pid, blade_setting
+from blade_driver.core import AfterDrive, BladeDriverCore, DriverParams, Pid, blade_setting
 from blade_driver.errors import BoardError, DriverConfigError
 from blade_driver.protocol import ServoCalibration, checksum, decode, encode
 
@@ -205,3 +205,36 @@ def test_backoff_doubles_up_to_the_maximum_and_resets():
     assert b.due(0.0) and b.failed(10.0) == 0.5
     with pytest.raises(ValueError):
         Backoff(2.0, 1.0)
+
+
+def test_after_drive_releases_a_ticks_blade_bits_when_its_drive_ends():
+    after = AfterDrive()
+    below, level = 1 << BLADE_BELOW_CMD, 1 << BLADE_LEVEL_CMD
+    assert after.word((0, 0), below) == [] and after.holding()
+    assert after.drive_ended((0, 0)) == [below] and not after.holding()
+    assert after.word((0, 0), level) == [level]  # its drive has ended: at once
+    assert after.word((2, 0), below) == []
+    assert after.drive_ended((1, 0)) == []  # an older tick's end releases nothing newer
+    assert after.word((3, 0), level) == []
+    assert after.drive_ended((3, 0)) == [below, level]  # tick 2's status never came: in order
+
+
+def test_a_word_whose_blade_waits_still_feeds_the_watchdog_and_the_force_loop():
+    core = BladeDriverCore(DriverParams(watchdog_timeout=1.0))
+    core.command(1 << BLADE_BELOW_CMD, 0.0)
+    core.update(0.0, 0.0)
+    core.command((1 << MOVE_FORWARD) | (1 << BLADE_LEVEL_CMD), 0.9, blade=False)
+    assert core.state.setting == BLADE_BELOW and core.pushing
+    core.update(1.5, 0.0)
+    assert not core.state.watchdog_tripped  # the word at 0.9 s counts
+    core.apply_blade(1 << BLADE_LEVEL_CMD)
+    assert core.state.setting == BLADE_LEVEL
+
+
+def test_after_drive_holds_repeated_words_of_one_tick_as_one():
+    after = AfterDrive()
+    below, level, forward = 1 << BLADE_BELOW_CMD, 1 << BLADE_LEVEL_CMD, 1 << MOVE_FORWARD
+    for w in (below, forward, level, forward):
+        after.word((5, 0), w)
+    assert after.held == [((5, 0), level)]
+    assert after.drive_ended((5, 0)) == [level]

@@ -7,7 +7,13 @@ import threading
 
 import pytest
 
-from ant_controller.layout import BLADE_BELOW_CMD, BLADE_LEVEL_CMD, MOVE_FORWARD
+from ant_controller.layout import (
+    BLADE_ABOVE_CMD,
+    BLADE_BELOW_CMD,
+    BLADE_HOME,
+    BLADE_LEVEL_CMD,
+    MOVE_FORWARD,
+)
 from blade_driver.errors import BoardError
 from blade_driver.fake_board import FakeBoard, open_pty
 from blade_driver.protocol import ServoCalibration
@@ -208,3 +214,98 @@ def test_sim_driver_node_answers_each_tick_in_sim_time(ros):
     cmd = tick(3)
     assert cmd is not None and cmd.header.stamp.sec == 3
     assert cmd.position[0] == pytest.approx(0.10)
+
+
+def _drive_status(probe, tick, status):
+    """Publish what the drive executor says about its goal of ``tick`` (sec)."""
+    from action_msgs.msg import GoalStatus
+
+    msg = GoalStatus(status=status)
+    msg.goal_info.stamp.sec = tick
+    probe.status.publish(msg)
+
+
+def test_sim_driver_waits_for_the_ticks_drive_before_moving_the_blade(ros):
+    """``blade_after_motion``: a fake executor's ``drive/status`` releases each tick's blade."""
+    from action_msgs.msg import GoalStatus
+    from builtin_interfaces.msg import Time
+    from std_msgs.msg import UInt16
+
+    from blade_driver.driver_node import joint_state
+
+    driver = _driver(ros, backend="sim", blade_after_motion=True)
+    probe = _probe(ros)
+    probe.status = probe.create_publisher(GoalStatus, "/robot_0/drive/status", 10)
+    assert ros.spin_until(lambda: probe.count_subscribers("/robot_0/drive/status") > 0)
+    assert ros.spin_until(lambda: driver.hold is None)
+
+    def new_tick(t):
+        probe.state.publish(joint_state(0.10, 0.0, Time(sec=t)))
+        assert ros.spin_until(lambda: probe.joints and probe.joints[-1].header.stamp.sec == t)
+
+    def answer(m, timeout=1.0):
+        ros.spin_until(lambda: len(probe.servo) > m, timeout=timeout)
+        return probe.servo[-1] if len(probe.servo) > m else None
+
+    def send_word(bits):
+        n, m = driver.commands, len(probe.servo)
+        probe.behaviour.publish(UInt16(data=bits))
+        assert ros.spin_until(lambda: driver.commands > n)
+        return answer(m)
+
+    def send_status(tick, status):
+        m = len(probe.servo)
+        _drive_status(probe, tick, status)
+        if status != GoalStatus.STATUS_EXECUTING:
+            done = driver.after
+            assert ros.spin_until(lambda: done.done is not None and done.done[0] >= tick)
+        return answer(m)
+
+    new_tick(0)
+    assert send_word(word(MOVE_FORWARD, BLADE_BELOW_CMD)) is None
+    assert send_status(0, GoalStatus.STATUS_EXECUTING) is None  # still driving: the blade waits
+    assert driver.core.pushing and driver.core.state.setting == BLADE_HOME  # not yet set
+    cmd = send_status(0, GoalStatus.STATUS_SUCCEEDED)
+    # below ground, trimmed by the constant-force loop (it pushes: 0 N measured)
+    assert cmd.header.stamp.sec == 0 and cmd.position[0] == pytest.approx(-0.02, abs=0.008)
+    # Tick 1: an old tick's status releases nothing; an aborted drive of tick 1 does.
+    new_tick(1)
+    assert send_word(word(BLADE_LEVEL_CMD)) is None
+    assert send_status(0, GoalStatus.STATUS_SUCCEEDED) is None
+    cmd = send_status(1, GoalStatus.STATUS_ABORTED)
+    assert cmd.header.stamp.sec == 1 and cmd.position[0] == pytest.approx(0.0)
+    # Tick 2: the drive ended before the word came (nothing to drive): the blade at once.
+    new_tick(2)
+    assert send_status(2, GoalStatus.STATUS_SUCCEEDED) is None
+    cmd = send_word(word(BLADE_ABOVE_CMD))
+    assert cmd.header.stamp.sec == 2 and cmd.position[0] == pytest.approx(0.02)
+
+
+def test_serial_driver_waits_for_the_team_ticks_drive(ros, board):
+    from action_msgs.msg import GoalStatus
+    from builtin_interfaces.msg import Time
+    from std_msgs.msg import Header, UInt16
+
+    fake, path = board
+    cal = ServoCalibration()
+    driver = _driver(ros, backend="serial", port=path, rate=50.0, blade_after_motion=True)
+    probe = _probe(ros)
+    probe.status = probe.create_publisher(GoalStatus, "/robot_0/drive/status", 10)
+    team_tick = probe.create_publisher(Header, "/team/tick", 10)
+    assert ros.spin_until(lambda: probe.count_subscribers("/team/tick") > 0)
+    assert ros.spin_until(lambda: len(probe.joints) > 3 and fake.target == cal.angle(0.10))
+    team_tick.publish(Header(stamp=Time(sec=4), frame_id="4"))
+    assert ros.spin_until(lambda: driver.team_tick == (4, 0))
+    level = UInt16(data=word(BLADE_LEVEL_CMD))
+
+    def words_until(cond, timeout):
+        def check():
+            probe.behaviour.publish(level)  # the controller repeats (feeds the watchdog)
+            return cond()
+
+        return ros.spin_until(check, timeout)
+
+    assert not words_until(lambda: fake.target != cal.angle(0.10), timeout=1.0)  # waits
+    assert driver.commands > 0 and driver.after.holding()
+    _drive_status(probe, 4, GoalStatus.STATUS_SUCCEEDED)
+    assert words_until(lambda: fake.target == cal.angle(0.0), timeout=5.0)

@@ -7,16 +7,16 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import Image, JointState
+from sensor_msgs.msg import Image, Imu, JointState
 from std_msgs.msg import Bool, UInt16
 
 from ant_controller.controller import Controller, ControllerCore
 from ant_controller.controller_node import ControllerNode, main
-from ant_controller.layout import BLADE_HOME
+from ant_controller.layout import BLADE_HOME, R1
 from blueprint_server.blueprint import default_blueprint
 from blueprint_server.server_node import BlueprintServer
 from excavation_common.constants import BladeGeometry
-from excavation_common.messages import blade_joint, grid_to_image, pose_message
+from excavation_common.messages import blade_joint, grid_to_image, imu_message, pose_message
 from excavation_common.ros import LATCHED
 
 POSES = [(5, 5, 0), (10, 3, 1)]  # robot 0 faces north into the pit, robot 1 east
@@ -34,7 +34,9 @@ class FakeRobots(Node):
         self.heights_pub = self.create_publisher(Image, "/worksite/height_map", LATCHED)
         self.joint_pub = self.create_publisher(JointState, "/robot_0/blade/joint_states", 10)
         self.stuck_pub = self.create_publisher(Bool, "/robot_0/stuck", 10)
+        self.imu_pub = self.create_publisher(Imu, "/robot_0/imu", 10)
         self.robots = [0, 1]
+        self.pitch: float | None = None  # None: the IMU is silent
         self.heights = grid_to_image(np.zeros((16, 16), dtype=np.float32), "32FC1")
 
     def publish(self):
@@ -43,6 +45,8 @@ class FakeRobots(Node):
         self.heights_pub.publish(self.heights)
         self.joint_pub.publish(blade_joint(BLADE_HOME, 0.0, BladeGeometry()))
         self.stuck_pub.publish(Bool(data=False))
+        if self.pitch is not None:
+            self.imu_pub.publish(imu_message(0.0, self.pitch, "robot_0/base_link"))
 
 
 def start(ros, **params):
@@ -167,3 +171,31 @@ def test_bad_parameters_exit_2_with_one_line(capsys):
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
         assert ("rate" in err) if "rate" in bad[1] else ("outside the team of 2" in err)
+
+
+def test_r1_from_the_imu_and_a_stale_imu_holds_the_robot_still(ros):
+    """On flat ground the height map says R1 = 0: with ``tilt_source: imu`` the IMU decides."""
+    node, fake, seen = start(ros, tilt_source="imu", imu_timeout=0.3)
+
+    def waiting():
+        fake.publish()
+        return seen["diag"] and "no IMU reading" in seen["diag"][-1].message
+
+    assert ros.spin_until(waiting)
+    assert seen["behaviour"][-1] == 0
+    for pitch, r1 in ((0.2, 1), (0.0, 0)):
+        fake.pitch = pitch
+
+        def acting(r1=r1):
+            fake.publish()
+            return seen["diag"][-1].level == DiagnosticStatus.OK and node.core.codes[R1] == r1
+
+        assert ros.spin_until(acting)
+    fake.pitch = None  # the IMU falls silent, every other input stays fresh
+
+    def stale():
+        fake.publish()
+        return "IMU reading is stale" in seen["diag"][-1].message
+
+    assert ros.spin_until(stale)
+    assert seen["behaviour"][-1] == 0

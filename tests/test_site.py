@@ -135,6 +135,7 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
         assert set(c.params) <= controller_keys and c.namespace == f"/robot_{k}"
         assert c.params["height_unit"] == site.worksite.soil_unit and c.params["robot_id"] == k
         assert c.params["lockstep"] == sim
+        assert c.params["tilt_source"] == "imu"  # R1 from the robot's (or simulator's) IMU
         assert set(by_name[f"blade_driver_{k}"].params) <= driver_keys
     assert set(by_name["server"].params) <= _config_keys("blueprint_server", "server.yaml")
     assert set(by_name["recorder"].params) <= _config_keys("excavation_bags", "bag_recorder.yaml")

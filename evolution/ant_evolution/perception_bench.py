@@ -246,6 +246,49 @@ def replace_section(path: Path, section: str) -> None:
     path.write_text(text)
 
 
+def laser_survey(
+    heights: np.ndarray,
+    robots: np.ndarray,
+    cell: float,
+    unit: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """One overhead-laser sweep of a grid world through the terrain mapper.
+
+    Args:
+        heights: Soil heights in units, ``[rows, cols]``.
+        robots: The world's robot states (their footprints hide the ground below them).
+        cell: Cell size, m.
+        unit: Soil unit, m.
+        rng: The laser's noise generator.
+
+    Returns:
+        The mapper's height map in metres (NaN: not seen, such as the cells under a robot).
+    """
+    rows, cols = heights.shape
+    lp = LaserParams.for_site(rows, cols, cell)
+    scanner = OverheadLaser(lp, cell)
+    mp = MapperParams(
+        rows=rows,
+        cols=cols,
+        cell_size=cell,
+        mount_x=lp.mount[0],
+        mount_y=lp.mount[1],
+        mount_z=lp.mount[2],
+    )
+    anchors = robots[:, [ROW, COL]]
+    views = robot_views(robots, heights, cell, unit)
+    mapper = TerrainMapper(mp)
+    for pan, tilt, ranges in scanner.sweep(
+        surface_with_robots(heights * unit, anchors, lp.robot_height), rng
+    ):
+        mapper.add_scan(
+            ranges, lp.angle_min, lp.angle_increment, lp.range_min, lp.range_max, pan, tilt
+        )
+    mapper.finish_sweep([(v.x, v.y, v.yaw) for v in views])
+    return mapper.height_map().astype(np.float64)
+
+
 def figures(out: Path, seed: int = 0) -> dict:
     """Pictures for docs/perception.md, written to ``out``.
 
@@ -271,30 +314,9 @@ def figures(out: Path, seed: int = 0) -> dict:
     ctl = Controller.from_file(Path(__file__).resolve().parents[2] / "genomes" / "best.json")
     world = World.scenario(bp.zones, bp.goal, 4, seed)
     rng = np.random.default_rng(seed)
-    lp = LaserParams.for_site(rows, cols, cell)
-    scanner = OverheadLaser(lp, cell)
-    mp = MapperParams(
-        rows=rows,
-        cols=cols,
-        cell_size=cell,
-        mount_x=lp.mount[0],
-        mount_y=lp.mount[1],
-        mount_z=lp.mount[2],
-    )
 
     def survey() -> np.ndarray:
-        heights = world.heights * unit
-        anchors = world.robots[:, [ROW, COL]]
-        views = robot_views(world.robots, world.heights, cell, unit)
-        mapper = TerrainMapper(mp)
-        for pan, tilt, ranges in scanner.sweep(
-            surface_with_robots(heights, anchors, lp.robot_height), rng
-        ):
-            mapper.add_scan(
-                ranges, lp.angle_min, lp.angle_increment, lp.range_min, lp.range_max, pan, tilt
-            )
-        mapper.finish_sweep([(v.x, v.y, v.yaw) for v in views])
-        return mapper.height_map().astype(np.float64)
+        return laser_survey(world.heights, world.robots, bp.cell_size, bp.height_unit, rng)
 
     before = survey()
     advance(world, ctl, 150)

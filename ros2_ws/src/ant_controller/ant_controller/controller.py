@@ -5,8 +5,9 @@
 arrays decoded from messages (heights and goal in soil units, zones, poses, blade code and
 load, stuck flag) it computes the sensor vector with :func:`ant_controller.sensing.sense`,
 the same function the simulator uses, asks the controller, and updates the memory bit with
-the simulator's own rule (:func:`ant_controller.memory.next_memory`). R1 (tilt) is computed
-from the height map as in the simulator. ``tests/test_controller_core.py`` runs whole
+the simulator's own rule (:func:`ant_controller.memory.next_memory`). R1 (tilt) is the
+IMU's when the caller passes it (``tilted``), else computed from the height map as in the
+simulator. ``tests/test_controller_core.py`` runs whole
 episodes through messages and this core and gets the offline evaluator's results exactly.
 """
 
@@ -118,6 +119,7 @@ class ControllerCore:
         load_volume: int,
         stuck: bool,
         active: np.ndarray | None = None,
+        tilted: bool | None = None,
     ) -> int:
         """Behaviour mask for robot ``k`` this tick; updates the memory bit.
 
@@ -131,10 +133,14 @@ class ControllerCore:
             load_volume: Soil units against the blade (from the push force).
             stuck: U1 as reported by the robot (or the simulator).
             active: Robots to take into account (default: all).
+            tilted: R1 as the robot's IMU reports it; ``None``: the world model's rule on
+                ``heights`` under the footprint.
         """
         poses = np.ascontiguousarray(poses, dtype=np.int64)
         heights = np.ascontiguousarray(heights, dtype=np.int32)
-        row, col, heading = poses[k]
+        if tilted is None:
+            row, col, heading = poses[k]
+            tilted = is_tilted_down(heights, row, col, heading)
         self._codes = sensor_vector(
             heights,
             zones,
@@ -144,7 +150,7 @@ class ControllerCore:
             blade=blade,
             load_volume=load_volume,
             stuck=bool(stuck),
-            tilted=bool(is_tilted_down(heights, row, col, heading)),
+            tilted=bool(tilted),
             memory=bool(self.memory),
             active=active,
             h1_frame=self.h1_frame,

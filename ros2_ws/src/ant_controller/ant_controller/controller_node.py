@@ -8,17 +8,20 @@ Inputs (relative names resolve in the robot's namespace): ``pose``
 (PoseWithCovarianceStamped) and the other robots' ``/robot_j/pose``,
 ``/worksite/height_map`` (Image 32FC1), ``/blueprint/goal``, ``/blueprint/zones``,
 ``/worksite/map_info`` (latched), ``blade/joint_states`` (JointState), ``stuck``
-(std_msgs/Bool), and every robot's ``/robot_j/enabled`` (std_msgs/Bool, latched, from the
-team supervisor): a disabled robot is absent to this controller (the core's ``active``
-mask) and its pose is not waited for, so a robot the localiser loses does not freeze the
-team; this robot disabled, the controller holds still. Output: ``behaviour``
-(std_msgs/UInt16, bit i = behaviour i + 1 of Table 2) and ``/diagnostics``.
+(std_msgs/Bool), with ``tilt_source: imu`` ``imu`` (sensor_msgs/Imu: R1 is its nose-down
+pitch above ``tilt_threshold``; stale after ``imu_timeout``, in lockstep mode when none has
+come since the last tick), and every robot's ``/robot_j/enabled`` (std_msgs/Bool,
+latched, from the team supervisor): a disabled robot is absent to this controller (the
+core's ``active`` mask) and its pose is not waited for, so a robot the localiser loses
+does not freeze the team; this robot disabled, the controller holds still. Output:
+``behaviour`` (std_msgs/UInt16, bit i = behaviour i + 1 of Table 2) and ``/diagnostics``.
 
 With ``lockstep: true`` (used with ``excavation_sim sim``) the node decides exactly once per
 simulator tick, when all of that tick's inputs have arrived (same stamp), and never
 publishes in between. Otherwise, every ``1 / rate`` seconds the node checks its inputs:
 when all are present and fresh (poses within ``pose_timeout``, height map within
-``map_timeout``, joint state and stuck flag within ``joint_timeout``; the blueprint is
+``map_timeout``, joint state and stuck flag within ``joint_timeout``, the IMU within
+``imu_timeout`` when it is the tilt source; the blueprint is
 latched and never stale) it decides with :class:`ant_controller.controller.ControllerCore`
 and publishes the mask; otherwise it publishes 0, which moves nothing, and says which
 input is missing or stale on ``/diagnostics`` (level WARN). Malformed messages are dropped
@@ -41,12 +44,12 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
-from sensor_msgs.msg import Image, JointState
+from sensor_msgs.msg import Image, Imu, JointState
 from std_msgs.msg import Bool, UInt16
 
 from ant_controller.controller import KIND_HAND_CODED, Controller, ControllerCore
 from ant_controller.errors import GenomeFormatError
-from ant_controller.input_gate import ControllerParams, InputGate
+from ant_controller.input_gate import TILT_IMU, ControllerParams, InputGate
 from ant_controller.readings import controller_readings
 from excavation_common.constants import BladeGeometry
 from excavation_common.messages import (
@@ -54,6 +57,7 @@ from excavation_common.messages import (
     blade_from_joint,
     heights_to_units,
     image_to_grid,
+    imu_pitch,
     pose_to_grid,
 )
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
@@ -104,6 +108,8 @@ class ControllerNode(Node):
         self.create_subscription(MapMetaData, "/worksite/map_info", self.on_info, LATCHED)
         self.create_subscription(JointState, "blade/joint_states", self.on_joint, 10)
         self.create_subscription(Bool, "stuck", self.on_stuck, 10)
+        if p.tilt_source == TILT_IMU:
+            self.create_subscription(Imu, "imu", self.on_imu, 10)
         self.create_timer(1.0 / p.rate, self.tick)
 
     # --- inputs -----------------------------------------------------------------------------
@@ -195,6 +201,13 @@ class ControllerNode(Node):
         self.gate.on_stuck(self._now(), msg.data)
         self._changed()
 
+    def on_imu(self, msg: Imu) -> None:
+        """R1's source in the field: the robot's IMU."""
+        pitch = self._decode("imu", lambda: imu_pitch(msg, "imu"))
+        if pitch is not None:
+            self.gate.on_imu(self._now(), pitch)
+            self._changed()
+
     # --- decision ---------------------------------------------------------------------------
 
     def missing_input(self) -> str | None:
@@ -208,7 +221,8 @@ class ControllerNode(Node):
         simulator tick, when :meth:`InputGate.lockstep_ready` says the tick is complete.
         """
         if self.lockstep and not lockstep_decision:
-            self.last_reason = self.missing_input() or self.last_reason
+            waiting = self.missing_input() or self.gate.lockstep_waiting()
+            self.last_reason = waiting or self.last_reason
             self.publish_diagnostics()
             return
         reason = self.missing_input()
@@ -226,6 +240,7 @@ class ControllerNode(Node):
                 volume,
                 g.stuck[1],
                 active=g.active(),
+                tilted=g.tilted(),
             )
         self.last_reason, self.last_mask = reason, mask
         self.behaviour_pub.publish(UInt16(data=mask))

@@ -1,8 +1,9 @@
 """What a controller node may act on: input freshness and the lockstep decision (no rclpy).
 
 :class:`InputGate` holds the latest decoded inputs of one robot's controller (poses, height
-map, blade joint state, stuck flag, blueprint, cell size) with the time each arrived and
-the stamp it carried, plus which robots the supervisor has enabled (``/robot_j/enabled``).
+map, blade joint state, stuck flag, the IMU's nose-down pitch, blueprint, cell size) with
+the time each arrived and the stamp it carried, plus which robots the supervisor has
+enabled (``/robot_j/enabled``).
 It answers two questions for the node:
 
 * :meth:`InputGate.missing`: why the controller cannot act now (a missing or stale input,
@@ -10,6 +11,15 @@ It answers two questions for the node:
 * :meth:`InputGate.lockstep_ready`: in lockstep mode (``ant-trial``), whether every input of
   one simulator tick is in (same stamp, newer than the last tick decided, plus a stuck flag
   received since), so that the node decides exactly once per tick.
+
+R1 (tilted nose down) has two sources (``tilt_source``): ``height_map``, the world model's
+rule on the tick's height map under the footprint (lockstep and grid trials, where no robot
+carries an IMU), and ``imu``, the pitch of ``/robot_k/imu`` above ``tilt_threshold``
+(continuous trials and the dome). Outside lockstep an IMU reading is stale after
+``imu_timeout``. In lockstep mode the IMU is the robot's own sensor, not part of the tick's
+snapshot (whose stamps are the tick's, reached through slow perception), so it pairs with
+the tick by arrival, as the unstamped stuck flag does: a tick is decided only with an IMU
+reading received since the last tick decided, and with the latest one.
 
 Disabled robots are absent (DESIGN.md "Operator oversight"): their poses are neither needed
 nor fresh-checked, and :meth:`InputGate.active` leaves them out of the sensor vector (the
@@ -31,6 +41,22 @@ UNKNOWN = np.iinfo(np.int32).min
 
 Stamp = tuple[int, int]
 
+TILT_HEIGHT_MAP = "height_map"
+"""R1 from the height map under the footprint (the world model's rule)."""
+TILT_IMU = "imu"
+"""R1 from the IMU's nose-down pitch."""
+TILT_SOURCES = (TILT_HEIGHT_MAP, TILT_IMU)
+
+TILT_THRESHOLD = 0.05
+"""Default nose-down pitch (rad) above which R1 holds with ``tilt_source: imu``.
+
+The grid rule calls a robot tilted when its front wheels stand at least one soil unit
+lower than its rear wheels, summed over both sides: the smallest such tilt on the default
+worksite (0.05 m units, 0.25 m cells) is half a unit over one cell, atan(0.025 / 0.25) =
+0.0997 rad. Half of that leaves room for IMU noise on both sides, and the simulators'
+IMUs (0 flat, ``excavation_sim.sim_node.TILT_PITCH`` = 0.2 rad tilted) read exactly as the
+grid rule with it (tests/test_imu_tilt.py)."""
+
 
 @dataclass(frozen=True)
 class ControllerParams:
@@ -47,6 +73,17 @@ class ControllerParams:
     blade_depth: float = param(0.02, "m, must match the blade driver", low=1e-6, high=10.0)
     blade_home: float = param(0.10, "m, must match the blade driver", low=1e-6, high=10.0)
     max_force: float = param(10.0, "N of a full blade", low=1e-6, high=1e6)
+    tilt_source: str = param(
+        TILT_HEIGHT_MAP,
+        "R1 from: height_map (grid rule; lockstep trials) or imu (/robot_k/imu; field)",
+        choices=TILT_SOURCES,
+    )
+    tilt_threshold: float = param(
+        TILT_THRESHOLD, "rad of nose-down IMU pitch above which R1 holds", low=0.0, high=1.5
+    )
+    imu_timeout: float = param(
+        0.5, "s: older IMU reading is stale (imu; lockstep: one since the last tick)", low=1e-3
+    )
     profile: str = param(
         "v1",
         "readings of the paper (H1 frame, hand-coded rules): v1 or paper, as the simulator's",
@@ -78,6 +115,10 @@ class InputGate:
         map_timeout: Seconds after which the height map is stale.
         joint_timeout: Seconds after which the joint state and the stuck flag are stale.
         lockstep: Stamps, not ages, say what is fresh (one decision per tick).
+        tilt_source: ``TILT_HEIGHT_MAP`` or ``TILT_IMU`` (where R1 comes from).
+        tilt_threshold: Nose-down pitch (rad) above which the IMU says R1.
+        imu_timeout: Seconds after which an IMU reading is stale (outside lockstep; in
+            lockstep mode a reading must have come since the last tick decided).
     """
 
     robot_id: int
@@ -86,23 +127,38 @@ class InputGate:
     map_timeout: float = 5.0
     joint_timeout: float = 1.0
     lockstep: bool = False
+    tilt_source: str = TILT_HEIGHT_MAP
+    tilt_threshold: float = TILT_THRESHOLD
+    imu_timeout: float = 0.5
     poses: dict[int, tuple[float, tuple[int, int, int]]] = field(default_factory=dict)
     heights: tuple[float, np.ndarray] | None = None
     joint: tuple[float, tuple[int, int]] | None = None
     stuck: tuple[float, bool] | None = None
+    imu: tuple[float, float] | None = None
     zones: np.ndarray | None = None
     goal: np.ndarray | None = None
     cell_size: float | None = None
     enabled: dict[int, bool] = field(default_factory=dict)
     stamps: dict[str, Stamp] = field(default_factory=dict)
     fresh_stuck: int = 0
+    fresh_imu: int = 0
     decided_stamp: Stamp | None = None
     went_back: bool = False
 
     @classmethod
     def from_params(cls, p: ControllerParams) -> InputGate:
         """The gate of a node with parameters ``p``."""
-        return cls(p.robot_id, p.robots, p.pose_timeout, p.map_timeout, p.joint_timeout, p.lockstep)
+        return cls(
+            p.robot_id,
+            p.robots,
+            p.pose_timeout,
+            p.map_timeout,
+            p.joint_timeout,
+            p.lockstep,
+            p.tilt_source,
+            p.tilt_threshold,
+            p.imu_timeout,
+        )
 
     # --- inputs -----------------------------------------------------------------------------
 
@@ -126,6 +182,11 @@ class InputGate:
         self.stuck = (now, bool(stuck))
         self.fresh_stuck += 1
 
+    def on_imu(self, now: float, pitch: float) -> None:
+        """The IMU's nose-down pitch (rad), arrived at ``now``."""
+        self.imu = (now, float(pitch))
+        self.fresh_imu += 1
+
     def on_enabled(self, j: int, enabled: bool) -> None:
         """Robot ``j`` enabled or disabled by the supervisor."""
         self.enabled[j] = bool(enabled)
@@ -139,6 +200,12 @@ class InputGate:
     def active(self) -> np.ndarray:
         """The ``active`` mask of the controller core: enabled robots."""
         return np.array([self.is_enabled(j) for j in range(self.robots)], dtype=np.bool_)
+
+    def tilted(self) -> bool | None:
+        """R1 from the IMU (``tilt_source: imu``), or ``None``: the core uses the height map."""
+        if self.tilt_source != TILT_IMU or self.imu is None:
+            return None
+        return self.imu[1] > self.tilt_threshold
 
     def _age(self, arrived: float, now: float) -> float:
         return 0.0 if self.lockstep else now - arrived
@@ -172,6 +239,12 @@ class InputGate:
             age = self._age(value[0], now)
             if age > limit:
                 return f"{name} is stale ({age:.2f} s)"
+        if self.tilt_source == TILT_IMU:
+            if self.imu is None:
+                return "no IMU reading (imu)"
+            age = self._age(self.imu[0], now)  # lockstep: paired by arrival (lockstep_ready)
+            if age > self.imu_timeout:
+                return f"IMU reading is stale ({age:.2f} s)"
         if self.heights[1].shape != self.zones.shape:
             return "height map and blueprint differ in size"
         row, col, _ = self.poses[self.robot_id][1]
@@ -183,22 +256,41 @@ class InputGate:
             return "unknown terrain around the robot"
         return None
 
+    def _new_tick(self) -> Stamp | None:
+        """The stamp of a complete set of stamped tick inputs not yet decided, or ``None``."""
+        keys = [f"pose{j}" for j in range(self.robots) if self.is_enabled(j)]
+        stamps = {self.stamps.get(k) for k in keys + ["heights", "joint"]}
+        if len(stamps) != 1 or None in stamps:
+            return None
+        (stamp,) = stamps
+        if self.decided_stamp is not None and stamp == self.decided_stamp:
+            return None
+        return stamp
+
+    def _imu_unpaired(self) -> bool:
+        """``tilt_source: imu`` and no IMU reading since the last tick decided."""
+        return self.tilt_source == TILT_IMU and self.fresh_imu == 0
+
+    def lockstep_waiting(self) -> str | None:
+        """Lockstep mode: the IMU reading a tick whose stamped inputs are in waits for."""
+        if self._imu_unpaired() and self._new_tick() is not None:
+            return "no IMU reading since the last tick"
+        return None
+
     def lockstep_ready(self, now: float) -> bool:
         """Every input of a new tick is in: decide it now (the tick is then marked decided).
 
         A tick's inputs are the poses of every enabled robot, the height map and the joint
         state stamped with the same time, newer than the last tick decided, plus a stuck
-        flag received since then. A complete set OLDER than the last tick decided means
-        the simulator's clock went back (it was restarted): that is decided too, as the first
-        tick of a new trial, and :attr:`went_back` says so (the node clears M1).
+        flag received since then (and, with ``tilt_source: imu``, an IMU reading received
+        since then: the robot's own sensor, paired with the tick by arrival as U1 is). A
+        complete set OLDER than the last tick decided means the simulator's clock went back
+        (it was restarted): that is decided too, as the first tick of a new trial, and
+        :attr:`went_back` says so (the node clears M1).
         """
         self.went_back = False
-        keys = [f"pose{j}" for j in range(self.robots) if self.is_enabled(j)]
-        stamps = {self.stamps.get(k) for k in keys + ["heights", "joint"]}
-        if len(stamps) != 1 or None in stamps or self.fresh_stuck == 0:
-            return False
-        (stamp,) = stamps
-        if self.decided_stamp is not None and stamp == self.decided_stamp:
+        stamp = self._new_tick()
+        if stamp is None or self.fresh_stuck == 0 or self._imu_unpaired():
             return False
         went_back = self.decided_stamp is not None and stamp < self.decided_stamp
         if self.missing(now) is not None:
@@ -206,6 +298,7 @@ class InputGate:
         self.went_back = went_back
         self.decided_stamp = stamp
         self.fresh_stuck = 0
+        self.fresh_imu = 0
         return True
 
     def pose_array(self) -> np.ndarray:

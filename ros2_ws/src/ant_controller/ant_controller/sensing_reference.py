@@ -12,45 +12,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from ant_controller.layout import (
-    AHEAD,
-    B1,
-    BEHIND,
-    BLADE_ABOVE,
-    BLADE_BELOW,
-    BLADE_HOME,
-    D1,
-    E1,
-    E_ABOVE,
-    E_BELOW,
-    E_LEVEL,
-    H1,
-    L1,
-    LEFT,
-    M1,
-    N_SENSORS,
-    R1,
-    RIGHT,
-    S1,
-    U1,
-    Z1,
-    Z_ABOVE,
-    Z_BELOW,
-    Z_DONT_CARE,
-    Z_DUMP,
-    Z_LEVEL,
-)
+from ant_controller import layout
 from ant_controller.readings import H1_ABSOLUTE, H1_RELATIVE
-from ant_controller.sensing import (
-    FORWARD,
-    FRONT_LEFT,
-    MAX_LOAD,
-    RIGHT_STEP,
-    SENSE_RANGE,
-    ZONE_DIG,
-    ZONE_DUMP,
-)
-from excavation_common.constants import EAST, NORTH, SOUTH, WEST
+from ant_controller.sensing import FORWARD, FRONT_LEFT, RIGHT_STEP, SENSE_RANGE
+from excavation_common.constants import EAST, MAX_LOAD, NORTH, SOUTH, WEST, ZONE_DIG, ZONE_DUMP
 
 Cell = tuple[int, int]
 
@@ -94,12 +59,12 @@ def under_other_robot(poses, active, k: int, cell: Cell) -> bool:
 
 def blade_height_offset(blade: int) -> int:
     """``b_h``: -1 below, +1 above, 0 level (and home)."""
-    return {BLADE_BELOW: -1, BLADE_ABOVE: 1}.get(int(blade), 0)
+    return {layout.BLADE_BELOW: -1, layout.BLADE_ABOVE: 1}.get(int(blade), 0)
 
 
 def blade_volume_reference(heights, pose: Sequence[int], blade: int) -> int:
     """``V_blade``: soil above the cutting level in the on-grid blade cells (home: 0)."""
-    if blade == BLADE_HOME:
+    if blade == layout.BLADE_HOME:
         return 0
     volume = 0
     for i in range(2):
@@ -137,37 +102,39 @@ def sense_reference(
     bearing (``H1_ABSOLUTE``), :mod:`ant_controller.readings`.
     """
     pose = poses[k]
-    out = [0] * N_SENSORS
+    out = [0] * layout.N_SENSORS
     # Z1..Z4: the row of four cells ahead, against the blueprint.
     for j in range(4):
         cell = front_row_cell(pose, j - 1)
         if not on_grid(heights, cell):
-            out[Z1 + j] = Z_DONT_CARE
+            out[layout.Z1 + j] = layout.Z_DONT_CARE
         elif zones[cell] == ZONE_DUMP:
-            out[Z1 + j] = Z_DUMP
+            out[layout.Z1 + j] = layout.Z_DUMP
         elif zones[cell] != ZONE_DIG:
-            out[Z1 + j] = Z_DONT_CARE
+            out[layout.Z1 + j] = layout.Z_DONT_CARE
         elif heights[cell] > goal[cell]:
-            out[Z1 + j] = Z_ABOVE
+            out[layout.Z1 + j] = layout.Z_ABOVE
         elif heights[cell] < goal[cell]:
-            out[Z1 + j] = Z_BELOW
+            out[layout.Z1 + j] = layout.Z_BELOW
         else:
-            out[Z1 + j] = Z_LEVEL
+            out[layout.Z1 + j] = layout.Z_LEVEL
     # E1, E2: each blade cell against the front wheel behind it; S1: something in the way.
     obstacle = False
     for i in range(2):
         b = front_row_cell(pose, i)
         if not on_grid(heights, b):
-            out[E1 + i] = E_LEVEL
+            out[layout.E1 + i] = layout.E_LEVEL
             obstacle = True
             continue
         obstacle = obstacle or under_other_robot(poses, active, k, b)
         d = int(heights[b]) - int(heights[front_wheel_cell(pose, i)])
-        out[E1 + i] = E_ABOVE if d > 0 else E_BELOW if d < 0 else E_LEVEL
-    out[B1] = int(blade)
+        out[layout.E1 + i] = (
+            layout.E_ABOVE if d > 0 else layout.E_BELOW if d < 0 else layout.E_LEVEL
+        )
+    out[layout.B1] = int(blade)
     # L1: 0 for no load, else the sixth of the push capacity it reaches, at most 4.
-    out[L1] = 0 if load_volume <= 0 else min(4, -(-4 * int(load_volume) // MAX_LOAD))
-    out[S1] = int(obstacle)
+    out[layout.L1] = 0 if load_volume <= 0 else min(4, -(-4 * int(load_volume) // MAX_LOAD))
+    out[layout.S1] = int(obstacle)
     # D1, H1: the nearest other active robot (Chebyshev gap between footprints, ties to
     # the lowest index) and its bearing, from this robot's heading or on the compass.
     nearest, gap = -1, SENSE_RANGE
@@ -182,15 +149,15 @@ def sense_reference(
             best, nearest = g, j
     if nearest >= 0:
         gap = best
-    out[D1] = min(gap, SENSE_RANGE)
-    out[H1] = AHEAD if h1_frame == H1_RELATIVE else NORTH  # alone: code 0 either way
+    out[layout.D1] = min(gap, SENSE_RANGE)
+    out[layout.H1] = layout.AHEAD if h1_frame == H1_RELATIVE else NORTH  # alone: code 0 either way
     if nearest >= 0 and h1_frame == H1_ABSOLUTE:
         dr = int(poses[nearest][0]) - int(pose[0])
         dc = int(poses[nearest][1]) - int(pose[1])
         if abs(dr) >= abs(dc):  # the dominant axis; ties to north / south
-            out[H1] = NORTH if dr >= 0 else SOUTH
+            out[layout.H1] = NORTH if dr >= 0 else SOUTH
         else:
-            out[H1] = EAST if dc > 0 else WEST
+            out[layout.H1] = EAST if dc > 0 else WEST
     elif nearest >= 0:
         h = int(pose[2])
         dr = int(poses[nearest][0]) - int(pose[0])
@@ -198,10 +165,10 @@ def sense_reference(
         ahead = dr * int(FORWARD[h, 0]) + dc * int(FORWARD[h, 1])
         right = dr * int(RIGHT_STEP[h, 0]) + dc * int(RIGHT_STEP[h, 1])
         if abs(ahead) >= abs(right):
-            out[H1] = AHEAD if ahead > 0 else BEHIND
+            out[layout.H1] = layout.AHEAD if ahead > 0 else layout.BEHIND
         else:
-            out[H1] = RIGHT if right > 0 else LEFT
-    out[R1] = int(bool(tilted))
-    out[U1] = int(bool(stuck))
-    out[M1] = int(bool(memory))
+            out[layout.H1] = layout.RIGHT if right > 0 else layout.LEFT
+    out[layout.R1] = int(bool(tilted))
+    out[layout.U1] = int(bool(stuck))
+    out[layout.M1] = int(bool(memory))
     return out

@@ -17,6 +17,10 @@ On top of that nominal setting the driver adds what a real blade needs:
   soil contact) and stays there until commands return.
 * **Operator override.** A set-point from ``blade/commands`` wins over the controller while it
   is younger than ``override_timeout``.
+* **After the drive.** In the field a word's moves take seconds; with ``blade_after_motion``
+  the driver keeps the world model's Table 2 order (moves, then the blade: see
+  :class:`AfterDrive`) by applying a tick's blade bits only once that tick's drive has
+  ended.
 * **Hold.** While the team's :class:`~excavation_common.safety.MotionGate` is closed (e-stop,
   pause, disabled robot, lost heartbeat, inactive node) the caller passes the reason as
   ``hold`` and the blade goes home at once (no slew ramp), whatever the controller or the
@@ -66,6 +70,64 @@ def blade_setting(word: int, current: int) -> int:
         if (word >> bit) & 1:
             setting = code
     return setting
+
+
+Stamp = tuple[int, int]
+"""A tick's stamp ``(sec, nanosec)``: the team tick's, on drive goals and statuses alike."""
+
+
+@dataclass
+class AfterDrive:
+    """Holds a tick's blade bits until that tick's drive has ended.
+
+    Why this order: the world model (``excavation_sim.world.step_robot``) runs a word's
+    behaviours in Table 2 order, Move Forward and Move Backward (the blade cuts and pushes
+    with the setting it had when the tick began), then the turns, then the blade commands,
+    whose setting the *next* tick's moves use. The continuous simulator commits each move
+    through that same model (``excavation_sim.dynamics``). So a blade that moved as soon as
+    the word came would cut this tick's move at next tick's setting; moving it once the
+    executor reports the tick's drive terminal (``drive/status`` SUCCEEDED, ABORTED or
+    CANCELED, stamped with the tick) reproduces the model. A word of a tick whose drive has
+    already ended (a word without motion: the executor answers at once) applies at once.
+
+    Words are released in their order: a later tick's end releases the held words of
+    earlier ticks too (an executor that never reported a tick does not lose its blade bits
+    for good, and they still apply before the later word's). Pure: no ``rclpy``.
+    """
+
+    done: Stamp | None = None
+    held: list[tuple[Stamp, int]] = field(default_factory=list)
+
+    def word(self, tick: Stamp, word: int) -> list[int]:
+        """The controller's word of ``tick``: the words to apply now (oldest first).
+
+        Several words of one tick (a controller that repeats itself) hold as one: the last
+        with blade bits, as applying them all in order would leave it.
+        """
+        word = int(word)
+        if self.held and self.held[-1][0] == tick:
+            if blade_setting(word, -1) == -1:
+                word = self.held[-1][1]  # no blade bits: the held word still decides
+            self.held[-1] = (tick, word)
+        else:
+            self.held.append((tick, word))
+        return self._release()
+
+    def drive_ended(self, tick: Stamp) -> list[int]:
+        """The drive goal of ``tick`` ended: the words now released (oldest first)."""
+        if self.done is None or tick > self.done:
+            self.done = tick
+        return self._release()
+
+    def holding(self) -> bool:
+        """A word's blade bits wait for their tick's drive."""
+        return bool(self.held)
+
+    def _release(self) -> list[int]:
+        out = []
+        while self.held and self.done is not None and self.held[0][0] <= self.done:
+            out.append(self.held.pop(0)[1])
+        return out
 
 
 @dataclass(frozen=True)
@@ -208,12 +270,22 @@ class BladeDriverCore:
         self._pid = Pid(p.kp, p.ki, p.kd, p.trim_limit)
         self.state.setpoint = p.home
 
-    def command(self, word: int, now: float) -> None:
-        """A behaviour word from the controller."""
-        self.state.setting = blade_setting(int(word), self.state.setting)
+    def command(self, word: int, now: float, blade: bool = True) -> None:
+        """A behaviour word from the controller.
+
+        ``blade=False``: the word's blade bits wait (:class:`AfterDrive`; apply them later
+        with :meth:`apply_blade`); the word still feeds the watchdog and says whether the
+        robot pushes (the force loop runs while it drives).
+        """
+        if blade:
+            self.apply_blade(word)
         self.pushing = bool((int(word) >> MOVE_FORWARD) & 1)
         self.state.last_command = now
         self.state.watchdog_tripped = False
+
+    def apply_blade(self, word: int) -> None:
+        """Set the blade as the word's blade bits say (none: the blade stays)."""
+        self.state.setting = blade_setting(int(word), self.state.setting)
 
     def override(self, position: float, now: float) -> None:
         """An operator set-point (m); clipped to the limits (counted in ``state.clipped``)."""

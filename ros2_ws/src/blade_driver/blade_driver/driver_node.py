@@ -39,6 +39,16 @@ Backends (parameter ``backend``):
   gate is closed the driver sends home with ``frame_id`` :data:`~excavation_common.safety.HELD`
   instead and leaves its core untouched; when the gate opens it sends the tick's own
   set-point, so a paused lockstep trial ends as an unpaused one does.
+
+In the field (``blade_after_motion: true``: continuous trials, the dome) a tick's blade bits
+wait until the tick's drive has ended, as the world model runs a word's moves before its
+blade behaviours (:class:`blade_driver.core.AfterDrive` says why): the driver subscribes
+``drive/status`` (action_msgs/GoalStatus from the drive executor, ``goal_info.stamp`` = the
+tick) and applies a word's blade bits once a terminal status (succeeded, aborted, canceled)
+of its tick or a later one has come. The word's tick is the stamp of ``blade/servo_state``
+(sim backend) or of ``/team/tick`` (std_msgs/Header from the team tick; serial backend);
+before either is known a word applies at once. The watchdog, the operator's override and
+a closed gate do not wait. Lockstep trials, with no executor, leave it off.
 """
 
 from __future__ import annotations
@@ -46,13 +56,14 @@ from __future__ import annotations
 import math
 import sys
 
+from action_msgs.msg import GoalStatus
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray, Header, UInt16
 
-from blade_driver.core import BLADE_NAMES, BladeDriverCore
+from blade_driver.core import BLADE_NAMES, AfterDrive, BladeDriverCore
 from blade_driver.errors import BoardError, DriverConfigError, PortError
 from blade_driver.params import JOINT, DriverNodeParams
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
@@ -65,6 +76,8 @@ from excavation_common.safety import (
 )
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
+DRIVE_ENDED = (GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_ABORTED, GoalStatus.STATUS_CANCELED)
+TEAM_TICK_TOPIC = "/team/tick"
 
 
 def joint_state(
@@ -127,6 +140,8 @@ class BladeDriverNode(LifecycleNode):
         self.open_setpoint: tuple[tuple[int, int], float] | None = None
         self.pending_override: float | None = None
         self.last_sent: tuple[tuple[int, int], str] | None = None
+        self.after = AfterDrive() if p.blade_after_motion else None
+        self.team_tick: tuple[int, int] | None = None
         self.commands = 0
         self._reported_source = ""
         self._io: list = []
@@ -150,6 +165,11 @@ class BladeDriverNode(LifecycleNode):
             self.create_subscription(UInt16, "behaviour", self.on_behaviour, 10),
             self.create_subscription(Float64MultiArray, "blade/commands", self.on_override, 10),
         ]
+        if self.after is not None:
+            sub = self.create_subscription
+            self._io.append(sub(GoalStatus, "drive/status", self.on_drive_status, 10))
+            if p.backend != "sim":
+                self._io.append(sub(Header, TEAM_TICK_TOPIC, self.on_team_tick, 10))
         self.joint_pub = self.create_publisher(JointState, "blade/joint_states", 10)
         if p.backend == "sim":
             self.servo_pub = self.create_publisher(JointState, "blade/servo_command", 10)
@@ -262,11 +282,39 @@ class BladeDriverNode(LifecycleNode):
     # --- inputs -----------------------------------------------------------------------------
 
     def on_behaviour(self, msg: UInt16) -> None:
-        """The controller's word: the blade setting it asks for."""
+        """The controller's word: the blade setting it asks for (after the drive, if so set)."""
         self.commands += 1
-        self.core.command(int(msg.data), self._now())
+        word, tick = int(msg.data), self._word_tick()
+        if self.after is None or tick is None:
+            self.core.command(word, self._now())
+        else:
+            self.core.command(word, self._now(), blade=False)
+            for released in self.after.word(tick, word):
+                self.core.apply_blade(released)
         if self.params.backend == "sim" and self.tick_stamp is not None:
             self.word_tick = (self.tick_stamp.sec, self.tick_stamp.nanosec)
+            self.send_sim_setpoint()
+
+    def _word_tick(self) -> tuple[int, int] | None:
+        """The tick a word that arrives now belongs to (``None``: not known yet)."""
+        stamp = self.tick_stamp if self.params.backend == "sim" else None
+        if stamp is not None:
+            return (stamp.sec, stamp.nanosec)
+        return self.team_tick
+
+    def on_team_tick(self, msg: Header) -> None:
+        """Serial backend: the team tick began tick ``msg.stamp`` (its words come next)."""
+        self.team_tick = (msg.stamp.sec, msg.stamp.nanosec)
+
+    def on_drive_status(self, msg: GoalStatus) -> None:
+        """The executor's status: a terminal one releases the blade bits of its tick."""
+        if msg.status not in DRIVE_ENDED:
+            return
+        stamp = msg.goal_info.stamp
+        released = self.after.drive_ended((stamp.sec, stamp.nanosec))
+        for word in released:
+            self.core.apply_blade(word)
+        if released and self.params.backend == "sim":
             self.send_sim_setpoint()
 
     def on_override(self, msg: Float64MultiArray) -> None:
@@ -325,8 +373,11 @@ class BladeDriverNode(LifecycleNode):
                 if self.pending_override is not None:
                     self.core.override(self.pending_override, self._now())
                     self.pending_override = None
-                if self.word_tick != tick and not self.core.needs_no_controller(self._now()):
-                    return  # wait for the controller's word of this tick
+                if not self.core.needs_no_controller(self._now()):
+                    if self.word_tick != tick:
+                        return  # wait for the controller's word of this tick
+                    if self.after is not None and self.after.holding():
+                        return  # its blade bits wait for the end of its drive
                 self.open_setpoint = (tick, self.core.update(self._now(), self.force))
             value, kind = self.open_setpoint[1], ""
         if self.last_sent == (tick, kind):
@@ -420,6 +471,7 @@ class BladeDriverNode(LifecycleNode):
             "force": "unknown" if self.force is None else f"{self.force:.3f}",
             "commands": self.commands,
             "override_clipped": s.clipped,
+            "blade_waits_for_drive": self.after is not None and self.after.holding(),
         }
         if p.backend == "serial":
             values |= {

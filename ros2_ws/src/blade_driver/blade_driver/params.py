@@ -61,6 +61,10 @@ class DriverNodeParams:
     safety_rate: float = param(
         50.0, "Hz at which the team state (deadman) is checked", low=10.0, high=1000.0
     )
+    blade_after_motion: bool = param(
+        False,
+        "field (team tick): a tick's blade bits wait until drive/status of that tick has ended",
+    )
     autostart: bool = param(True, "configure and activate at start (else: lifecycle services)")
     diagnostics_period: float = param(1.0, "s between diagnostics", low=0.05, high=60.0)
 

@@ -137,6 +137,7 @@ def continuous_commands(spec: TrialSpec, workdir: Path, exact: bool) -> dict[str
             "blade_driver.driver_node",
             ns=ns,
             backend="sim",
+            blade_after_motion=True,
             deadman=SIM_DEADMAN,
             **sim,
         )

@@ -139,6 +139,7 @@ def controller_parameters(spec: TrialSpec, k: int, height_unit: float) -> dict:
         "robots": spec.robots,
         "height_unit": float(height_unit),
         "lockstep": True,
+        "tilt_source": "imu",
     }
 
 
@@ -274,7 +275,11 @@ def run_continuous(
                 )
             )
             nodes.append(
-                BladeDriverNode(context=context, namespace=ns, parameter_overrides=[sim_time])
+                BladeDriverNode(
+                    context=context,
+                    namespace=ns,
+                    parameter_overrides=[Parameter("blade_after_motion", value=True), sim_time],
+                )
             )
             drive = ExecutorNode(
                 context=context,

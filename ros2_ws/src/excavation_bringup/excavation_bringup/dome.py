@@ -251,7 +251,7 @@ def node_table(
             NodeSpec(
                 f"blade_driver_{k}",
                 "blade_driver.driver_node",
-                {**sitefile.blade_driver_params(site, k, sim), **clock},
+                {**sitefile.blade_driver_params(site, k, sim, after_motion=sim), **clock},
                 (f"{ns}/blade_driver",),
                 namespace=ns,
             )

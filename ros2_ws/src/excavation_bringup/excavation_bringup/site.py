@@ -905,7 +905,11 @@ def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
 
 
 def controller_params(site: Site, k: int, lockstep: bool = False) -> dict[str, Any]:
-    """``ant_controller controller`` of robot ``k`` (its genome goes on the command line)."""
+    """``ant_controller controller`` of robot ``k`` (its genome goes on the command line).
+
+    R1 comes from the robot's IMU (``tilt_source: imu``); a dome whose robots carry none
+    sets ``overrides: {controller: {tilt_source: height_map}}``.
+    """
     return _merge(
         site,
         "controller",
@@ -914,6 +918,7 @@ def controller_params(site: Site, k: int, lockstep: bool = False) -> dict[str, A
             "robots": site.n_robots,
             "height_unit": float(site.worksite.soil_unit),
             "lockstep": bool(lockstep),
+            "tilt_source": "imu",  # R1 from /robot_k/imu (the robot's, or the simulator's)
         },
     )
 
@@ -924,11 +929,20 @@ def controller_args(site: Site, k: int) -> list[str]:
     return ["--hand-coded"] if genome == HAND_CODED else ["--genome", genome]
 
 
-def blade_driver_params(site: Site, k: int, sim: bool = False) -> dict[str, Any]:
-    """``blade_driver driver`` of robot ``k``; with ``--sim`` the simulator is the board."""
+def blade_driver_params(
+    site: Site, k: int, sim: bool = False, after_motion: bool = False
+) -> dict[str, Any]:
+    """``blade_driver driver`` of robot ``k``; with ``--sim`` the simulator is the board.
+
+    ``after_motion``: the dome runs drive executors and the team tick, so a tick's blade
+    bits wait for the end of its drive (``blade_after_motion``, Table 2 order); without
+    executors (the lockstep simulator) nothing would ever end a drive, so it stays off.
+    """
     robot = site.robots[k]
     backend = "sim" if sim else robot.backend
     params: dict[str, Any] = {"backend": backend}
+    if after_motion:
+        params["blade_after_motion"] = True
     if backend == "serial":
         params["port"] = robot.port
     if sim:

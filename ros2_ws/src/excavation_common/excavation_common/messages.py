@@ -14,6 +14,9 @@ function is testable by building messages in memory. Conventions (``docs/interfa
   wheels in metres (below ``-depth``, level 0, above ``+depth``, home ``+home``), effort =
   push force in newtons; :func:`blade_from_joint` maps them to the B1 code and the soil
   volume that gives L1.
+* **IMU** (``sensor_msgs/Imu`` in ``robot_k/base_link``): the orientation quaternion of
+  the body (x forward, y left, z up, REP-103) in the world; :func:`imu_message` builds it
+  from yaw and pitch, :func:`imu_pitch` returns the nose-down pitch that gives R1.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import math
 import numpy as np
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
-from sensor_msgs.msg import Image, JointState
+from sensor_msgs.msg import Image, Imu, JointState
 
 from excavation_common.constants import MAX_LOAD, BladeGeometry
 from excavation_common.errors import FieldError
@@ -198,3 +201,46 @@ def heights_to_units(heights_m: np.ndarray, height_unit: float) -> np.ndarray:
     known = np.isfinite(heights_m)
     units[known] = np.round(heights_m[known] / height_unit).astype(np.int32)
     return units
+
+
+def imu_message(yaw: float, pitch: float, frame_id: str, stamp=None) -> Imu:
+    """An IMU orientation: ``yaw`` about z (counter-clockwise from east), then ``pitch``.
+
+    ``pitch`` turns about the body's y axis (left), so a positive pitch is nose down. Only
+    the orientation is filled in (rates and accelerations unknown: covariance ``-1``).
+    """
+    msg = Imu()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    msg.orientation.w, msg.orientation.x = cy * cp, -sy * sp
+    msg.orientation.y, msg.orientation.z = cy * sp, sy * cp
+    msg.angular_velocity_covariance[0] = -1.0
+    msg.linear_acceleration_covariance[0] = -1.0
+    return msg
+
+
+def imu_pitch(msg: Imu, topic: str = "<imu>") -> float:
+    """Nose-down pitch (rad) of an IMU orientation: how far the body's x axis points down.
+
+    ``asin`` of minus the world z component of the body's forward axis, so it does not
+    depend on yaw, and a pure roll (one side lower) gives 0, whatever order of rotations
+    the IMU's driver composes.
+
+    Raises:
+        MessageError: Orientation marked unknown (``orientation_covariance[0] == -1``, the
+            message's convention), non-finite, or not a rotation (norm far from 1).
+    """
+    if msg.orientation_covariance[0] == -1.0:
+        raise MessageError(topic, "orientation_covariance[0]", -1.0, "no orientation estimate")
+    q = msg.orientation
+    values = (q.w, q.x, q.y, q.z)
+    if not all(math.isfinite(v) for v in values):
+        raise MessageError(topic, "orientation", values, "must be finite")
+    norm = math.sqrt(sum(v * v for v in values))
+    if abs(norm - 1.0) > 0.1:
+        raise MessageError(topic, "orientation", values, "is not a unit quaternion")
+    w, x, y, z = (v / norm for v in values)
+    return math.asin(max(-1.0, min(1.0, 2.0 * (w * y - x * z))))

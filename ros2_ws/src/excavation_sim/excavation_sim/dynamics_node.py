@@ -22,9 +22,10 @@ snapshot taken at ``stamp`` or later (published with the first step that reaches
 
 Publishes: ``/clock``; ``{pose_prefix}/robot_k/pose`` every step (PoseWithCovarianceStamped,
 with ``pose_noise``); every ``imu_period`` ``/robot_k/imu`` (sensor_msgs/Imu: yaw, and the
-pitch of R1 when the robot stands tilted nose down) and ``/robot_k/blade/plant_state``
-(JointState: the simulated servo's position and push force); on each snapshot request
-``{snapshot_prefix}/worksite/height_map`` (latched, 32FC1 metres), the poses again under
+pitch :data:`~excavation_sim.sim_node.TILT_PITCH` while the robot stands tilted nose down
+by the world model's R1 rule) and ``/robot_k/blade/plant_state`` (JointState: the
+simulated servo's position and push force); on each snapshot request every robot's IMU,
+then ``{snapshot_prefix}/worksite/height_map`` (latched, 32FC1 metres), the poses again under
 ``snapshot_prefix`` when it differs from ``pose_prefix`` (the ``sensors`` node renders
 exactly those), the blade plant states, ``/worksite/fitness`` and ``/worksite/markers``;
 ``/diagnostics``.
@@ -57,7 +58,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from excavation_common.constants import BladeGeometry
 from excavation_common.files import write_text_atomic
-from excavation_common.messages import blade_joint, grid_to_image
+from excavation_common.messages import blade_joint, grid_to_image, imu_message
 from excavation_common.params import param
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
 from excavation_sim.dynamics import Dynamics, DynamicsParams
@@ -298,20 +299,8 @@ class DynamicsNode(Node):
 
     def imu(self, k: int, stamp: TimeMsg) -> Imu:
         """Robot k's orientation: yaw, and the R1 pitch when tilted nose down."""
-        yaw = float(self.sim.bodies[k, 2])
         pitch = TILT_PITCH if self.sim.tilted(k) else 0.0
-        msg = Imu()
-        msg.header.stamp = stamp
-        msg.header.frame_id = f"robot_{k}/base_link"
-        cy, sy, cp, sp = (
-            math.cos(yaw / 2),
-            math.sin(yaw / 2),
-            math.cos(pitch / 2),
-            math.sin(pitch / 2),
-        )
-        msg.orientation.w, msg.orientation.x = cy * cp, -sy * sp
-        msg.orientation.y, msg.orientation.z = cy * sp, sy * cp
-        return msg
+        return imu_message(float(self.sim.bodies[k, 2]), pitch, f"robot_{k}/base_link", stamp)
 
     def plant_state(self, k: int, stamp: TimeMsg) -> JointState:
         """Robot k's blade servo as measured: position of its setting, push force."""
@@ -320,9 +309,11 @@ class DynamicsNode(Node):
         return blade_joint(blade, force, self.geometry, stamp)
 
     def publish_snapshot(self) -> None:
-        """Height map, snapshot poses, blade plant states, fitness and markers, stamped now."""
+        """IMU, height map, snapshot poses, blade plant states, fitness, markers, stamped now."""
         stamp = _stamp(self.now_ns)
         w, bp = self.sim.world, self.blueprint
+        for k in range(self.n):  # the tilt at the snapshot's instant, before its height map
+            self.imu_pubs[k].publish(self.imu(k, stamp))
         self.heights_pub.publish(
             grid_to_image((w.heights * bp.height_unit).astype(np.float32), "32FC1", stamp=stamp)
         )

@@ -78,7 +78,11 @@ def _add(stamp: TimeMsg, seconds: float) -> TimeMsg:
 
 @dataclass(frozen=True)
 class SensorsParams:
-    """Parameters of the synthetic camera and laser (``config/sensors.yaml`` of the trial)."""
+    """Parameters of the synthetic camera and laser (``config/sensors.yaml`` of the trial).
+
+    The camera's and the laser's own settings default to :class:`CameraParams` and
+    :class:`LaserParams` (one place for each default); the site geometry places them.
+    """
 
     robots: int = param(4, "team size", low=1, high=64)
     seed: int = param(0, "noise seed", low=0, high=2**63 - 1)
@@ -86,25 +90,29 @@ class SensorsParams:
     cell_size: float = param(0.25, "m per grid cell", low=1e-3, high=100.0)
     rows: int = param(16, "grid rows", low=2, high=4096)
     cols: int = param(16, "grid columns", low=2, high=4096)
-    width: int = param(1280, "camera image width, px", low=16, high=8192)
-    height: int = param(720, "camera image height, px", low=16, high=8192)
-    light: float = param(0.25, "ambient light level", low=0.0, high=1.0)
-    noise: float = param(3.0, "pixel noise (std, grey levels)", low=0.0, high=255.0)
-    glare: float = param(1.5, "glare strength", low=0.0, high=100.0)
+    width: int = param(CameraParams.width, "camera image width, px", low=16, high=8192)
+    height: int = param(CameraParams.height, "camera image height, px", low=16, high=8192)
+    light: float = param(CameraParams.light, "ambient light level", low=0.0, high=1.0)
+    noise: float = param(CameraParams.noise, "pixel noise (std, grey levels)", low=0.0, high=255.0)
+    glare: float = param(CameraParams.glare, "glare strength", low=0.0, high=100.0)
     dropout: float = param(
-        0.0,
+        CameraParams.dropout,
         "probability an LED is missing from a frame (settable at runtime)",
         low=0.0,
         high=1.0,
         read_only=False,
     )
-    k1: float = param(-0.08, "radial lens distortion", low=-1.0, high=1.0)
+    k1: float = param(CameraParams.k1, "radial lens distortion", low=-1.0, high=1.0)
     occlude: str = param(
         "", "LEDs hidden from the camera: K:front,K:rear (settable at runtime)", read_only=False
     )
-    range_noise: float = param(0.008, "laser range noise (std, m)", low=0.0, high=10.0)
-    laser_dropout: float = param(0.01, "share of laser beams lost", low=0.0, high=1.0)
-    sweep_scans: int = param(64, "scans per laser sweep", low=1, high=100_000)
+    range_noise: float = param(
+        LaserParams.range_noise, "laser range noise (std, m)", low=0.0, high=10.0
+    )
+    laser_dropout: float = param(
+        LaserParams.dropout, "share of laser beams lost", low=0.0, high=1.0
+    )
+    sweep_scans: int = param(LaserParams.sweep_scans, "scans per laser sweep", low=1, high=100_000)
     scan_period: float = param(0.01, "s of sim time between scans", low=1e-6, high=60.0)
     reliable: bool = param(False, "reliable QoS for frames and scans (bags, tests)")
     paused: bool = param(
