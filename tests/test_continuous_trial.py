@@ -100,4 +100,4 @@ def test_cli_reports_the_continuous_figures(capfd):
     out = json.loads(captured.out.strip().splitlines()[-1])
     assert len(out["wall_per_tick"]) == 5
     assert {"primitives_aborted", "stuck_events", "sim_seconds", "fitness"} <= set(out)
-    assert main(["--hand-coded", "--drive", "continuous", "--processes"]) == 2
+    assert main(["--hand-coded", "--drive", "continuous", "--no-blade-driver"]) == 2

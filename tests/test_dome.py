@@ -11,8 +11,10 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 from conftest import next_domain
 
+from excavation_bringup.dome import sim_result
 from excavation_bringup.trial import run_trial
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,6 +45,14 @@ def events(tmp_path):
         return ""
 
 
+def snapshots(tmp_path) -> int:
+    """Ticks the simulator has taken a snapshot for (``RUN/world.json``)."""
+    try:
+        return len(json.loads((tmp_path / "run" / "world.json").read_text())["snapshots"])
+    except (FileNotFoundError, json.JSONDecodeError):
+        return 0
+
+
 def _free_port() -> int:
     import socket
 
@@ -65,41 +75,57 @@ def test_dome_up_sim_runs_40_ticks_with_the_fitness_of_ant_trial(tmp_path):
     out, err = proc.communicate(timeout=1200)
     assert proc.returncode == 0, err + events(tmp_path)
     summary = json.loads(out.strip().splitlines()[-1])
-    result = json.loads((tmp_path / "run" / "result.json").read_text())
+    result = sim_result(tmp_path / "run")
     assert summary["ticks"] == 40 and summary["ok"] and not summary["restarts"]
-    assert result["missed"] == {"0": 0, "1": 0}
-    # the same scenario through ant-trial, reading the simulator's truth: full perception in
-    # processes must give the same commands and fitness (tests/test_perception_trial.py
-    # shows the composed full-perception trial equal to this one)
-    truth = run_trial("genomes/best.json", 2, 40, 0, "default:1", domain=next_domain())
-    assert result["commands"] == truth.commands
-    assert summary["fitness"] == truth.fitness
+    assert result["missed"] == {"0": 0, "1": 0} and result["robots_late"] == 0
+    # the equivalent composed trial (docs/dome.md): ant-trial --genome genomes/best.json
+    # --robots 2 --steps 40 --blueprint default:1 --drive continuous --perception full
+    # --no-slip (site_sim.yaml: sim.exact)
+    trial = run_trial(
+        "genomes/best.json",
+        2,
+        40,
+        0,
+        "default:1",
+        domain=next_domain(),
+        command_timeout=30.0,
+        drive="continuous",
+        perception="full",
+        exact=True,
+    )
+    assert result["commands"] == trial.commands
+    assert summary["fitness"] == trial.fitness
+    assert np.array_equal(np.array(result["heights"]), trial.heights)
     logs = {p.stem for p in (tmp_path / "run" / "logs").glob("*.log")}
     assert logs == {
+        "dynamics",
+        "executor_0",
+        "executor_1",
         "supervisor",
         "server",
         "sensors",
         "localizer",
         "mapper",
-        "sim",
         "blade_driver_0",
         "blade_driver_1",
         "controller_0",
         "controller_1",
+        "team_tick",
     }
     order = [
         line.split("starting ")[1].split(" ")[0]
         for line in events(tmp_path).splitlines()
         if " starting " in line
     ]
-    assert order[:2] == ["supervisor", "server"] and order[-1] == "sim"
+    assert order[:3] == ["dynamics", "executor_0", "executor_1"]
+    assert order[3:5] == ["supervisor", "server"] and order[-1] == "team_tick"
 
 
 def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
-    proc = dome(tmp_path, ticks=150)
+    proc = dome(tmp_path, ticks=40)
     try:
-        assert wait_for(lambda: "all 10 nodes are up" in events(tmp_path), 600)
-        time.sleep(2.0)  # a few ticks
+        assert wait_for(lambda: "all 13 nodes are up" in events(tmp_path), 600)
+        assert wait_for(lambda: snapshots(tmp_path) >= 3, 600)  # a few ticks
         victim = state(tmp_path)["controller_1"]["pid"]
         os.kill(victim, signal.SIGKILL)
         out, err = proc.communicate(timeout=900)
@@ -108,7 +134,7 @@ def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
             proc.kill()
     assert proc.returncode == 0, err + events(tmp_path)
     summary = json.loads(out.strip().splitlines()[-1])
-    assert summary["ticks"] == 150 and summary["restarts"] == {"controller_1": 1}
+    assert summary["ticks"] == 40 and summary["restarts"] == {"controller_1": 1}
     log = events(tmp_path)
     assert "controller_1 exited with code -9" in log
     assert "restarting controller_1 in 1.0 s (restart 1)" in log
@@ -124,7 +150,7 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag(tmp_path):
     port = _free_port()
     proc = dome(tmp_path, "--record", str(bag), "--view", "--view-port", str(port), ticks=300)
     try:
-        assert wait_for(lambda: "all 12 nodes are up" in events(tmp_path), 600)
+        assert wait_for(lambda: "all 15 nodes are up" in events(tmp_path), 600)
         time.sleep(5.0)
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=300)

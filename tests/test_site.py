@@ -108,11 +108,16 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
     site = sitefile.load_site(path, sim=sim)
     table = node_table(site, tmp_path, sim=sim, record=str(tmp_path / "bag"), view=True)
     names = [s.name for s in table]
-    # the recorder first (it sees every topic), then the team supervisor
-    assert names[:3] == ["recorder", "supervisor", "server"]
-    assert names[-1] == "view" and (names[-2] == "sim") == sim
+    # the recorder first (it sees every topic); with --sim the simulated robots and the
+    # clock (dynamics, the executors), then the team supervisor
+    simulated = ["dynamics", "executor_0", "executor_1"] if sim else []
+    assert names[: 3 + len(simulated)] == ["recorder", *simulated, "supervisor", "server"]
+    assert names[-1] == "view" and (names[-2] == "team_tick") == sim
     by_name = {s.name: s for s in table}
     for spec in table:
+        # every node but the clock, the recorder and the view runs on the simulator's clock
+        on_sim_time = spec.params.pop("use_sim_time", False)
+        assert on_sim_time == (sim and spec.name not in ("dynamics", "recorder", "view"))
         if spec.module.startswith(("overhead_localizer", "terrain_mapper")):
             classes = (
                 (LocalizerNodeParams, LocalizerParams)
@@ -150,6 +155,14 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
     else:
         assert (tmp_path / "camera.yaml").exists()
         assert by_name["localizer"].params["calibration"] == str(tmp_path / "camera.yaml")
+        assert set(by_name["dynamics"].params) <= _config_keys("excavation_sim", "dynamics.yaml")
+        assert by_name["dynamics"].params["slip"] == 0.0  # site_sim.yaml: sim.exact
+        executor_keys = _config_keys("drive_executor", "executor.yaml")
+        assert all(set(by_name[f"executor_{k}"].params) <= executor_keys for k in (0, 1))
+        tick = by_name["team_tick"]
+        assert set(tick.params) <= _config_keys("excavation_bringup", "team_tick.yaml")
+        assert tick.final and tick.params["steps"] == site.sim.ticks
+        assert "/robot_1/stuck:=/tick/robot_1/stuck" in by_name["controller_1"].remaps
 
 
 def test_repeated_keys_are_refused_anywhere():

@@ -16,7 +16,8 @@ operator's drive); ``/team/estop`` (Bool, latched), ``/team/heartbeat`` (Header,
 Publishes: ``cmd_vel`` (geometry_msgs/TwistStamped, frame ``robot_k/base_link``, stamped
 with the pose it answers), ``drive/status`` (action_msgs/GoalStatus, the goal's tick
 stamp), ``stuck`` (std_msgs/Bool, U1, once per goal), ``drive/throttle`` (Bool, latched:
-the power mode of the running goal, for the base) and ``/diagnostics``.
+the power mode of the running goal, for the base) and ``/diagnostics`` (every wall second,
+also while a simulator's clock stands still).
 
 Lifecycle (ros2/demos ``lifecycle_py``): ``on_configure`` builds the core, publishers,
 subscriptions and timers; ``on_activate`` opens the gate's ``active`` input and starts
@@ -34,6 +35,7 @@ import sys
 from action_msgs.msg import GoalInfo, GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
+from rclpy.clock import Clock, ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from std_msgs.msg import Bool, Header, UInt16
 
@@ -44,6 +46,8 @@ from drive_executor.params import ExecutorParams
 from drive_executor.primitives import Pose2D, Twist2D
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
 from excavation_common.safety import ENABLED_TOPIC, ESTOP_TOPIC, HEARTBEAT_TOPIC, MotionGate
+
+STEADY = ClockType.STEADY_TIME
 
 
 def _seconds(stamp) -> float:
@@ -98,7 +102,9 @@ class ExecutorNode(LifecycleNode):
             sub(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10),
             sub(Bool, ENABLED_TOPIC, self.on_enabled, LATCHED),
             self.create_timer(1.0 / self.params.rate, self.enforce),
-            self.create_timer(1.0, self.publish_diagnostics),
+            # wall clock: a node on use_sim_time reports even while the simulator waits
+            # for the team (ant-dome up --sim starts the executors before the clock runs)
+            self.create_timer(1.0, self.publish_diagnostics, clock=Clock(clock_type=STEADY)),
         ]
         return TransitionCallbackReturn.SUCCESS
 

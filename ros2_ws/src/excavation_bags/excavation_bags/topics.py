@@ -35,9 +35,20 @@ SUITE_TOPICS: tuple[str, ...] = (
     "/robot_*/blade/commands",
     "/robot_*/blade/servo_command",
     "/robot_*/blade/servo_state",
+    "/robot_*/blade/plant_state",
+    "/robot_*/cmd_vel",
+    "/robot_*/drive/goal",
+    "/robot_*/drive/status",
+    "/robot_*/drive/throttle",
+    "/robot_*/drive/override",
+    "/robot_*/enabled",
+    "/team/*",
+    "/tick/*",
     "/diagnostics",
 )
-"""The node suite's topics (DESIGN.md, docs/interfaces.md); ``*`` matches a robot index.
+"""The node suite's topics (DESIGN.md, docs/interfaces.md); ``*`` matches a robot index
+(``/team/*``: e-stop, heartbeat, tick and snapshot requests; ``/tick/*``: the snapshot the
+team tick republishes per tick in a continuous trial).
 
 ``/overhead/image_raw`` is recorded as ``/overhead/image_raw/compressed`` (see
 :mod:`excavation_bags.recorder_node`)."""

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from excavation_bringup.trial import TrialResult, TrialSpec
 
 TICK_PREFIX = "/tick"
@@ -39,6 +41,55 @@ controllers decide, a snapshot is rendered): otherwise it races through those wa
 spending the CPU they need."""
 
 
+RECORD_TAIL = 1.0
+"""Wall seconds a recording trial runs on after its last tick, so that the bag holds the
+messages still in flight (the last snapshot, statuses and diagnostics)."""
+
+
+class RecorderThread:
+    """The bag recorder on its own single-threaded executor, spun by a thread.
+
+    The ``EventsExecutor`` of the trial cannot take the recorder's raw (CDR bytes)
+    messages (``SystemError: null argument to internal routine``), so the recorder runs
+    beside it, as a second component container would.
+    """
+
+    def __init__(self, node, context) -> None:
+        import threading
+
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.node = node
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(node)
+        self.running = True
+        self.thread = threading.Thread(target=self._spin, name="bag-recorder", daemon=True)
+        self.thread.start()
+
+    def _spin(self) -> None:
+        while self.running:
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def close(self) -> None:
+        """Stop spinning, finish the bag and destroy the node."""
+        self.running = False
+        self.thread.join()
+        self.node.close()
+        self.executor.remove_node(self.node)
+        self.node.destroy_node()
+        self.executor.shutdown()
+
+
+def check_spec(spec: TrialSpec) -> None:
+    """Refuse what a continuous trial cannot run.
+
+    Raises:
+        ValueError: Without blade drivers (the blade's tick interface).
+    """
+    if not spec.blade_driver:
+        raise ValueError("drive: continuous runs with blade drivers (the blade's tick interface)")
+
+
 def controller_remaps(robot: int, robots: int) -> list[str]:
     """``cli_args`` that point a lockstep controller at the team tick's snapshot topics."""
     args = ["--ros-args"]
@@ -47,6 +98,88 @@ def controller_remaps(robot: int, robots: int) -> list[str]:
     args += ["-r", f"/worksite/height_map:={TICK_PREFIX}/worksite/height_map"]
     args += ["-r", f"/robot_{robot}/stuck:={TICK_PREFIX}/robot_{robot}/stuck"]
     return args
+
+
+def dynamics_parameters(spec: TrialSpec, exact: bool) -> dict:
+    """The ``dynamics`` node's parameters for ``spec`` (both trial modes)."""
+    from excavation_sim.dynamics import DynamicsParams
+
+    full = spec.perception == "full"
+    physics = DynamicsParams.exact() if exact else DynamicsParams()
+    return {
+        "blueprint": spec.blueprint,
+        "robots": spec.robots,
+        "seed": spec.seed,
+        "scenario": spec.scenario,
+        "noise_seed": spec.seed,
+        "pose_prefix": TRUTH_PREFIX if full else "",
+        "snapshot_prefix": SNAPSHOT_PREFIX if full else "",
+        "idle_time_factor": IDLE_TIME_FACTOR,
+    } | vars(physics)
+
+
+def tick_parameters(spec: TrialSpec) -> dict:
+    """The team tick's parameters for ``spec``."""
+    return {
+        "robots": spec.robots,
+        "steps": spec.steps,
+        "seed": spec.seed,
+        "scenario": spec.scenario,
+        "blueprint": spec.blueprint,
+        "word_timeout": float(spec.command_timeout),
+    }
+
+
+def supervisor_parameters(spec: TrialSpec) -> dict:
+    """The team supervisor's parameters (armed at start)."""
+    from excavation_bringup.trial import _supervisor_params
+
+    # The lost-robot policy on (missed frames, busy executors: team_supervisor.team).
+    return _supervisor_params(spec.robots, armed=True)
+
+
+def controller_parameters(spec: TrialSpec, k: int, height_unit: float) -> dict:
+    """Robot ``k``'s controller (lockstep, on the team tick's topics: controller_remaps)."""
+    return {
+        "robot_id": k,
+        "robots": spec.robots,
+        "height_unit": float(height_unit),
+        "lockstep": True,
+        "tilt_source": "imu",
+    }
+
+
+def executor_parameters(spec: TrialSpec, k: int, cell_size: float) -> dict:
+    """Robot ``k``'s drive executor (in namespace ``/robot_k``)."""
+    pose = f"{TRUTH_PREFIX}/robot_{k}/pose" if spec.perception == "full" else "pose"
+    return {"cell_size": float(cell_size), "pose_topic": pose, "seed": spec.seed * 1000 + k}
+
+
+def continuous_result(
+    ticks: dict, world: dict, primitives_aborted: int, seconds: float, steps: int
+) -> TrialResult:
+    """The trial's result from the team tick's summary and the ``dynamics`` world.
+
+    Args:
+        ticks: :meth:`excavation_bringup.team_tick.TeamTick.summary`.
+        world: :meth:`excavation_sim.dynamics_node.DynamicsNode.result`.
+        primitives_aborted: Summed over the executors.
+        seconds: Wall time of the trial.
+        steps: Ticks run (the fitness trace has one more entry).
+    """
+    return TrialResult(
+        world["fitness"],
+        [world["snapshots"].get(f"tick {t}", float("nan")) for t in range(steps + 1)],
+        np.array(world["heights"], dtype=np.int64),
+        {int(k): n for k, n in ticks["missed"].items()},
+        seconds,
+        ticks["commands"],
+        tick_wall=ticks["tick_wall"],
+        primitives_aborted=primitives_aborted,
+        stuck_events=ticks["stuck_events"],
+        sim_seconds=world["sim_seconds"],
+        robots_late=ticks["robots_late"],
+    )
 
 
 def run_continuous(
@@ -77,12 +210,9 @@ def run_continuous(
 
     Raises:
         TimeoutError: When the trial does not finish within ``spec.timeout`` seconds.
-        ValueError: Without blade drivers, or with ``processes`` / ``record``.
+        ValueError: Without blade drivers.
     """
-    if not spec.blade_driver:
-        raise ValueError("drive: continuous runs with blade drivers (the blade's tick interface)")
-    if spec.record:
-        raise ValueError("record: not with --drive continuous")
+    check_spec(spec)
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -94,14 +224,16 @@ def run_continuous(
     from drive_executor.executor_node import ExecutorNode
     from excavation_bringup.team_tick import Phase
     from excavation_bringup.team_tick_node import TeamTickNode
-    from excavation_bringup.trial import _supervisor_params
-    from excavation_sim.dynamics import DynamicsParams
+    from excavation_bringup.trial import trial_recorder
     from excavation_sim.dynamics_node import DynamicsNode
     from team_supervisor.supervisor_node import SupervisorNode
 
     full = spec.perception == "full"
     sim_time = Parameter("use_sim_time", value=True)
-    physics = DynamicsParams.exact() if exact else DynamicsParams()
+
+    def overrides(values: dict) -> list:
+        return [Parameter(k, value=v) for k, v in values.items()] + [sim_time]
+
     context = Context()
     rclpy.init(context=context, domain_id=spec.domain)
     if events_executor:
@@ -111,8 +243,11 @@ def run_continuous(
     else:
         executor = SingleThreadedExecutor(context=context)
     nodes = []
+    recorder = None
     started = time.monotonic()
     try:
+        if spec.record:  # first, so that it sees every topic appear
+            recorder = RecorderThread(trial_recorder(context, spec), context)
         nodes.append(
             BlueprintServer(
                 context=context,
@@ -122,17 +257,11 @@ def run_continuous(
         dynamics = DynamicsNode(
             context=context,
             parameter_overrides=[
-                Parameter("blueprint", value=spec.blueprint),
-                Parameter("robots", value=spec.robots),
-                Parameter("seed", value=spec.seed),
-                Parameter("scenario", value=spec.scenario),
-                Parameter("noise_seed", value=spec.seed),
-                Parameter("pose_prefix", value=TRUTH_PREFIX if full else ""),
-                Parameter("snapshot_prefix", value=SNAPSHOT_PREFIX if full else ""),
-                Parameter("idle_time_factor", value=IDLE_TIME_FACTOR),
-                Parameter("time_factor", value=float(time_factor)),
-            ]
-            + [Parameter(name, value=value) for name, value in vars(physics).items()],
+                Parameter(k, value=v)
+                for k, v in (
+                    dynamics_parameters(spec, exact) | {"time_factor": float(time_factor)}
+                ).items()
+            ],
         )
         nodes.append(dynamics)
         blueprint = dynamics.blueprint
@@ -150,28 +279,12 @@ def run_continuous(
             for node in perception:
                 node.set_parameters([sim_time])
             nodes += perception
-        tick = TeamTickNode(
-            context=context,
-            parameter_overrides=[
-                Parameter("robots", value=spec.robots),
-                Parameter("steps", value=spec.steps),
-                Parameter("seed", value=spec.seed),
-                Parameter("scenario", value=spec.scenario),
-                Parameter("blueprint", value=spec.blueprint),
-                Parameter("word_timeout", value=float(spec.command_timeout)),
-                sim_time,
-            ],
-        )
+        tick = TeamTickNode(context=context, parameter_overrides=overrides(tick_parameters(spec)))
         nodes.append(tick)
         if spec.supervisor == "internal":
             nodes.append(
                 SupervisorNode(
-                    context=context,
-                    parameter_overrides=[
-                        Parameter(k, value=v)
-                        for k, v in _supervisor_params(spec.robots, armed=True).items()
-                    ]
-                    + [sim_time],
+                    context=context, parameter_overrides=overrides(supervisor_parameters(spec))
                 )
             )
         executors = []
@@ -183,14 +296,9 @@ def run_continuous(
                     context=context,
                     namespace=ns,
                     cli_args=controller_remaps(k, spec.robots),
-                    parameter_overrides=[
-                        Parameter("robot_id", value=k),
-                        Parameter("robots", value=spec.robots),
-                        Parameter("height_unit", value=blueprint.height_unit),
-                        Parameter("lockstep", value=True),
-                        Parameter("tilt_source", value="imu"),
-                        sim_time,
-                    ],
+                    parameter_overrides=overrides(
+                        controller_parameters(spec, k, blueprint.height_unit)
+                    ),
                 )
             )
             nodes.append(
@@ -203,12 +311,7 @@ def run_continuous(
             drive = ExecutorNode(
                 context=context,
                 namespace=ns,
-                parameter_overrides=[
-                    Parameter("cell_size", value=float(blueprint.cell_size)),
-                    Parameter("pose_topic", value=f"{TRUTH_PREFIX}{ns}/pose" if full else "pose"),
-                    Parameter("seed", value=spec.seed * 1000 + k),
-                    sim_time,
-                ],
+                parameter_overrides=overrides(executor_parameters(spec, k, blueprint.cell_size)),
             )
             drive.trigger_configure()
             drive.trigger_activate()
@@ -225,25 +328,21 @@ def run_continuous(
             executor.spin_once(timeout_sec=0.05)
             if fault is not None:
                 fault(nodes, executor)
-        world = dynamics.sim.world
-        records = tick.core.records
-        return TrialResult(
-            world.fitness(),
-            [dynamics.snapshots.get(f"tick {t}", float("nan")) for t in range(spec.steps + 1)],
-            world.heights.copy(),
-            {k: tick.core.missed[k] for k in range(spec.robots)},
+        result = continuous_result(
+            tick.core.summary(),
+            dynamics.result(),
+            sum(e.core.counters.primitives_aborted for e in executors),
             time.monotonic() - started,
-            [r.words for r in records],
-            tick_wall=[
-                (later.started_wall if later else r.ended_wall) - r.started_wall
-                for r, later in zip(records, [*records[1:], None], strict=True)
-            ],
-            primitives_aborted=sum(e.core.counters.primitives_aborted for e in executors),
-            stuck_events=sum(sum(r.stuck) for r in records),
-            sim_seconds=dynamics.now_ns * 1e-9,
-            robots_late=sum(tick.core.late),
+            spec.steps,
         )
+        if recorder is not None:  # what is still in flight
+            last = time.monotonic() + RECORD_TAIL
+            while time.monotonic() < last:
+                executor.spin_once(timeout_sec=0.05)
+        return result
     finally:
+        if recorder is not None:
+            recorder.close()
         for node in nodes:
             executor.remove_node(node)
             node.destroy_node()

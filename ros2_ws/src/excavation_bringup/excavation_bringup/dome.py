@@ -15,12 +15,14 @@ supervisor's reports and ``RUN/state.json`` each node's pid, state and restarts.
 (SIGINT) or SIGTERM stops the nodes one by one in reverse order (the bag recorder, started
 first, stops last and finishes the bag).
 
-``--sim`` puts the simulator in place of the dome's hardware: the lockstep ``sim`` node
-(truth under ``/truth``), the synthetic camera and laser (``sensors``), and the simulator
-as every robot's blade board (the blade drivers' ``sim`` backend); the localizer and the
-mapper see only the synthetic sensors, as in ``ant-trial --perception full``. The run ends
-when the simulator has run its ticks; its fitness is printed. (The continuous-motion
-simulator ``dynamics`` replaces the lockstep one as the one entry :func:`simulator`.)
+``--sim`` puts the continuous-motion simulator in place of the dome's hardware, as
+``ant-trial --drive continuous --perception full --processes`` runs it: ``dynamics`` (the
+robots' bases and the clock: every other node runs on ``use_sim_time``), one drive
+executor per robot closing its loop on the simulator's truth, the synthetic camera and
+laser (``sensors``, rendering the simulator's snapshot after each tick's motion), the
+simulator as every robot's blade board (the blade drivers' ``sim`` backend), and the team
+tick, which runs the site's ticks (``--ticks``) and ends the run; the localizer and the
+mapper see only the synthetic sensors. The fitness is printed.
 
 Examples::
 
@@ -63,7 +65,8 @@ class NodeSpec:
         args: Command-line arguments before ``--ros-args``.
         namespace: ROS namespace (``/robot_k``), or empty.
         restart: Restart it when it crashes.
-        final: Its exit with code 0 ends the run (the simulator after its ticks).
+        final: Its exit with code 0 ends the run (the team tick after its ticks).
+        remaps: Topic remappings ``from:=to``.
     """
 
     name: str
@@ -74,12 +77,15 @@ class NodeSpec:
     namespace: str = ""
     restart: bool = True
     final: bool = False
+    remaps: tuple[str, ...] = ()
 
     def command(self, params_file: str | Path) -> list[str]:
         """The command line that starts it (the venv's interpreter)."""
         cmd = [sys.executable, "-m", self.module, *self.args, "--ros-args"]
         if self.namespace:
             cmd += ["-r", f"__ns:={self.namespace}"]
+        for remap in self.remaps:
+            cmd += ["-r", remap]
         return cmd + ["--params-file", str(params_file)]
 
     def reports(self, status_name: str) -> bool:
@@ -90,19 +96,58 @@ class NodeSpec:
         return False
 
 
-def simulator(site: sitefile.Site, run_dir: Path, ticks: int) -> NodeSpec:
-    """The simulator ``--sim`` puts in place of the dome's robots.
+WORLD_FILE = "world.json"
+"""``--sim``: the simulator's world at every snapshot (fitness, heights)."""
+RESULT_FILE = "result.json"
+"""``--sim``: the team tick's summary after its last tick (words, missed, wall per tick)."""
 
-    The lockstep simulator until the continuous-motion ``dynamics`` simulator lands (then
-    this entry names it instead). It starts last, once every other node is up and
-    connected, so that no node misses tick 0. It is not restartable: a new one would start
-    the trial over.
+
+def simulator(site: sitefile.Site, run_dir: Path) -> list[NodeSpec]:
+    """What ``--sim`` puts in place of the robots: ``dynamics`` and one executor per robot.
+
+    They start first: ``dynamics`` is the clock of every other node (``use_sim_time``),
+    and it starts stepping once every executor is on the graph, so that the timers of the
+    nodes after them run. Nothing moves before the supervisor arms the team and the team
+    tick grants a goal. ``dynamics`` is not restartable (a new one would start the world
+    over); a restarted executor has lost the goal it was driving, and the team tick goes on
+    without that robot once ``motion_limit`` has passed.
+    """
+    table = [
+        NodeSpec(
+            "dynamics",
+            "excavation_sim.dynamics_node",
+            sitefile.dynamics_params(site, str(run_dir / WORLD_FILE)),
+            ("/dynamics",),
+            restart=False,
+        )
+    ]
+    for k, robot in enumerate(site.robots):
+        ns = f"/{robot.name}"
+        table.append(
+            NodeSpec(
+                f"executor_{k}",
+                "drive_executor.executor_node",
+                {**sitefile.executor_params(site, k), **sitefile.SIM_CLOCK},
+                (f"{ns}/executor",),
+                namespace=ns,
+            )
+        )
+    return table
+
+
+def team_tick(site: sitefile.Site, run_dir: Path, ticks: int) -> NodeSpec:
+    """The team tick of ``--sim``: last, and its exit after ``ticks`` ticks ends the run.
+
+    Not restartable: a new one would start the ticks over.
     """
     return NodeSpec(
-        "sim",
-        "excavation_sim.sim_node",
-        sitefile.sim_params(site, ticks, str(run_dir / "result.json")),
-        ("/sim", "sim: *"),
+        "team_tick",
+        "excavation_bringup.team_tick_node",
+        {
+            **sitefile.team_tick_params(site, ticks, str(run_dir / RESULT_FILE)),
+            **sitefile.SIM_CLOCK,
+        },
+        ("/team_tick",),
         restart=False,
         final=True,
     )
@@ -111,7 +156,10 @@ def simulator(site: sitefile.Site, run_dir: Path, ticks: int) -> NodeSpec:
 def synthetic_sensors(site: sitefile.Site) -> NodeSpec:
     """The overhead camera and laser ``--sim`` renders from the simulator's truth."""
     return NodeSpec(
-        "sensors", "excavation_sim.sensors_node", sitefile.sensors_params(site), ("/sensors",)
+        "sensors",
+        "excavation_sim.sensors_node",
+        {**sitefile.sensors_params(site), **sitefile.SIM_CLOCK},
+        ("/sensors",),
     )
 
 
@@ -144,6 +192,7 @@ def node_table(
             simulated_calibration(resolve_blueprint(site.worksite.blueprint), site.sim.seed),
             calibration,
         )
+    clock = sitefile.SIM_CLOCK if sim else {}
     table: list[NodeSpec] = []
     if record:
         table.append(
@@ -156,11 +205,13 @@ def node_table(
                 restart=False,  # a second recorder cannot reopen the bag
             )
         )
+    if sim:
+        table += simulator(site, run_dir)
     table.append(
         NodeSpec(
             "supervisor",
             "team_supervisor.supervisor_node",
-            sitefile.supervisor_params(site, sim),
+            {**sitefile.supervisor_params(site, sim), **clock},
             ("/supervisor",),
         )
     )
@@ -168,7 +219,7 @@ def node_table(
         NodeSpec(
             "server",
             "blueprint_server.server_node",
-            sitefile.server_params(site),
+            {**sitefile.server_params(site), **clock},
             ("/blueprint_server", "blueprint_server: *"),
         )
     )
@@ -181,6 +232,7 @@ def node_table(
             {
                 **sitefile.localizer_params(site, calibration, str(beacons), reliable=sim),
                 **({"annotated_period": 0.5} if view else {}),
+                **clock,
             },
             ("/localizer", "localizer: *"),
         )
@@ -189,7 +241,7 @@ def node_table(
         NodeSpec(
             "mapper",
             "terrain_mapper.mapper_node",
-            sitefile.mapper_params(site, reliable=sim),
+            {**sitefile.mapper_params(site, reliable=sim), **clock},
             ("/mapper", "mapper"),
         )
     )
@@ -199,7 +251,7 @@ def node_table(
             NodeSpec(
                 f"blade_driver_{k}",
                 "blade_driver.driver_node",
-                sitefile.blade_driver_params(site, k, sim),
+                {**sitefile.blade_driver_params(site, k, sim, after_motion=sim), **clock},
                 (f"{ns}/blade_driver",),
                 namespace=ns,
             )
@@ -210,14 +262,15 @@ def node_table(
             NodeSpec(
                 f"controller_{k}",
                 "ant_controller.controller_node",
-                sitefile.controller_params(site, k, lockstep=sim),
+                {**sitefile.controller_params(site, k, lockstep=sim), **clock},
                 (f"{ns}/controller",),
                 args=tuple(sitefile.controller_args(site, k)),
                 namespace=ns,
+                remaps=tuple(sitefile.controller_remaps(site, k)) if sim else (),
             )
         )
     if sim:
-        table.append(simulator(site, run_dir, ticks or site.sim.ticks))
+        table.append(team_tick(site, run_dir, ticks or site.sim.ticks))
     if view:
         table.append(
             NodeSpec(
@@ -614,6 +667,18 @@ def cmd_check(args: argparse.Namespace) -> int:
     return 0
 
 
+def sim_result(run_dir: Path) -> dict | None:
+    """A ``--sim`` run's result: the team tick's summary with the world's fitness and heights.
+
+    ``None`` until the team tick has finished (or when the simulator wrote no world).
+    """
+    ticks, world = run_dir / RESULT_FILE, run_dir / WORLD_FILE
+    if not (ticks.exists() and world.exists()):
+        return None
+    data = json.loads(world.read_text())
+    return json.loads(ticks.read_text()) | {"fitness": data["fitness"], "heights": data["heights"]}
+
+
 def cmd_up(args: argparse.Namespace) -> int:
     """``ant-dome up``."""
     site, errors = sitefile.check_site(args.site, sim=args.sim)
@@ -632,8 +697,7 @@ def cmd_up(args: argparse.Namespace) -> int:
         f"bringing up {args.site} ({len(specs)} nodes, domain {env['ROS_DOMAIN_ID']}) in {run_dir}"
     )
     ok = dome.run(timeout=args.timeout)
-    result_file = run_dir / "result.json"
-    result = json.loads(result_file.read_text()) if result_file.exists() else None
+    result = sim_result(run_dir) if args.sim else None
     summary = {
         "ok": ok,
         "run_dir": str(run_dir),

@@ -6,6 +6,8 @@ core and through the node), the sim-time / wall-time ratio and the wall time per
 ``python -m excavation_bringup.field_bench results``: fitness of the continuous trial with
 the default slip and noise and full perception over 5 seeds, next to the grid's (ant-eval,
 which equals the lockstep grid trial), with primitives aborted and stuck events.
+``python -m excavation_bringup.field_bench processes [--steps N]``: wall time per tick of
+the 4-robot continuous trial composed and with every node its own process.
 Times are wall-clock figures of this machine, printed, never asserted.
 """
 
@@ -46,8 +48,8 @@ def core_rate(cycles: int = 200_000) -> float:
     return cycles / (time.perf_counter() - started)
 
 
-def trial(spec, robots, steps, seed, perception="truth", exact=False, drive="continuous"):
-    """One trial with its wall time."""
+def trial(spec, robots, steps, seed, perception="truth", exact=False, drive="continuous", **kw):
+    """One trial with its wall time (``kw``: more :func:`run_trial` arguments)."""
     from excavation_bringup.trial import run_trial
 
     return run_trial(
@@ -62,7 +64,31 @@ def trial(spec, robots, steps, seed, perception="truth", exact=False, drive="con
         perception=perception,
         drive=drive,
         exact=exact,
+        **kw,
     )
+
+
+def processes(steps: int = 100, seed: int = 0) -> None:
+    """Print the wall time per tick of the 4-robot continuous trial, composed and as processes.
+
+    The shipped genome, slip and noise off (both modes then run the same ticks), perception
+    from the simulator's truth.
+    """
+    print("| 4-robot continuous trial | ticks | wall per tick, mean / median / p95 | whole trial |")
+    print("|---|---|---|---|")
+    results = {}
+    for mode, procs in (("composed", False), ("processes", True)):
+        r = trial(GENOME, 4, steps, seed, exact=True, processes=procs)
+        results[mode] = r
+        walls = sorted(r.tick_wall[1:])  # tick 0 waits for every node to start
+        p95 = walls[int(0.95 * (len(walls) - 1))]
+        print(
+            f"| {mode} | {steps} | {statistics.mean(walls):.3f} s / "
+            f"{statistics.median(walls):.3f} s / {p95:.3f} s | {r.seconds:.0f} s |",
+            flush=True,
+        )
+    same = results["composed"].fitness == results["processes"].fitness
+    print(f"same fitness in both modes: {same} ({results['composed'].fitness:.6f})")
 
 
 MARK = "<!-- field-bench -->"
@@ -176,7 +202,8 @@ def results(seeds: int = 5, specs: tuple[str, ...] = ("hand-coded", GENOME)) -> 
 def main(argv: list[str] | None = None) -> int:
     """Entry point (``python -m excavation_bringup.field_bench bench|results``)."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("what", choices=("bench", "results"))
+    p.add_argument("what", choices=("bench", "results", "processes"))
+    p.add_argument("--steps", type=int, default=100, help="processes: ticks")
     p.add_argument("--write", metavar="MD", help="bench: put the table into this file")
     p.add_argument(
         "--controllers", nargs="+", default=["hand-coded", GENOME], help="results: which"
@@ -185,6 +212,9 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     if args.what == "results":
         results(specs=tuple(args.controllers))
+        return 0
+    if args.what == "processes":
+        processes(args.steps)
         return 0
     rows = bench()
     if args.write:

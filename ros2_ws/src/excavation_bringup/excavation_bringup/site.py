@@ -149,7 +149,9 @@ class SimSettings:
     """What ``ant-dome up --sim`` simulates: scenario seed and index, ticks, tick timeouts.
 
     ``first_command_timeout`` is tick 0's: every node's first frame, sweep and decision
-    (numba kernels compiling) can take a loaded machine well over a minute.
+    (numba kernels compiling) can take a loaded machine well over a minute. ``exact``:
+    no slip and no noise in the continuous-motion simulator (``ant-trial --no-slip``), the
+    setting whose result does not depend on the machine's timing.
     """
 
     seed: int = 0
@@ -157,6 +159,7 @@ class SimSettings:
     ticks: int = 300
     command_timeout: float = 30.0
     first_command_timeout: float = 180.0
+    exact: bool = False
 
 
 @dataclass(frozen=True)
@@ -364,15 +367,20 @@ def _network(r: _Reader, doc: dict) -> Network:
 
 
 def _sim(r: _Reader, doc: dict) -> SimSettings:
-    keys = {"seed", "scenario", "ticks", "command_timeout", "first_command_timeout"}
+    keys = {"seed", "scenario", "ticks", "command_timeout", "first_command_timeout", "exact"}
     s = r.section(doc, "sim", keys, required=False)
     d = SimSettings()
+    exact = s.get("exact", d.exact)
+    if not isinstance(exact, bool):
+        r.error("sim.exact", exact, "expected true or false")
+        exact = d.exact
     return SimSettings(
         r.number(s, "sim", "seed", d.seed, 0, 2**31 - 1, integer=True),
         r.number(s, "sim", "scenario", d.scenario, 0, 2**31 - 1, integer=True),
         r.number(s, "sim", "ticks", d.ticks, 1, 10**7, integer=True),
         r.number(s, "sim", "command_timeout", d.command_timeout, positive=True),
         r.number(s, "sim", "first_command_timeout", d.first_command_timeout, positive=True),
+        exact,
     )
 
 
@@ -752,30 +760,90 @@ def server_params(site: Site) -> dict[str, Any]:
     return _merge(site, "server", {"blueprint": site.worksite.blueprint})
 
 
-def sim_params(site: Site, ticks: int, result_file: str) -> dict[str, Any]:
-    """``excavation_sim sim`` for ``--sim``: truth aside under ``/truth``, blade drivers on."""
+SIM_CLOCK = {"use_sim_time": True}
+"""With ``--sim`` every node but ``dynamics`` (the clock), the recorder and the view runs on
+the simulator's ``/clock`` (``ant-dome`` adds it to their parameters)."""
+
+
+def _sim_spec(site: Site, ticks: int):
+    """The ``ant-trial --drive continuous --perception full`` trial a ``--sim`` run equals."""
+    from excavation_bringup.trial import TrialSpec
+
     s = site.sim
+    return TrialSpec(
+        controller="",  # each robot's genome is its controller's argument
+        robots=site.n_robots,
+        steps=int(ticks),
+        seed=s.seed,
+        blueprint=site.worksite.blueprint,
+        scenario=s.scenario,
+        domain=site.network.domain,
+        command_timeout=float(s.command_timeout),
+        timeout=0.0,
+        blade_driver=True,
+        record=None,
+        perception="full",
+        drive="continuous",
+    )
+
+
+def dynamics_params(site: Site, result_file: str) -> dict[str, Any]:
+    """``excavation_sim dynamics`` for ``--sim``: the continuous trial's simulator.
+
+    Per-step truth under ``/truth`` (the executors' loop), snapshots under ``/snapshot``
+    (what the synthetic camera and laser render); it writes ``result_file`` (the world at
+    every snapshot).
+    """
+    from excavation_bringup.continuous_processes import DYNAMICS_COMMAND_TIMEOUT, MAX_TIME_FACTOR
+    from excavation_bringup.continuous_trial import dynamics_parameters
+
     return {
-        "blueprint": site.worksite.blueprint,
-        "robots": site.n_robots,
-        "steps": int(ticks),
-        "seed": s.seed,
-        "scenario": s.scenario,
-        "command_timeout": float(s.command_timeout),
-        "first_command_timeout": float(s.first_command_timeout),
-        "blade_driver": True,
-        "truth_prefix": "/truth",
+        **dynamics_parameters(_sim_spec(site, site.sim.ticks), site.sim.exact),
+        "command_timeout": min(float(site.sim.command_timeout), DYNAMICS_COMMAND_TIMEOUT),
+        "max_time_factor": MAX_TIME_FACTOR,
         "result_file": str(result_file),
     }
+
+
+def executor_params(site: Site, k: int) -> dict[str, Any]:
+    """``drive_executor executor`` of robot ``k`` for ``--sim``: closed on the sim's truth."""
+    from excavation_bringup.continuous_processes import SIM_DEADMAN
+    from excavation_bringup.continuous_trial import executor_parameters
+
+    spec = _sim_spec(site, 1)
+    params = executor_parameters(spec, k, site.worksite.cell_size)
+    return {**params, "deadman": SIM_DEADMAN}
+
+
+def team_tick_params(site: Site, ticks: int, result_file: str) -> dict[str, Any]:
+    """``excavation_bringup team_tick`` for ``--sim``: ``ticks`` ticks, then ``result_file``."""
+    from excavation_bringup.continuous_processes import SIM_BLADE_WAIT
+    from excavation_bringup.continuous_trial import tick_parameters
+
+    return {
+        **tick_parameters(_sim_spec(site, ticks)),
+        "blade_wait": SIM_BLADE_WAIT,
+        "first_word_timeout": float(site.sim.first_command_timeout),
+        "result_file": str(result_file),
+    }
+
+
+def controller_remaps(site: Site, k: int) -> list[str]:
+    """``--sim``: robot ``k``'s controller reads the team tick's snapshot (``/tick``)."""
+    from excavation_bringup.continuous_trial import controller_remaps as remaps
+
+    return remaps(k, site.n_robots)[2::2]  # past "--ros-args", each "-r"
 
 
 def sensors_params(site: Site) -> dict[str, Any]:
     """``excavation_sim sensors`` for ``--sim``: the synthetic camera and laser of the site."""
     w = site.worksite
+    from excavation_bringup.continuous_trial import SNAPSHOT_PREFIX
+
     return {
         "robots": site.n_robots,
         "seed": site.sim.seed,
-        "truth_prefix": "/truth",
+        "truth_prefix": SNAPSHOT_PREFIX,  # the simulator's snapshot after each tick's motion
         "sweep_scans": site.laser.sweep_scans,
         "cell_size": float(w.cell_size),
         "rows": w.rows,
@@ -877,6 +945,10 @@ def blade_driver_params(
         params["blade_after_motion"] = True
     if backend == "serial":
         params["port"] = robot.port
+    if sim:
+        from excavation_bringup.continuous_processes import SIM_DEADMAN
+
+        params["deadman"] = SIM_DEADMAN
     return _merge(site, "blade_driver", params)
 
 
@@ -884,9 +956,16 @@ def supervisor_params(site: Site, sim: bool = False) -> dict[str, Any]:
     """The team supervisor: disarmed at start in the dome, armed at start with ``--sim``.
 
     In the dome nothing moves until the operator runs ``ant-operator arm``; a ``--sim`` run
-    is unattended, so its supervisor arms the team itself.
+    is unattended, so its supervisor arms the team itself, on the simulator's clock, with the
+    lost-robot policy of ``ant-trial --drive continuous`` (off: the localizer sees the robots
+    once per tick, in each snapshot).
     """
-    return _merge(site, "supervisor", {"robots": site.n_robots, "arm_at_start": bool(sim)})
+    params: dict[str, Any] = {"robots": site.n_robots, "arm_at_start": bool(sim)}
+    if sim:
+        from excavation_bringup.continuous_trial import supervisor_parameters
+
+        params = supervisor_parameters(_sim_spec(site, 1))
+    return _merge(site, "supervisor", params)
 
 
 def recorder_params(site: Site, out: str) -> dict[str, Any]:

@@ -226,6 +226,27 @@ class TeamTick:
                 self._done.add(k)
                 self.stuck[k] = aborted
 
+    def summary(self) -> dict:
+        """What the ticks so far did, as JSON-ready values (the trial's result).
+
+        ``commands``: every tick's words; ``tick_wall``: wall seconds of every tick (from
+        its snapshot to the next tick's, the last to the end of its motion);
+        ``stuck_events``: robot-ticks with U1 set; ``missed``: per robot, ticks it idled
+        for want of a word; ``robots_late``: robot-ticks left out for not finishing.
+        """
+        records = self.records
+        return {
+            "ticks": len(records),
+            "commands": [list(r.words) for r in records],
+            "tick_wall": [
+                (later.started_wall if later else r.ended_wall) - r.started_wall
+                for r, later in zip(records, [*records[1:], None], strict=True)
+            ],
+            "stuck_events": sum(sum(r.stuck) for r in records),
+            "missed": {str(k): n for k, n in enumerate(self.missed)},
+            "robots_late": sum(self.late),
+        }
+
     def start(self, now: float, wall: float = 0.0) -> list[tuple]:
         """The team is present: ask for the snapshot of tick 0."""
         self.phase = Phase.SNAPSHOT

@@ -16,10 +16,15 @@ once per tick, unchanged; ``/team/tick`` (Header: the tick's stamp, ``frame_id``
 ``/robot_k/drive/goal`` (action_msgs/GoalInfo, :mod:`drive_executor.goals`) when robot k may
 move; ``/team/snapshot`` (Header: ``stamp`` = the earliest time the snapshot may be taken,
 ``settle`` after the motion ended) to ask for a snapshot; ``/diagnostics``.
+
+With ``result_file`` set, the node writes :meth:`TeamTick.summary` (and its reports) there
+when the last tick ends, then exits (``ant-trial --drive continuous --processes``, ``ant-dome
+up --sim``).
 """
 
 from __future__ import annotations
 
+import json
 import sys
 import time
 from dataclasses import dataclass
@@ -38,6 +43,7 @@ from drive_executor.errors import GoalError
 from drive_executor.goals import ABORTED, TERMINAL, DriveGoal, goal_from_message, goal_message
 from excavation_bringup.team_tick import Phase, TeamTick, TeamTickParams
 from excavation_common.constants import BladeGeometry
+from excavation_common.files import write_text_atomic
 from excavation_common.messages import MessageError, blade_from_joint, pose_to_grid
 from excavation_common.params import param
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
@@ -54,6 +60,7 @@ class TeamTickNodeParams:
     blade_out: str = param("blade/servo_state", "the blade state republished per tick")
     startup_period: float = param(0.5, "wall s the team is present before tick 0", low=0.0)
     diagnostics_period: float = param(1.0, "wall s between diagnostics", low=0.05)
+    result_file: str = param("", "JSON written when the last tick ends: TeamTick.summary")
 
 
 def _seconds(stamp) -> float:
@@ -208,6 +215,9 @@ class TeamTickNode(Node):
                 self.get_logger().warning(action[1])
                 self.publish_diagnostics(action[1])
             elif kind == "finished":
+                if self.topics.result_file:
+                    summary = self.core.summary() | {"reports": self.reports}
+                    write_text_atomic(self.topics.result_file, json.dumps(summary))
                 self.publish_diagnostics(f"finished {self.core.tick} ticks")
 
     def publish_tick(self, tick: int, stamp: TimeMsg, snapshot: dict) -> None:

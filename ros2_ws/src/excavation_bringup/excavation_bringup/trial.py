@@ -11,8 +11,11 @@ composed on one executor in one process (the way ``executors/composed.py`` of ro
 composes nodes; this environment has no launch); ``--processes`` starts each node as its own
 process, as separate ``ros2 run`` commands would, and collects the result from the
 simulator's ``result_file``. Either way it runs ``--steps`` ticks, prints the fitness and
-stops every node. The result equals ``ant-eval --scenarios 1`` with the same seed
-(``tests/test_trial.py``).
+stops every node. ``--drive continuous`` runs drive executors, the team tick and the
+continuous-motion simulator instead of the lockstep one
+(:mod:`excavation_bringup.continuous_trial`; with ``--processes``
+:mod:`excavation_bringup.continuous_processes`); ``--record BAG`` records either kind.
+The result equals ``ant-eval --scenarios 1`` with the same seed (``tests/test_trial.py``).
 
 Examples::
 
@@ -167,7 +170,8 @@ def run_trial(
             the camera; ``perception="full"`` only).
         drive: ``"grid"``: the lockstep simulator applies each word at once; ``"continuous"``:
             drive executors, the team tick and the ``dynamics`` simulator
-            (:mod:`excavation_bringup.continuous_trial`; composed mode only).
+            (:mod:`excavation_bringup.continuous_trial`, with ``processes``
+            :mod:`excavation_bringup.continuous_processes`).
         exact: ``drive="continuous"`` without slip and noise (the parity setting).
 
     Raises:
@@ -193,8 +197,6 @@ def run_trial(
         raise ValueError("occlude: hides a robot from the camera, so needs perception 'full'")
     if drive not in ("grid", "continuous"):
         raise ValueError(f"drive = {drive!r}: expected 'grid' or 'continuous'")
-    if drive == "continuous" and processes:
-        raise ValueError("drive: continuous runs in the composed mode (without processes)")
     spec = TrialSpec(
         controller_spec,
         robots,
@@ -212,6 +214,10 @@ def run_trial(
         occlude,
         drive,
     )
+    if drive == "continuous" and processes:
+        from excavation_bringup.continuous_processes import run_continuous_processes
+
+        return run_continuous_processes(spec, exact=exact)
     if drive == "continuous":
         from excavation_bringup.continuous_trial import run_continuous
 
@@ -219,9 +225,68 @@ def run_trial(
     return _run_processes(spec) if processes else _run_composed(ctl, spec)
 
 
+def _recorder_source(spec: TrialSpec) -> str:
+    return (
+        f"ant-trial {spec.controller} robots={spec.robots} steps={spec.steps} "
+        f"seed={spec.seed} blueprint={spec.blueprint} drive={spec.drive}"
+    )
+
+
+def trial_recorder(context, spec: TrialSpec):
+    """The bag recorder of a composed trial (``ant-bag record``'s node) on ``context``."""
+    from rclpy.parameter import Parameter
+
+    from blueprint_server.blueprint import resolve_blueprint
+    from excavation_bags.recorder_node import RecorderNode
+
+    return RecorderNode(
+        custom_data={"source": _recorder_source(spec)},
+        context=context,
+        parameter_overrides=[
+            Parameter("out", value=str(spec.record)),
+            Parameter("height_unit", value=float(resolve_blueprint(spec.blueprint).height_unit)),
+        ],
+    )
+
+
+def recorder_command(spec: TrialSpec, height_unit: float) -> list[str]:
+    """The bag recorder of a trial as a process (``ant-bag record --out BAG``)."""
+    return [
+        sys.executable,
+        "-m",
+        "excavation_bags.cli",
+        "record",
+        "--out",
+        str(spec.record),
+        "--height-unit",
+        repr(float(height_unit)),
+    ]
+
+
+def node_command(name: str, module: str, *args: str, ns: str = "", remaps=(), **params):
+    """``python -m module ARGS --ros-args`` naming the node ``name`` in ``ns``.
+
+    Args:
+        name: Node name (``-r __node:=name``).
+        module: The node's module (run by this interpreter, as ``ros2 run`` would).
+        *args: Arguments before ``--ros-args``.
+        ns: Namespace, or empty.
+        remaps: Further ``from:=to`` remappings.
+        **params: ROS parameters (``-p name:=value``).
+    """
+    cmd = [sys.executable, "-m", module, *args, "--ros-args", "-r", f"__node:={name}"]
+    if ns:
+        cmd += ["-r", f"__ns:={ns}"]
+    for remap in remaps:
+        cmd += ["-r", remap]
+    for key, value in params.items():
+        cmd += ["-p", f"{key}:={_ros_value(value)}"]
+    return cmd
+
+
 def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
     """All nodes on one executor in this process."""
-    controller_spec, robots, steps, seed = spec.controller, spec.robots, spec.steps, spec.seed
+    robots, steps, seed = spec.robots, spec.steps, spec.seed
     blueprint, domain, timeout, perception = (
         spec.blueprint,
         spec.domain,
@@ -247,20 +312,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
     started = time.monotonic()
     try:
         if spec.record:  # first, so that it sees every topic appear
-            from blueprint_server.blueprint import resolve_blueprint
-            from excavation_bags.recorder_node import RecorderNode
-
-            recorder = RecorderNode(
-                custom_data={
-                    "source": f"ant-trial {controller_spec} robots={robots} "
-                    f"steps={steps} seed={seed} blueprint={blueprint}"
-                },
-                context=context,
-                parameter_overrides=[
-                    Parameter("out", value=str(spec.record)),
-                    Parameter("height_unit", value=float(resolve_blueprint(blueprint).height_unit)),
-                ],
-            )
+            recorder = trial_recorder(context, spec)
             nodes.append(recorder)
         if spec.supervisor == "internal":
             values = _supervisor_params(robots, True, _lockstep_watches_poses(spec))
@@ -348,6 +400,8 @@ def _ros_value(value) -> str:
         return str(value).lower()
     if isinstance(value, float):
         return repr(value)
+    if value == "":
+        return '""'  # rcl cannot parse an empty value; YAML's empty string
     return str(value)
 
 
@@ -366,26 +420,10 @@ def process_commands(spec: TrialSpec, workdir: Path) -> dict[str, list[str]]:
     height_unit = bp.height_unit
     full = spec.perception == "full"
 
-    def node(name: str, module: str, *args: str, ns: str = "", **params) -> list[str]:
-        cmd = [sys.executable, "-m", module, *args, "--ros-args", "-r", f"__node:={name}"]
-        if ns:
-            cmd += ["-r", f"__ns:={ns}"]
-        for key, value in params.items():
-            cmd += ["-p", f"{key}:={_ros_value(value)}"]
-        return cmd
-
+    node = node_command
     commands: dict[str, list[str]] = {}
     if spec.record:
-        commands["recorder"] = [
-            sys.executable,
-            "-m",
-            "excavation_bags.cli",
-            "record",
-            "--out",
-            str(spec.record),
-            "--height-unit",
-            repr(float(height_unit)),
-        ]
+        commands["recorder"] = recorder_command(spec, height_unit)
     if spec.supervisor == "internal":
         commands["supervisor"] = node(
             "supervisor",
@@ -446,13 +484,24 @@ class TrialProcesses:
         spec: The trial.
         workdir: Folder for logs, the calibration and ``result.json``.
         env: Environment of the nodes (default: this one); ``ROS_DOMAIN_ID`` is the spec's.
+        commands: The node commands (default: :func:`process_commands` of ``spec``).
+        final: The node whose exit ends the trial and which writes ``result.json`` (the
+            lockstep ``sim``; the continuous trial's ``team_tick``).
     """
 
-    def __init__(self, spec: TrialSpec, workdir: str | Path, env: dict | None = None) -> None:
+    def __init__(
+        self,
+        spec: TrialSpec,
+        workdir: str | Path,
+        env: dict | None = None,
+        commands: dict[str, list[str]] | None = None,
+        final: str = "sim",
+    ) -> None:
         self.spec = spec
         self.workdir = Path(workdir)
         self.workdir.mkdir(parents=True, exist_ok=True)
-        self.commands = process_commands(spec, self.workdir)
+        self.commands = commands if commands is not None else process_commands(spec, self.workdir)
+        self.final = final
         self.env = dict(env if env is not None else os.environ, ROS_DOMAIN_ID=str(spec.domain))
         self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         self.procs: dict[str, subprocess.Popen] = {}
@@ -494,26 +543,36 @@ class TrialProcesses:
 
     @property
     def finished(self) -> bool:
-        """The simulator ended (after its last tick, or by a failure)."""
-        sim = self.procs.get("sim")
-        return sim is not None and sim.poll() is not None
+        """The final node ended (after its last tick, or by a failure)."""
+        final = self.procs.get(self.final)
+        return final is not None and final.poll() is not None
 
-    def wait(self, timeout: float, started: float | None = None) -> dict:
-        """Wait for the simulator to end and return its result (``result.json``).
+    def wait(self, timeout: float, started: float | None = None, idle=None) -> dict:
+        """Wait for the final node to end and return its result (``result.json``).
+
+        Args:
+            timeout: Seconds from ``started`` (default: now) to give up after.
+            started: ``time.monotonic()`` of the trial's start.
+            idle: Called instead of sleeping 0.1 s between checks (a trial spinning a
+                node of its own), or ``None``.
 
         Raises:
             TimeoutError: Not finished within ``timeout`` seconds of ``started``.
-            RuntimeError: A node failed, or the simulator wrote no result.
+            RuntimeError: A node failed, or the final node wrote no result.
         """
         started = time.monotonic() if started is None else started
         while not self.finished:
             if time.monotonic() - started > timeout:
                 raise TimeoutError(f"trial did not finish within {timeout} s")
             self.check()
-            time.sleep(0.1)
-        sim = self.procs["sim"]
-        if sim.returncode != 0 or not self.result_file.exists():
-            raise RuntimeError(f"sim exited with {sim.returncode}:\n{_tail(self.log('sim'))}")
+            if idle is None:
+                time.sleep(0.1)
+            else:
+                idle()
+        final = self.procs[self.final]
+        if final.returncode != 0 or not self.result_file.exists():
+            log = _tail(self.log(self.final))
+            raise RuntimeError(f"{self.final} exited with {final.returncode}:\n{log}")
         return json.loads(self.result_file.read_text())
 
     def stop(self) -> None:

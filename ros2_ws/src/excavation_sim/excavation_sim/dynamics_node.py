@@ -9,8 +9,10 @@ seconds of sim time and publishes ``/clock`` and every robot's pose. It waits fo
 executors answer: faster than real time, and every node runs on ``use_sim_time``. While
 every command is zero (the team waits for its controllers or a camera frame) the clock
 runs at most ``idle_time_factor`` times real time, so that waiting costs neither CPU nor
-a race of sim time; ``time_factor`` caps it always (1: real time, as in the dome, for
-nodes in other processes that must keep up with sim time, such as a supervisor's heartbeat).
+a race of sim time; ``max_time_factor`` caps it while robots move (nodes in separate
+processes judge heartbeats on this clock: a cap bounds how much sim time a process's lag is)
+and ``time_factor`` caps it always (1: real time, as in the dome, for nodes in other
+processes that must keep up with sim time, such as a supervisor's heartbeat).
 
 Subscribes, per robot k: ``/robot_k/cmd_vel`` (TwistStamped; none for ``cmd_vel_timeout``
 sim seconds stops the robot's wheels, as diff_drive_controller's ``cmd_vel_timeout`` does,
@@ -32,10 +34,17 @@ then ``{snapshot_prefix}/worksite/height_map`` (latched, 32FC1 metres), the pose
 ``snapshot_prefix`` when it differs from ``pose_prefix`` (the ``sensors`` node renders
 exactly those), the blade plant states, ``/worksite/fitness`` and ``/worksite/markers``;
 ``/diagnostics``.
+
+With ``result_file`` set, every snapshot also rewrites that JSON file (atomically) with the
+world as the snapshot shows it: ``fitness``, ``heights`` (soil units), ``snapshots`` (the
+fitness of every snapshot by its request label, ``"tick t"``), ``sim_seconds``, ``steps``
+and ``late_steps``. ``ant-trial --drive continuous --processes`` and ``ant-dome up --sim``
+read it.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 import time
@@ -53,6 +62,7 @@ from std_msgs.msg import Bool, Float32, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from excavation_common.constants import BladeGeometry
+from excavation_common.files import write_text_atomic
 from excavation_common.messages import blade_joint, grid_to_image, imu_message
 from excavation_common.params import param
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
@@ -94,6 +104,9 @@ class DynamicsNodeParams:
         "run at most this many times real time, moving or not (0: as fast as the team answers)",
         low=0.0,
     )
+    max_time_factor: float = param(
+        0.0, "while robots move, run at most this many times real time (0: no limit)", low=0.0
+    )
     pose_prefix: str = param("", "prefix of the per-step poses (with full perception: /truth)")
     snapshot_prefix: str = param("", "prefix of the snapshot height map and poses")
     blade_after_motion: bool = param(
@@ -101,6 +114,7 @@ class DynamicsNodeParams:
     )
     max_force: float = param(10.0, "push force of a full blade, N", low=0.001)
     diagnostics_period: float = param(1.0, "wall seconds between diagnostics", low=0.05)
+    result_file: str = param("", "JSON rewritten at every snapshot: the world it shows")
 
 
 def _stamp(ns: int) -> TimeMsg:
@@ -259,10 +273,14 @@ class DynamicsNode(Node):
             self.advance()
 
     def due(self, wall: float) -> bool:
-        """False while a time factor holds the clock back (the idle one while all stand still)."""
-        factors = [self.params.time_factor]
-        if not self.sim.commands.any():
-            factors.append(self.params.idle_time_factor)
+        """False while a time factor holds the clock back.
+
+        ``time_factor`` always; ``max_time_factor`` while robots move, ``idle_time_factor``
+        while all stand still.
+        """
+        p = self.params
+        moving = self.sim.commands.any()
+        factors = [p.time_factor, p.max_time_factor if moving else p.idle_time_factor]
         factors = [f for f in factors if f > 0]
         if not factors:
             return True
@@ -360,6 +378,19 @@ class DynamicsNode(Node):
         self.snapshot_due = None
         self.fitness_pub.publish(Float32(data=float(fitness)))
         self.markers_pub.publish(self.markers(stamp))
+        if self.params.result_file:
+            write_text_atomic(self.params.result_file, json.dumps(self.result()))
+
+    def result(self) -> dict:
+        """The world now: fitness, heights, the fitness of every snapshot, sim time, steps."""
+        return {
+            "fitness": float(self.sim.world.fitness()),
+            "heights": self.sim.world.heights.tolist(),
+            "snapshots": dict(self.snapshots),
+            "sim_seconds": self.now_ns * 1e-9,
+            "steps": self.steps,
+            "late_steps": self.late,
+        }
 
     def markers(self, stamp: TimeMsg) -> MarkerArray:
         """One cube per robot at its true pose (for RViz or Foxglove)."""

@@ -1,0 +1,82 @@
+"""``ant-trial --drive continuous --processes [--record BAG]`` against the composed trial.
+
+Every node in its own process must give what the composed continuous trial gives (and
+so the lockstep grid trial, tests/test_continuous_trial.py) with slip and noise off; the
+recorder's bag must hold the continuous trial's topics and read back with ``ant-bag info``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from conftest import next_domain
+
+from excavation_bags.cli import main as bag_main
+from excavation_bags.reader import open_bag
+from excavation_bringup.trial import run_trial
+
+SPEC, ROBOTS, STEPS, SEED = "genomes/best.json", 2, 10, 3
+CONTINUOUS_TOPICS = {
+    "/clock",
+    "/robot_0/cmd_vel",
+    "/robot_1/cmd_vel",
+    "/robot_0/drive/status",
+    "/robot_0/drive/goal",
+    "/robot_0/imu",
+    "/robot_0/pose",
+    "/robot_0/behaviour",
+    "/robot_0/blade/plant_state",
+    "/team/tick",
+    "/team/heartbeat",
+    "/tick/robot_0/pose",
+    "/worksite/height_map",
+}
+
+
+def trial(**kw):
+    return run_trial(
+        SPEC,
+        ROBOTS,
+        STEPS,
+        SEED,
+        "default:1",
+        domain=next_domain(),
+        command_timeout=30.0,
+        timeout=900.0,
+        **kw,
+    )
+
+
+def test_processes_equal_the_composed_and_grid_trials_and_record_a_bag(tmp_path, capfd):
+    bag = tmp_path / "bag"
+    procs = trial(drive="continuous", exact=True, processes=True, record=str(bag))
+    composed = trial(drive="continuous", exact=True)
+    grid = trial()
+    assert sum(procs.missed.values()) == 0 and procs.robots_late == 0
+    assert np.array_equal(procs.heights, composed.heights)
+    assert np.array_equal(procs.heights, grid.heights)
+    assert procs.fitness == composed.fitness == grid.fitness
+    assert procs.trace == composed.trace == grid.trace
+    assert procs.commands == composed.commands == grid.commands
+    assert procs.primitives_aborted == composed.primitives_aborted
+    assert procs.stuck_events == composed.stuck_events
+    assert len(procs.tick_wall) == STEPS
+    recorded = open_bag(bag)
+    assert not recorded.warnings  # the recorder stopped last and finished the bag
+    assert CONTINUOUS_TOPICS <= set(recorded.topics)
+    assert recorded.topics["/team/tick"].count >= STEPS
+    assert recorded.topics["/robot_0/drive/status"].msgtype == "action_msgs/msg/GoalStatus"
+    assert bag_main(["info", str(bag)]) == 0
+    out = capfd.readouterr().out
+    assert "/robot_1/cmd_vel" in out and "geometry_msgs/msg/TwistStamped" in out
+
+
+def test_the_composed_continuous_trial_records_a_bag(tmp_path):
+    bag = tmp_path / "bag"
+    result = trial(drive="continuous", exact=True, record=str(bag))
+    recorded = open_bag(bag)
+    assert not recorded.warnings
+    assert CONTINUOUS_TOPICS <= set(recorded.topics)
+    # one word per tick and robot (the final snapshot ends the trial unanswered)
+    assert recorded.topics["/robot_1/behaviour"].count == STEPS
+    assert recorded.topics["/team/tick"].count == STEPS
+    assert len(result.commands) == STEPS
