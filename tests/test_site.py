@@ -82,6 +82,34 @@ def test_sim_checks_what_the_simulator_renders(tmp_path):
     assert [e.field for e in errors] == ["camera.calibration"]
 
 
+def test_the_dome_template_lacks_only_its_calibration_and_drives_every_base(tmp_path, capsys):
+    """``ant-dome check site_dome.yaml``: the template's one gap is the camera file it names."""
+    from drive_executor.params import ExecutorParams
+    from excavation_bringup.team_tick import TeamTickParams
+    from excavation_bringup.team_tick_node import TeamTickNodeParams
+
+    template = CONFIG / "site_dome.yaml"
+    site, errors = sitefile.check_site(template)
+    assert [e.field for e in errors] == ["camera.calibration"]
+    assert "does not exist (run `calibrate`" in str(errors[0])
+    assert main(["check", str(template)]) == 1
+    assert capsys.readouterr().out.count("camera.calibration") == 1
+    table = node_table(site, tmp_path)
+    by_name = {s.name: s for s in table}
+    assert table[0].name == "supervisor" and table[0].params["arm_at_start"] is False
+    assert all("use_sim_time" not in s.params for s in table)  # the dome runs on wall time
+    for k, robot in enumerate(site.robots):
+        executor = by_name[f"executor_{k}"]
+        assert executor.module == "drive_executor.executor_node"
+        assert executor.remaps == (f"/robot_{k}/cmd_vel:={robot.drive_topic}",)
+        validate(ExecutorParams, executor.params, executor.name)
+    tick = by_name["team_tick"]
+    own = {f.name for f in fields(TeamTickParams)}
+    validate(TeamTickParams, {k: v for k, v in tick.params.items() if k in own}, "team_tick")
+    validate(TeamTickNodeParams, {k: v for k, v in tick.params.items() if k not in own})
+    assert tick.params["robots"] == site.n_robots == 2
+
+
 def test_missing_file_and_load_site_raises(tmp_path):
     _, errors = sitefile.check_site(tmp_path / "nope.yaml")
     assert "does not exist" in str(errors[0])
@@ -109,10 +137,16 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
     table = node_table(site, tmp_path, sim=sim, record=str(tmp_path / "bag"), view=True)
     names = [s.name for s in table]
     # the recorder first (it sees every topic); with --sim the simulated robots and the
-    # clock (dynamics, the executors), then the team supervisor
-    simulated = ["dynamics", "executor_0", "executor_1"] if sim else []
-    assert names[: 3 + len(simulated)] == ["recorder", *simulated, "supervisor", "server"]
-    assert names[-1] == "view" and (names[-2] == "team_tick") == sim
+    # clock (dynamics, the executors), then the team supervisor; in the dome the executors
+    # follow the blade drivers (the supervisor, disarmed, is up before anything can move)
+    robots = ["blade_driver_0", "blade_driver_1", "executor_0", "executor_1"]
+    if sim:
+        head = ["recorder", "dynamics", "executor_0", "executor_1", "supervisor", "server"]
+        head += ["sensors", "localizer", "mapper", "blade_driver_0", "blade_driver_1"]
+    else:
+        head = ["recorder", "supervisor", "server", "localizer", "mapper", *robots]
+    tail = ["controller_0", "controller_1", "team_tick", "view"]
+    assert names == head + tail
     by_name = {s.name: s for s in table}
     for spec in table:
         # every node but the clock, the recorder and the view runs on the simulator's clock
@@ -129,14 +163,45 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
                 validate(cls, {k: v for k, v in spec.params.items() if k in own}, spec.name)
             assert set(spec.params) <= {f.name for c in classes for f in fields(c)}
     controller_keys = _config_keys("ant_controller", "controller.yaml")
+    executor_keys = _config_keys("drive_executor", "executor.yaml")
     driver_keys = _config_keys("blade_driver", "driver.yaml")
     for k in range(site.n_robots):
         c = by_name[f"controller_{k}"]
         assert set(c.params) <= controller_keys and c.namespace == f"/robot_{k}"
         assert c.params["height_unit"] == site.worksite.soil_unit and c.params["robot_id"] == k
-        assert c.params["lockstep"] == sim
+        assert c.params["lockstep"] is True  # once per team tick, in the dome too
         assert c.params["tilt_source"] == "imu"  # R1 from the robot's (or simulator's) IMU
-        assert set(by_name[f"blade_driver_{k}"].params) <= driver_keys
+        # the controller reads the team tick's snapshot, as in the --sim table
+        ns = f"/robot_{k}"
+        for j in range(site.n_robots):
+            assert f"/robot_{j}/pose:=/tick/robot_{j}/pose" in c.remaps
+        assert "/worksite/height_map:=/tick/worksite/height_map" in c.remaps
+        assert f"{ns}/stuck:=/tick{ns}/stuck" in c.remaps
+        # in the dome its blade state is the tick's too (the board's is on the wall clock)
+        blade_remap = f"{ns}/blade/joint_states:={ns}/blade/tick_state"
+        assert (blade_remap in c.remaps) == (not sim)
+        driver = by_name[f"blade_driver_{k}"].params
+        assert set(driver) <= driver_keys
+        assert driver["blade_after_motion"] is True  # a tick's blade bits after its drive
+        executor = by_name[f"executor_{k}"]
+        assert set(executor.params) <= executor_keys and executor.namespace == ns
+        assert executor.params["cell_size"] == site.worksite.cell_size
+        if sim:
+            assert executor.params["pose_topic"] == f"/truth{ns}/pose" and not executor.remaps
+        else:
+            # the localiser's pose, the team's 0.5 s wall-clock deadman, cmd_vel to the base
+            assert executor.params["pose_topic"] == "pose"
+            assert "deadman" not in executor.params
+            assert executor.remaps == (f"{ns}/cmd_vel:={site.robots[k].drive_topic}",)
+    tick = by_name["team_tick"]
+    assert set(tick.params) <= _config_keys("excavation_bringup", "team_tick.yaml")
+    assert tick.params["robots"] == site.n_robots and not tick.restart
+    assert tick.params.get("blade_in", "blade/plant_state") == (
+        "blade/plant_state" if sim else "blade/joint_states"
+    )
+    assert tick.params.get("blade_out", "blade/servo_state") == (
+        "blade/servo_state" if sim else "blade/tick_state"
+    )
     assert set(by_name["server"].params) <= _config_keys("blueprint_server", "server.yaml")
     assert set(by_name["recorder"].params) <= _config_keys("excavation_bags", "bag_recorder.yaml")
     supervisor = by_name["supervisor"].params
@@ -148,21 +213,24 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
     beacons = yaml.safe_load((tmp_path / "beacons.yaml").read_text())
     assert [(r["front"], r["rear"]) for r in beacons["robots"]] == [r.leds for r in site.robots]
     if not sim:
-        assert by_name["blade_driver_1"].params == {"backend": "serial", "port": "/dev/ttyUSB1"}
+        assert by_name["blade_driver_1"].params == {
+            "backend": "serial",
+            "port": "/dev/ttyUSB1",
+            "blade_after_motion": True,
+        }
         assert by_name["localizer"].params["compressed"] is True
         assert by_name["mapper"].params["tilt_offset"] == 0.01
         assert by_name["controller_1"].args == ("--hand-coded",)
+        # good.yaml: robot_1's base listens on its own topic
+        assert by_name["executor_1"].remaps == ("/robot_1/cmd_vel:=/base_1/cmd_vel",)
+        # the dome's team tick runs until stopped (Ctrl-C), its run does not end by itself
+        assert tick.params["steps"] == 0 and not tick.final
     else:
         assert (tmp_path / "camera.yaml").exists()
         assert by_name["localizer"].params["calibration"] == str(tmp_path / "camera.yaml")
         assert set(by_name["dynamics"].params) <= _config_keys("excavation_sim", "dynamics.yaml")
         assert by_name["dynamics"].params["slip"] == 0.0  # site_sim.yaml: sim.exact
-        executor_keys = _config_keys("drive_executor", "executor.yaml")
-        assert all(set(by_name[f"executor_{k}"].params) <= executor_keys for k in (0, 1))
-        tick = by_name["team_tick"]
-        assert set(tick.params) <= _config_keys("excavation_bringup", "team_tick.yaml")
         assert tick.final and tick.params["steps"] == site.sim.ticks
-        assert "/robot_1/stuck:=/tick/robot_1/stuck" in by_name["controller_1"].remaps
 
 
 def test_repeated_keys_are_refused_anywhere():

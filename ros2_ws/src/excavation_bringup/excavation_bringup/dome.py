@@ -15,6 +15,16 @@ supervisor's reports and ``RUN/state.json`` each node's pid, state and restarts.
 (SIGINT) or SIGTERM stops the nodes one by one in reverse order (the bag recorder, started
 first, stops last and finishes the bag).
 
+In the dome (no ``--sim``) the table is the hardware's: the team supervisor first,
+DISARMED (nothing moves until ``ant-operator arm``), the blueprint server, the localiser and
+the mapper on the site's camera and laser, one blade driver per robot on its board (a tick's
+blade bits after the tick's drive: ``blade_after_motion``), one drive executor per robot
+(closing its loop on the localiser's ``/robot_k/pose``, its ``cmd_vel`` remapped to the
+robot's ``drive_topic``: the base), the controllers (lockstep, on the team tick's ``/tick``
+topics) and the team tick, which turns their words into goals for the executors, robot by
+robot, and runs until Ctrl-C (``--ticks N``: N ticks, then the run ends). Every node runs on
+the wall clock.
+
 ``--sim`` puts the continuous-motion simulator in place of the dome's hardware, as
 ``ant-trial --drive continuous --perception full --processes`` runs it: ``dynamics`` (the
 robots' bases and the clock: every other node runs on ``use_sim_time``), one drive
@@ -112,31 +122,40 @@ def simulator(site: sitefile.Site, run_dir: Path) -> list[NodeSpec]:
     over); a restarted executor has lost the goal it was driving, and the team tick goes on
     without that robot once ``motion_limit`` has passed.
     """
-    table = [
+    dynamics = NodeSpec(
+        "dynamics",
+        "excavation_sim.dynamics_node",
+        sitefile.dynamics_params(site, str(run_dir / WORLD_FILE)),
+        ("/dynamics",),
+        restart=False,
+    )
+    return [dynamics, *executors(site, sim=True)]
+
+
+def executors(site: sitefile.Site, sim: bool) -> list[NodeSpec]:
+    """One drive executor per robot (lifecycle: each configures and activates itself).
+
+    With ``--sim`` on the simulator's truth and clock; in the dome on the localiser's pose,
+    on the wall clock, its ``cmd_vel`` remapped to the robot's ``drive_topic`` (the base).
+    """
+    return [
         NodeSpec(
-            "dynamics",
-            "excavation_sim.dynamics_node",
-            sitefile.dynamics_params(site, str(run_dir / WORLD_FILE)),
-            ("/dynamics",),
-            restart=False,
+            f"executor_{k}",
+            "drive_executor.executor_node",
+            {
+                **sitefile.executor_params(site, k, sim),
+                **(sitefile.SIM_CLOCK if sim else {}),
+            },
+            (f"/{robot.name}/executor",),
+            namespace=f"/{robot.name}",
+            remaps=() if sim else tuple(sitefile.executor_remaps(site, k)),
         )
+        for k, robot in enumerate(site.robots)
     ]
-    for k, robot in enumerate(site.robots):
-        ns = f"/{robot.name}"
-        table.append(
-            NodeSpec(
-                f"executor_{k}",
-                "drive_executor.executor_node",
-                {**sitefile.executor_params(site, k), **sitefile.SIM_CLOCK},
-                (f"{ns}/executor",),
-                namespace=ns,
-            )
-        )
-    return table
 
 
-def team_tick(site: sitefile.Site, run_dir: Path, ticks: int) -> NodeSpec:
-    """The team tick of ``--sim``: last, and its exit after ``ticks`` ticks ends the run.
+def team_tick(site: sitefile.Site, run_dir: Path, ticks: int, sim: bool = True) -> NodeSpec:
+    """The team tick: last, and its exit after ``ticks`` ticks ends the run (0: never).
 
     Not restartable: a new one would start the ticks over.
     """
@@ -144,12 +163,12 @@ def team_tick(site: sitefile.Site, run_dir: Path, ticks: int) -> NodeSpec:
         "team_tick",
         "excavation_bringup.team_tick_node",
         {
-            **sitefile.team_tick_params(site, ticks, str(run_dir / RESULT_FILE)),
-            **sitefile.SIM_CLOCK,
+            **sitefile.team_tick_params(site, ticks, str(run_dir / RESULT_FILE), sim),
+            **(sitefile.SIM_CLOCK if sim else {}),
         },
         ("/team_tick",),
         restart=False,
-        final=True,
+        final=ticks > 0,
     )
 
 
@@ -251,26 +270,27 @@ def node_table(
             NodeSpec(
                 f"blade_driver_{k}",
                 "blade_driver.driver_node",
-                {**sitefile.blade_driver_params(site, k, sim, after_motion=sim), **clock},
+                {**sitefile.blade_driver_params(site, k, sim, after_motion=True), **clock},
                 (f"{ns}/blade_driver",),
                 namespace=ns,
             )
         )
+    if not sim:
+        table += executors(site, sim=False)
     for k, robot in enumerate(site.robots):
         ns = f"/{robot.name}"
         table.append(
             NodeSpec(
                 f"controller_{k}",
                 "ant_controller.controller_node",
-                {**sitefile.controller_params(site, k, lockstep=sim), **clock},
+                {**sitefile.controller_params(site, k), **clock},
                 (f"{ns}/controller",),
                 args=tuple(sitefile.controller_args(site, k)),
                 namespace=ns,
-                remaps=tuple(sitefile.controller_remaps(site, k)) if sim else (),
+                remaps=tuple(sitefile.controller_remaps(site, k, sim)),
             )
         )
-    if sim:
-        table.append(team_tick(site, run_dir, ticks or site.sim.ticks))
+    table.append(team_tick(site, run_dir, (ticks or site.sim.ticks) if sim else (ticks or 0), sim))
     if view:
         table.append(
             NodeSpec(
@@ -738,7 +758,12 @@ def parser() -> argparse.ArgumentParser:
     u.add_argument("--record", metavar="BAG", help="record every suite topic into this bag")
     u.add_argument("--view", action="store_true", help="serve the live view (ant-view)")
     u.add_argument("--view-port", type=int, default=8765)
-    u.add_argument("--ticks", type=int, default=None, help="--sim: ticks (default: the site's)")
+    u.add_argument(
+        "--ticks",
+        type=int,
+        default=None,
+        help="ticks to run (default: with --sim the site's; the dome until Ctrl-C)",
+    )
     u.add_argument("--domain", type=int, default=None, help="ROS domain (default: the site's)")
     u.add_argument("--run-dir", metavar="DIR", help="default dome_runs/<date-time>")
     u.add_argument("--timeout", type=float, default=None, help="give up after S seconds")

@@ -805,34 +805,69 @@ def dynamics_params(site: Site, result_file: str) -> dict[str, Any]:
     }
 
 
-def executor_params(site: Site, k: int) -> dict[str, Any]:
-    """``drive_executor executor`` of robot ``k`` for ``--sim``: closed on the sim's truth."""
+def executor_params(site: Site, k: int, sim: bool = True) -> dict[str, Any]:
+    """``drive_executor executor`` of robot ``k``.
+
+    With ``--sim`` its loop closes on the simulator's truth (sim time, a deadman of sim
+    seconds); in the dome on the localiser's ``/robot_k/pose`` (its relative ``pose``), on
+    the wall clock with the team's 0.5 s deadman, and its ``cmd_vel`` goes to the robot's
+    ``drive_topic`` (:func:`executor_remaps`).
+    """
     from excavation_bringup.continuous_processes import SIM_DEADMAN
     from excavation_bringup.continuous_trial import executor_parameters
 
-    spec = _sim_spec(site, 1)
-    params = executor_parameters(spec, k, site.worksite.cell_size)
+    params = executor_parameters(_sim_spec(site, 1), k, site.worksite.cell_size)
+    if not sim:
+        return {**params, "pose_topic": "pose"}
     return {**params, "deadman": SIM_DEADMAN}
 
 
-def team_tick_params(site: Site, ticks: int, result_file: str) -> dict[str, Any]:
-    """``excavation_bringup team_tick`` for ``--sim``: ``ticks`` ticks, then ``result_file``."""
+def executor_remaps(site: Site, k: int) -> list[str]:
+    """The dome: robot ``k``'s executor drives the base on its ``drive_topic``."""
+    robot = site.robots[k]
+    return [f"/{robot.name}/cmd_vel:={robot.drive_topic}"]
+
+
+DOME_BLADE_IN = "blade/joint_states"
+"""The dome: the team tick's measured blade is each blade driver's joint state."""
+DOME_BLADE_OUT = "blade/tick_state"
+"""The dome: the blade state the team tick republishes per tick (the controller's, remapped:
+the serial driver's own joint state is stamped on the wall clock, never with a tick)."""
+
+
+def team_tick_params(site: Site, ticks: int, result_file: str, sim: bool = True) -> dict[str, Any]:
+    """``excavation_bringup team_tick``: ``ticks`` ticks (0: until stopped), then ``result_file``.
+
+    With ``--sim`` it reads the simulator's blades (``blade/plant_state``) and waits sim
+    seconds for them; in the dome it reads each blade driver's ``blade/joint_states``, the
+    localiser's poses and the mapper's height map, on the wall clock.
+    """
     from excavation_bringup.continuous_processes import SIM_BLADE_WAIT
     from excavation_bringup.continuous_trial import tick_parameters
 
+    params = {**tick_parameters(_sim_spec(site, ticks)), "result_file": str(result_file)}
+    if not sim:
+        return {**params, "blade_in": DOME_BLADE_IN, "blade_out": DOME_BLADE_OUT}
     return {
-        **tick_parameters(_sim_spec(site, ticks)),
+        **params,
         "blade_wait": SIM_BLADE_WAIT,
         "first_word_timeout": float(site.sim.first_command_timeout),
-        "result_file": str(result_file),
     }
 
 
-def controller_remaps(site: Site, k: int) -> list[str]:
-    """``--sim``: robot ``k``'s controller reads the team tick's snapshot (``/tick``)."""
+def controller_remaps(site: Site, k: int, sim: bool = True) -> list[str]:
+    """Robot ``k``'s controller reads the team tick's snapshot (``/tick``).
+
+    In the dome its blade state is the tick's too (:data:`DOME_BLADE_OUT`); with ``--sim``
+    the blade driver's ``sim`` backend already stamps it with the tick.
+    """
     from excavation_bringup.continuous_trial import controller_remaps as remaps
 
-    return remaps(k, site.n_robots)[2::2]  # past "--ros-args", each "-r"
+    out = remaps(k, site.n_robots)[2::2]  # past "--ros-args", each "-r"
+    if not sim:
+        ns = f"/{site.robots[k].name}"
+        out.append(f"{ns}/blade/joint_states:={ns}/{DOME_BLADE_OUT}")
+    return out
 
 
 def sensors_params(site: Site) -> dict[str, Any]:
@@ -904,8 +939,11 @@ def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
     )
 
 
-def controller_params(site: Site, k: int, lockstep: bool = False) -> dict[str, Any]:
+def controller_params(site: Site, k: int) -> dict[str, Any]:
     """``ant_controller controller`` of robot ``k`` (its genome goes on the command line).
+
+    Lockstep, in the dome as with ``--sim``: it decides once per team tick, on the tick's
+    topics (:func:`controller_remaps`).
 
     R1 comes from the robot's IMU (``tilt_source: imu``); a dome whose robots carry none
     sets ``overrides: {controller: {tilt_source: height_map}}``.
@@ -917,7 +955,7 @@ def controller_params(site: Site, k: int, lockstep: bool = False) -> dict[str, A
             "robot_id": k,
             "robots": site.n_robots,
             "height_unit": float(site.worksite.soil_unit),
-            "lockstep": bool(lockstep),
+            "lockstep": True,
             "tilt_source": "imu",  # R1 from /robot_k/imu (the robot's, or the simulator's)
         },
     )
