@@ -1,5 +1,6 @@
 """ant-dome up --sim end to end: the same fitness as ant-trial, a killed node restarted,
-Ctrl-C stopping the nodes in reverse order and finishing the bag."""
+Ctrl-C stopping the nodes in reverse order and finishing the bag; the real dome's drive
+chain (executor, team tick, controller) wired as its table says."""
 
 from __future__ import annotations
 
@@ -176,3 +177,70 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag(tmp_path):
     assert not recorded.warnings  # closed properly: summary and footer written
     assert recorded.topics["/worksite/height_map"].count > 0
     assert recorded.topics["/overhead/image_raw/compressed"].count > 0  # the recorder compresses
+
+
+def test_the_real_dome_wires_executor_team_tick_and_controller(tmp_path, ros, ros_env):
+    """Started from the real dome's table: the executor drives the site's ``drive_topic`` on the
+    localiser's pose, the team tick reads the blade driver's joint state and republishes it
+    per tick, and the controller reads the tick's blade, poses, height map and stuck flag."""
+    import yaml
+
+    from excavation_bringup import site as sitefile
+    from excavation_bringup.dome import node_table
+
+    site = sitefile.load_site(ROOT / "tests/data/sites/good.yaml")
+    by_name = {s.name: s for s in node_table(site, tmp_path)}
+    env = {**ros_env, "ROS_DOMAIN_ID": str(ros.domain)}
+    procs = []
+    try:
+        for name in ("executor_1", "team_tick", "controller_1"):
+            spec = by_name[name]
+            params = tmp_path / f"{name}.yaml"
+            params.write_text(yaml.safe_dump({"/**": {"ros__parameters": spec.params}}))
+            log = (tmp_path / f"{name}.log").open("w")
+            procs.append(subprocess.Popen(spec.command(params), env=env, stdout=log, stderr=log))
+        probe = ros.add(rclpy_node(ros, "probe"))
+
+        def names(kind, topic):
+            pub = kind == "pub"
+            get = (
+                probe.get_publishers_info_by_topic if pub else probe.get_subscriptions_info_by_topic
+            )
+            return sorted(i.node_name for i in get(topic))
+
+        wanted = {
+            ("pub", "/base_1/cmd_vel"): ["executor"],  # good.yaml: robot_1's drive_topic
+            ("pub", "/robot_1/cmd_vel"): [],
+            ("sub", "/robot_1/pose"): ["executor", "team_tick"],  # the localiser's pose
+            ("sub", "/robot_1/blade/joint_states"): ["team_tick"],  # the board's, not the tick's
+            ("pub", "/robot_1/blade/tick_state"): ["team_tick"],
+            ("sub", "/robot_1/blade/tick_state"): ["controller"],
+            ("sub", "/tick/robot_0/pose"): ["controller"],
+            ("sub", "/tick/robot_1/stuck"): ["controller"],
+            ("sub", "/tick/worksite/height_map"): ["controller"],
+            ("sub", "/robot_1/drive/goal"): ["executor"],
+            ("sub", "/robot_1/drive/status"): ["team_tick"],
+        }
+        seen = {}
+
+        def wired():
+            seen.update({key: names(*key) for key in wanted})
+            return seen == wanted and all(p.poll() is None for p in procs)
+
+        assert ros.spin_until(wired, timeout=90.0), (seen, [p.poll() for p in procs])
+    finally:
+        for p in procs:
+            p.send_signal(signal.SIGINT)
+        for p in procs:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+def rclpy_node(ros, name):
+    """A bare node in the ``ros`` fixture's context (graph queries only)."""
+    import rclpy
+
+    return rclpy.create_node(name, context=ros.context)
