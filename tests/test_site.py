@@ -30,6 +30,8 @@ BROKEN = {
     "bad_domain": "network.domain = 300: must be in 0 .. 232",
     "discovery_range": "network.discovery_range = 'EVERYWHERE': must be one of LOCALHOST",
     "unknown_colour": "robots[1].leds = ['blue', 'purple']: 'purple' is not in",
+    "sim_blade": "robots[1].blade.backend = 'sim': only with --sim (the simulator is that "
+    "blade's board)",
     "serial_no_port": "robots[1].blade.port = '': the serial backend needs the board's port",
     "same_port": "robots[1].blade.port = '/dev/ttyUSB0': robots[0] uses it too",
     "compressed_topic": "camera.image_topic = '/overhead/image_raw': jpeg frames are a Compressed",
@@ -79,7 +81,11 @@ def test_sim_checks_what_the_simulator_renders(tmp_path):
     )
     assert "laser.mount = [2.0, 2.0, 5.0]: the simulator's laser is at [2.0, 2.0, 4.0]" in messages
     _, errors = sitefile.check_site(CONFIG / "site_sim.yaml")  # not for the real dome
-    assert [e.field for e in errors] == ["camera.calibration"]
+    assert [e.field for e in errors] == [
+        "camera.calibration",
+        "robots[0].blade.backend",
+        "robots[1].blade.backend",
+    ]
 
 
 def test_the_dome_template_lacks_only_its_calibration_and_drives_every_base(tmp_path, capsys):

@@ -340,6 +340,8 @@ def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
         for extra in sorted(set(blade) - {"backend", "port"}):
             r.error(f"{where}.blade.{extra}", blade[extra], "unknown key (known: backend, port)")
         backend = r.text(blade, f"{where}.blade", "backend", "sim", BACKENDS)
+        if backend != blade.get("backend", "sim"):
+            backend = ""  # refused above: no check of a backend applies
         port = r.text(blade, f"{where}.blade", "port", "")
         if backend == "serial" and not port:
             r.error(f"{where}.blade.port", port, "the serial backend needs the board's port")
@@ -601,6 +603,13 @@ def _check_robots(site: Site, sim: bool) -> list[SiteError]:
                 f"{where}.leds",
                 list(robot.leds),
                 f"the simulator's robot {k} carries {list(sim_pairs[k])}",
+            )
+        if robot.backend == "sim" and not sim:
+            err(
+                f"{where}.blade.backend",
+                robot.backend,
+                "only with --sim (the simulator is that blade's board): in the dome give the "
+                "serial board's port (a bench without a blade: blade_driver fake_board)",
             )
         if robot.backend == "serial" and robot.port:
             if robot.port in ports:
