@@ -7,6 +7,8 @@ QUIET_PIP := { grep -v "^WARNING: Location" || true; }
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# pytest-xdist workers for make test (tests/conftest.py gives each its own ROS domains)
+TEST_WORKERS ?= 2
 PACKAGES := ros2_ws/src/excavation_common ros2_ws/src/ant_controller ros2_ws/src/blueprint_server ros2_ws/src/excavation_sim ros2_ws/src/overhead_localizer ros2_ws/src/terrain_mapper ros2_ws/src/blade_driver ros2_ws/src/team_supervisor ros2_ws/src/drive_executor ros2_ws/src/excavation_bags ros2_ws/src/excavation_bringup evolution
 DEMO_OUT ?= demo_out
 # The test suite runs in a network namespace with only loopback where unshare works (CI runs
@@ -31,9 +33,9 @@ lint: setup
 
 test: setup lint
 ifeq ($(NETNS),)
-	$(BIN)/python -m pytest -q -m "not pending" tests ros2_ws/src
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not pending" tests ros2_ws/src
 else
-	unshare -n sh -c 'ip link set lo up 2>/dev/null; exec $(BIN)/python -m pytest -q -m "not pending" tests ros2_ws/src'
+	unshare -n sh -c 'ip link set lo up 2>/dev/null; exec $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not pending" tests ros2_ws/src'
 endif
 
 # Integration tests that fail since the merges of the last stop (docs/reliability.md, "Pending").
