@@ -56,5 +56,5 @@ def test_perception_modes_are_checked(capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["--hand-coded", "--perception", "bogus", "--steps", "1"])
     assert exit_.value.code == 2 and "bogus" in capsys.readouterr().err
-    assert main(["--hand-coded", "--drive", "continuous", "--processes", "--steps", "1"]) == 2
-    assert "drive: continuous runs in the composed mode" in capsys.readouterr().err
+    assert main(["--hand-coded", "--drive", "continuous", "--no-blade-driver", "--steps", "1"]) == 2
+    assert "blade" in capsys.readouterr().err
