@@ -33,9 +33,10 @@ lint: setup
 
 test: setup lint
 ifeq ($(NETNS),)
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not pending" tests ros2_ws/src
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not pending and not serial" tests ros2_ws/src
+	$(BIN)/python -m pytest -q -m "serial and not pending" tests
 else
-	unshare -n sh -c 'ip link set lo up 2>/dev/null; exec $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not pending" tests ros2_ws/src'
+	unshare -n sh -c 'ip link set lo up 2>/dev/null; $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not pending and not serial" tests ros2_ws/src && exec $(BIN)/python -m pytest -q -m "serial and not pending" tests'
 endif
 
 # Integration tests that fail since the merges of the last stop (docs/reliability.md, "Pending").

@@ -28,6 +28,8 @@ from excavation_bags.cli import main as bag_main
 from excavation_bags.reader import open_bag
 from excavation_bringup.trial import run_trial
 
+pytestmark = pytest.mark.serial  # wall-clock faults: run alone (make test)
+
 SIM = "/sim"
 
 
