@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from conftest import next_domain
 
 from excavation_bringup.dome import sim_result
@@ -71,6 +72,7 @@ def wait_for(condition, timeout):
     return condition()
 
 
+@pytest.mark.serial  # full perception on the continuous simulator: words equal only unloaded
 def test_dome_up_sim_runs_40_ticks_with_the_fitness_of_ant_trial(tmp_path):
     proc = dome(tmp_path)
     out, err = proc.communicate(timeout=1200)
