@@ -98,6 +98,7 @@ def test_blade_driver_killed_and_restarted(tmp_path):
     assert result["commands"][-1][1] != 0 or result["commands"][-2][1] != 0
 
 
+@pytest.mark.pending  # docs/reliability.md "Pending": on an idle machine the trial can end first
 @pytest.mark.parametrize("blade_driver", [False, True], ids=["no-driver", "blade-driver"])
 def test_simulator_killed_and_restarted(tmp_path, blade_driver):
     """A restarted simulator starts the trial again from tick 0: sim time jumps back.
@@ -315,7 +316,8 @@ def test_mapper_killed_and_restarted(tmp_path):
     [
         ("paused", 1.0, 30.0, False),  # a 1 s stall is shorter than the tick timeout
         ("paused", 10.0, 5.0, True),  # a 10 s stall is longer: ticks time out
-        ("laser_paused", 10.0, 5.0, True),
+        # docs/reliability.md "Pending": the robots once missed 3 and 2 ticks
+        pytest.param("laser_paused", 10.0, 5.0, True, marks=pytest.mark.pending),
     ],
     ids=["camera-1s", "camera-10s", "laser-10s"],
 )
