@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from excavation_bringup.trial import TrialResult, TrialSpec
+from excavation_bringup.trial import TrialResult, TrialSpec, close_composed
 
 TICK_PREFIX = "/tick"
 SNAPSHOT_PREFIX = "/snapshot"
@@ -341,10 +341,4 @@ def run_continuous(
                 executor.spin_once(timeout_sec=0.05)
         return result
     finally:
-        if recorder is not None:
-            recorder.close()
-        for node in nodes:
-            executor.remove_node(node)
-            node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown(context=context)
+        close_composed(executor, nodes, context, recorder)

@@ -120,6 +120,19 @@ def _lockstep_watches_poses(spec: TrialSpec) -> bool:
     return spec.perception == "full"
 
 
+def close_composed(executor, nodes, context, recorder=None) -> None:
+    """Tear a composed trial down: close its bag, destroy its nodes, shut its context."""
+    import rclpy
+
+    if recorder is not None:
+        recorder.close()
+    for node in nodes:
+        executor.remove_node(node)
+        node.destroy_node()
+    executor.shutdown()
+    rclpy.try_shutdown(context=context)
+
+
 def _controller_args(controller_spec: str) -> list[str]:
     return ["--hand-coded"] if controller_spec == "hand-coded" else ["--genome", controller_spec]
 
@@ -385,13 +398,7 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
             sim.holds,
         )
     finally:
-        if recorder is not None:
-            recorder.close()
-        for node in nodes:
-            executor.remove_node(node)
-            node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown(context=context)
+        close_composed(executor, nodes, context, recorder)
 
 
 def _ros_value(value) -> str:
