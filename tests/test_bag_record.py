@@ -15,7 +15,7 @@ from ruamel.yaml import YAML
 from excavation_bags.metadata import PRODUCER, latched
 from excavation_bags.reader import open_bag
 from excavation_bags.recover import recover_bag
-from excavation_bringup.trial import run_trial
+from excavation_bringup.trial import TrialProcesses, TrialSpec, run_trial
 
 
 def test_trial_records_every_tick(tmp_path):
@@ -68,6 +68,28 @@ def _metadata_count(bag_dir) -> int:
         return int(info["rosbag2_bagfile_information"]["message_count"])
     except (OSError, TypeError, KeyError):
         return 0
+
+
+def test_process_trial_waits_for_a_late_recorder(tmp_path):
+    """Tick 0 waits for the recorder process, even one that starts after every other node."""
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    steps, bag_dir = 6, tmp_path / "bag"
+    spec = TrialSpec(
+        "hand-coded", 2, steps, 1, "default:1", 0, next_domain(), 30.0, 300.0, False,
+        str(bag_dir), "truth",
+    )  # fmt: skip
+    with TrialProcesses(spec, tmp_path / "nodes") as trial:
+        for name in trial.commands:
+            if name != "recorder":
+                trial.start(name)
+        time.sleep(5.0)  # the team is up long before the recorder
+        assert not trial.result_file.exists()
+        trial.start("recorder")
+        result = trial.wait(300.0)
+    assert result["missed"] == {"0": 0, "1": 0}
+    bag = open_bag(bag_dir)
+    ticks = [bag.decode("/clock", raw).clock.sec for _, _, raw in bag.messages(["/clock"])]
+    assert ticks == list(range(steps + 1))
 
 
 @pytest.mark.parametrize("stop", ["SIGKILL", "SIGINT", "SIGTERM"])

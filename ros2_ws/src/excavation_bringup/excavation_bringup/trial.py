@@ -417,7 +417,8 @@ def process_commands(spec: TrialSpec, workdir: Path) -> dict[str, list[str]]:
 
     What separate ``ros2 run`` commands would start: the recorder first (``record``), the
     team supervisor (armed; none when the operator runs their own), the blueprint server,
-    the simulator (writing ``workdir/result.json`` at the end), with ``perception="full"``
+    the simulator (writing ``workdir/result.json`` at the end; with a recorder, tick 0 waits
+    for it), with ``perception="full"``
     the sensors, localizer (its camera calibration written to ``workdir/camera.yaml`` now)
     and mapper, then per robot a controller and a blade driver.
     """
@@ -449,6 +450,7 @@ def process_commands(spec: TrialSpec, workdir: Path) -> dict[str, list[str]]:
         command_timeout=float(spec.command_timeout),
         blade_driver=spec.blade_driver,
         result_file=str(Path(workdir) / "result.json"),
+        wait_for_recorder=bool(spec.record),
         **({"truth_prefix": "/truth"} if full else {}),
     )
     if full:

@@ -30,6 +30,9 @@ the end; empty: none). With ``blade_driver: true`` every robot has a
 instead of ``blade/joint_states``, also waits for each driver's
 ``/robot_k/blade/servo_command`` of the tick, applies the words without their blade bits and
 then sets each blade to the driver's set-point (nearest setting).
+``wait_for_recorder`` (false): tick 0 also waits until the bag recorder (the node
+``bag_recorder``) subscribes ``/clock``, so a bag recorded by a separate process starts at
+tick 0 (``startup_period`` then gives it time to find the robots' topics too).
 ``truth_prefix`` (empty) moves the true poses and height map to ``PREFIX/robot_k/pose`` and
 ``PREFIX/worksite/height_map``, for the perception nodes to stand in (``--perception full``
 of ``ant-trial``: the ``sensors`` node renders camera and laser from them); tick 0 then also
@@ -249,12 +252,17 @@ class SimNode(Node):
         return out
 
     def controllers_present(self) -> bool:
-        """Every robot's controller (and blade driver) is on the graph and connected.
+        """Every robot's controller (and blade driver, and recorder) is on the graph and connected.
 
         Besides the graph, the middleware must have matched this node's per-robot publishers
         with their subscribers and its command subscriptions with their publishers: a message
         sent before that is lost, and a robot would miss tick 0.
         """
+        if self.params.wait_for_recorder and not any(
+            info.node_name == "bag_recorder"
+            for info in self.get_subscriptions_info_by_topic("/clock")
+        ):
+            return False
         readers = self.n if not self.truth_prefix else 1
         matched = all(s.get_publisher_count() > 0 for s in self.inputs) and all(
             self.pose_pubs[k].get_subscription_count() >= readers
