@@ -92,6 +92,7 @@ class TeamTickNode(Node):
         self.reports: list[str] = []
         out = t.output_prefix.rstrip("/")
         self.pose_pubs, self.stuck_pubs, self.blade_pubs, self.goal_pubs = [], [], [], []
+        self.inputs = []  # per robot: its word and its executor's status
         sub = self.create_subscription
         for k in range(self.n):
             ns = f"/robot_{k}"
@@ -103,8 +104,12 @@ class TeamTickNode(Node):
             self.goal_pubs.append(self.create_publisher(GoalInfo, f"{ns}/drive/goal", 10))
             sub(PoseWithCovarianceStamped, f"{ns}/pose", lambda m, k=k: self.on_pose(k, m), 10)
             sub(JointState, f"{ns}/{t.blade_in}", lambda m, k=k: self.on_blade(k, m), 10)
-            sub(UInt16, f"{ns}/behaviour", lambda m, k=k: self.core.on_word(k, m.data), 10)
-            sub(GoalStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
+            self.inputs.append(
+                sub(UInt16, f"{ns}/behaviour", lambda m, k=k: self.core.on_word(k, m.data), 10)
+            )
+            self.inputs.append(
+                sub(GoalStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
+            )
             sub(Bool, f"{ns}/{ENABLED_TOPIC}", lambda m, k=k: self.on_enabled(k, m), LATCHED)
         sub(Image, "/worksite/height_map", self.on_heights, LATCHED)
         sub(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
@@ -173,9 +178,14 @@ class TeamTickNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def team_present(self) -> bool:
-        """Every controller, executor and blade driver of the team is on the graph."""
-        return all(
+        """Every controller, executor and blade driver of the team is on the graph and connected.
+
+        Connected: the middleware has matched this node's word and status subscriptions with
+        their publishers (a word sent before that is lost, and the robot would miss tick 0).
+        """
+        return all(s.get_publisher_count() > 0 for s in self.inputs) and all(
             self.pose_pubs[k].get_subscription_count() > 0
+            and self.stuck_pubs[k].get_subscription_count() > 0
             and self.goal_pubs[k].get_subscription_count() > 0
             and self.blade_pubs[k].get_subscription_count() > 0
             and self.count_publishers(f"/robot_{k}/behaviour") > 0
