@@ -14,7 +14,11 @@ come since the last tick), and every robot's ``/robot_j/enabled`` (std_msgs/Bool
 latched, from the team supervisor): a disabled robot is absent to this controller (the
 core's ``active`` mask) and its pose is not waited for, so a robot the localiser loses
 does not freeze the team; this robot disabled, the controller holds still. Output:
-``behaviour`` (std_msgs/UInt16, bit i = behaviour i + 1 of Table 2) and ``/diagnostics``.
+``behaviour`` (std_msgs/UInt16, bit i = behaviour i + 1 of Table 2), ``/diagnostics``, and
+``ready`` (std_msgs/Bool, latched): true once every input above (but the optional
+``enabled`` flags) has a connected publisher, so that a message sent from then on reaches
+the node; the lockstep simulator waits for it before tick 0 when the poses come from the
+perception nodes (``wait_for_ready``).
 
 With ``lockstep: true`` (used with ``excavation_sim sim``) the node decides exactly once per
 simulator tick, when all of that tick's inputs have arrived (same stamp), and never
@@ -91,26 +95,39 @@ class ControllerNode(Node):
         self.last_reason: str | None = "starting"
         self.last_mask = 0
         self.pending_poses: dict[int, tuple[str, PoseWithCovarianceStamped]] = {}
+        self.inputs: list = []
 
         self.behaviour_pub = self.create_publisher(UInt16, "behaviour", 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.ready_pub = self.create_publisher(Bool, "ready", LATCHED)
+        self.ready = False
+        sub = self._input  # an input that must be connected before the node is ready
         for j in range(self.n_robots):
             topic = "pose" if j == self.robot_id else f"/robot_{j}/pose"
-            self.create_subscription(
-                PoseWithCovarianceStamped, topic, lambda m, j=j, t=topic: self.on_pose(j, t, m), 10
-            )
+            sub(PoseWithCovarianceStamped, topic, lambda m, j=j, t=topic: self.on_pose(j, t, m), 10)
             self.create_subscription(
                 Bool, f"/robot_{j}/{ENABLED_TOPIC}", lambda m, j=j: self.on_enabled(j, m), LATCHED
             )
-        self.create_subscription(Image, "/worksite/height_map", self.on_heights, LATCHED)
-        self.create_subscription(Image, "/blueprint/goal", self.on_goal, LATCHED)
-        self.create_subscription(Image, "/blueprint/zones", self.on_zones, LATCHED)
-        self.create_subscription(MapMetaData, "/worksite/map_info", self.on_info, LATCHED)
-        self.create_subscription(JointState, "blade/joint_states", self.on_joint, 10)
-        self.create_subscription(Bool, "stuck", self.on_stuck, 10)
+        sub(Image, "/worksite/height_map", self.on_heights, LATCHED)
+        sub(Image, "/blueprint/goal", self.on_goal, LATCHED)
+        sub(Image, "/blueprint/zones", self.on_zones, LATCHED)
+        sub(MapMetaData, "/worksite/map_info", self.on_info, LATCHED)
+        sub(JointState, "blade/joint_states", self.on_joint, 10)
+        sub(Bool, "stuck", self.on_stuck, 10)
         if p.tilt_source == TILT_IMU:
-            self.create_subscription(Imu, "imu", self.on_imu, 10)
+            sub(Imu, "imu", self.on_imu, 10)
         self.create_timer(1.0 / p.rate, self.tick)
+
+    def _input(self, msg_type, topic: str, callback, qos):
+        """Subscribe to a required input (counted by :meth:`update_ready`)."""
+        self.inputs.append(self.create_subscription(msg_type, topic, callback, qos))
+
+    def update_ready(self) -> None:
+        """Publish ``ready`` when every required input's connection is made (or lost)."""
+        ready = all(s.get_publisher_count() > 0 for s in self.inputs)
+        if ready != self.ready:
+            self.ready = ready
+            self.ready_pub.publish(Bool(data=ready))
 
     # --- inputs -----------------------------------------------------------------------------
 
@@ -220,6 +237,7 @@ class ControllerNode(Node):
         In lockstep mode the timer only refreshes diagnostics; commands go out once per
         simulator tick, when :meth:`InputGate.lockstep_ready` says the tick is complete.
         """
+        self.update_ready()
         if self.lockstep and not lockstep_decision:
             waiting = self.missing_input() or self.gate.lockstep_waiting()
             self.last_reason = waiting or self.last_reason

@@ -238,6 +238,12 @@ def run_trial(
     return _run_processes(spec) if processes else _run_composed(ctl, spec)
 
 
+PERCEPTION_SIM = {"truth_prefix": "/truth", "wait_for_ready": True}
+"""The simulator's parameters with ``--perception full``: the true state moves aside, and
+tick 0 waits for every controller's ``ready`` (its side of each input connected; the
+sensors node holds a frame until the localizer's subscription is matched)."""
+
+
 def _recorder_source(spec: TrialSpec) -> str:
     return (
         f"ant-trial {spec.controller} robots={spec.robots} steps={spec.steps} "
@@ -351,7 +357,11 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
                 Parameter("command_timeout", value=float(spec.command_timeout)),
                 Parameter("blade_driver", value=spec.blade_driver),
             ]
-            + ([Parameter("truth_prefix", value="/truth")] if perception == "full" else []),
+            + (
+                [Parameter(name, value=value) for name, value in PERCEPTION_SIM.items()]
+                if perception == "full"
+                else []
+            ),
         )
         nodes.append(sim)
         if perception == "full":
@@ -451,7 +461,7 @@ def process_commands(spec: TrialSpec, workdir: Path) -> dict[str, list[str]]:
         blade_driver=spec.blade_driver,
         result_file=str(Path(workdir) / "result.json"),
         wait_for_recorder=bool(spec.record),
-        **({"truth_prefix": "/truth"} if full else {}),
+        **(PERCEPTION_SIM if full else {}),
     )
     if full:
         from excavation_bringup.perception import perception_parameters

@@ -51,6 +51,9 @@ class SimParams:
     supervised: bool = param(
         True, "apply ticks only while the team supervisor's heartbeat says armed"
     )
+    wait_for_ready: bool = param(
+        False, "tick 0 also waits for every controller's latched ready (perception trials)"
+    )
     wait_for_recorder: bool = param(
         False, "tick 0 also waits for the bag recorder (node bag_recorder) to subscribe /clock"
     )

@@ -29,7 +29,10 @@ its centre (:meth:`CameraParams.for_site`, :meth:`LaserParams.for_site`); camera
 Faults, settable at runtime (``tests/test_faults.py``): ``paused`` (no camera frames while
 true), ``laser_paused`` (no laser sweeps while true), ``frame_period`` (at least this many
 wall-clock seconds between frames: 0.2 is a 5 Hz camera), ``dropout`` and ``occlude``. A
-frame or sweep held back goes out when the fault ends, showing the latest truth.
+frame or sweep held back goes out when the fault ends, showing the latest truth. Frames
+(sweeps) also wait until some node subscribes to ``/overhead/image_raw``
+(``/worksite/scan``): nothing is rendered for nobody, and a lockstep tick's only frame is
+not lost to a localizer whose subscription the middleware has not matched yet.
 """
 
 from __future__ import annotations
@@ -281,7 +284,17 @@ class SensorsNode(Node):
         key = (stamp.sec, stamp.nanosec)
         p = self.params
         now = time.monotonic()
-        if self.camera_done != key and not p.paused and now - self.frame_time >= p.frame_period:
+        # A frame or sweep waits for its readers too: published before the middleware has
+        # matched the localizer's (the mapper's) subscription, it would be lost, and in a
+        # lockstep trial the whole team would miss that tick.
+        camera_heard = self.image_pub.get_subscription_count() > 0
+        laser_heard = self.scan_pub.get_subscription_count() > 0
+        if (
+            self.camera_done != key
+            and camera_heard
+            and not p.paused
+            and now - self.frame_time >= p.frame_period
+        ):
             if self.camera is None:
                 self.camera = OverheadCamera(
                     self.camera_params, default_beacons(), self.rows, self.cols, self.cell_size
@@ -289,7 +302,7 @@ class SensorsNode(Node):
             image, _ = self.camera.render(views, heights, self.rng, self.hidden)
             self.image_pub.publish(frame_to_message(image, Image(), stamp=stamp))
             self.camera_done, self.frame_time = key, now
-        if self.laser_done != key and not p.laser_paused:
+        if self.laser_done != key and laser_heard and not p.laser_paused:
             self.sweep(stamp, heights, anchors)
             self.laser_done = key
         if self.camera_done == key and self.laser_done == key:

@@ -30,6 +30,10 @@ the end; empty: none). With ``blade_driver: true`` every robot has a
 instead of ``blade/joint_states``, also waits for each driver's
 ``/robot_k/blade/servo_command`` of the tick, applies the words without their blade bits and
 then sets each blade to the driver's set-point (nearest setting).
+``wait_for_ready`` (false): tick 0 also waits for every controller's latched
+``/robot_k/ready`` (its inputs connected): with ``truth_prefix`` the poses and the height
+map come from the perception nodes, whose connections to the controllers this node cannot
+see (``ant-trial --perception full`` sets it).
 ``wait_for_recorder`` (false): tick 0 also waits until the bag recorder (the node
 ``bag_recorder``) subscribes ``/clock``, so a bag recorded by a separate process starts at
 tick 0 (``startup_period`` then gives it time to find the robots' topics too).
@@ -185,8 +189,21 @@ class SimNode(Node):
                     lambda m, k=k: self.on_enabled(k, m),
                     LATCHED,
                 )
+        self.ready: set[int] = set()  # robots whose controller said ready (wait_for_ready)
+        if p.wait_for_ready:
+            for k in range(self.n):
+                self.create_subscription(
+                    Bool, f"/robot_{k}/ready", lambda m, k=k: self.on_ready(k, m), LATCHED
+                )
         self.create_timer(0.001, self.step)
         self.create_timer(p.diagnostics_period, self.report_state)
+
+    def on_ready(self, k: int, msg: Bool) -> None:
+        """Robot k's controller has (or has lost) every input connected."""
+        if msg.data:
+            self.ready.add(k)
+        else:
+            self.ready.discard(k)
 
     @property
     def tick(self) -> int:
@@ -258,6 +275,8 @@ class SimNode(Node):
         with their subscribers and its command subscriptions with their publishers: a message
         sent before that is lost, and a robot would miss tick 0.
         """
+        if self.params.wait_for_ready and len(self.ready) < self.n:
+            return False
         if self.params.wait_for_recorder and not any(
             info.node_name == "bag_recorder"
             for info in self.get_subscriptions_info_by_topic("/clock")
