@@ -1,0 +1,138 @@
+"""Tick 0 of a full-perception lockstep trial: nothing of it may be lost to a connection the
+middleware has not made yet.
+
+* The synthetic sensors hold a frame (a sweep) until a subscriber of the camera (the laser)
+  is matched: a lockstep tick has exactly one frame, and a frame nobody hears is lost.
+* A controller publishes a latched ``ready`` once every input has a connected publisher.
+* The simulator with ``wait_for_ready`` starts tick 0 only when every controller is ready.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from builtin_interfaces.msg import Time as TimeMsg
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from nav_msgs.msg import MapMetaData
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Image, JointState, LaserScan
+from std_msgs.msg import Bool, UInt16
+
+from excavation_common.messages import grid_to_image, pose_message
+from excavation_common.ros import LATCHED
+
+ROWS = COLS = 16
+CELL = 0.25
+
+
+def spin_for(ros, seconds: float) -> None:
+    """Spin ``seconds`` of wall time (a condition that never holds)."""
+    ros.spin_until(lambda: False, timeout=seconds)
+
+
+def test_sensors_hold_a_frame_until_someone_listens(ros):
+    from excavation_sim.sensors_node import SensorsNode
+
+    sensors = ros.add(
+        SensorsNode(
+            context=ros.context,
+            parameter_overrides=[
+                Parameter("robots", value=1),
+                Parameter("reliable", value=True),
+            ],
+        )
+    )
+    truth = ros.add(Node("truth", context=ros.context))
+    stamp = TimeMsg(sec=0)
+    pose_pub = truth.create_publisher(PoseWithCovarianceStamped, "/truth/robot_0/pose", 10)
+    map_pub = truth.create_publisher(Image, "/truth/worksite/height_map", LATCHED)
+    map_pub.publish(grid_to_image(np.zeros((ROWS, COLS)), "32FC1", stamp=stamp))
+    assert ros.spin_until(lambda: pose_pub.get_subscription_count() > 0)
+    assert ros.spin_until(lambda: sensors.heights is not None)
+    pose_pub.publish(pose_message(5, 5, 0, CELL, 1e-4, 1e-3, stamp=stamp))
+    assert ros.spin_until(lambda: sensors.ready is not None)  # the instant is rendered ...
+    spin_for(ros, 1.0)
+    assert sensors.frames == 0 and sensors.ready is not None  # ... and held: nobody listens
+
+    heard: dict[str, list] = {"image": [], "scan": []}
+    listener = ros.add(Node("listener", context=ros.context))
+    listener.create_subscription(Image, "/overhead/image_raw", heard["image"].append, 10)
+    listener.create_subscription(LaserScan, "/worksite/scan", heard["scan"].append, 200)
+    scans = sensors.laser_params.sweep_scans
+    assert ros.spin_until(lambda: heard["image"] and len(heard["scan"]) == scans)
+    assert sensors.frames == 1 and sensors.ready is None
+    assert heard["image"][0].header.stamp.sec == 0
+
+
+def controller_inputs(node: Node) -> list:
+    """Publishers of every input of robot 0's controller in a one-robot team."""
+    return [
+        node.create_publisher(PoseWithCovarianceStamped, "/robot_0/pose", 10),
+        node.create_publisher(Image, "/worksite/height_map", LATCHED),
+        node.create_publisher(Image, "/blueprint/goal", LATCHED),
+        node.create_publisher(Image, "/blueprint/zones", LATCHED),
+        node.create_publisher(MapMetaData, "/worksite/map_info", LATCHED),
+        node.create_publisher(JointState, "/robot_0/blade/joint_states", 10),
+    ]
+
+
+def test_controller_is_ready_once_every_input_is_connected(ros):
+    from ant_controller.controller import Controller
+    from ant_controller.controller_node import ControllerNode
+
+    controller = ros.add(
+        ControllerNode(
+            Controller.hand_coded(),
+            context=ros.context,
+            namespace="/robot_0",
+            parameter_overrides=[
+                Parameter("robot_id", value=0),
+                Parameter("robots", value=1),
+                Parameter("lockstep", value=True),
+            ],
+        )
+    )
+    said: list[bool] = []
+    inputs = ros.add(Node("inputs", context=ros.context))
+    inputs.create_subscription(Bool, "/robot_0/ready", lambda m: said.append(m.data), LATCHED)
+    pubs = controller_inputs(inputs)  # all but the stuck flag
+    spin_for(ros, 1.5)
+    assert not controller.ready and True not in said
+    pubs.append(inputs.create_publisher(Bool, "/robot_0/stuck", 10))
+    assert ros.spin_until(lambda: said and said[-1])  # latched: a late listener hears it too
+    assert controller.ready
+    inputs.destroy_publisher(pubs[0])  # the pose's publisher goes away
+    assert ros.spin_until(lambda: said[-1] is False)
+    assert not controller.ready
+
+
+def test_simulator_waits_for_every_controller_to_be_ready(ros):
+    from excavation_sim.sim_node import SimNode
+
+    sim = ros.add(
+        SimNode(
+            context=ros.context,
+            parameter_overrides=[
+                Parameter("robots", value=1),
+                Parameter("steps", value=3),
+                Parameter("supervised", value=False),
+                Parameter("startup_period", value=0.0),
+                Parameter("wait_for_ready", value=True),
+            ],
+        )
+    )
+    # A stand-in for robot 0's controller: on the graph and connected, but not ready.
+    robot = ros.add(Node("robot", context=ros.context))
+    robot.create_publisher(UInt16, "/robot_0/behaviour", 10)
+    for msg_type, topic in (
+        (PoseWithCovarianceStamped, "/robot_0/pose"),
+        (Bool, "/robot_0/stuck"),
+        (JointState, "/robot_0/blade/joint_states"),
+    ):
+        robot.create_subscription(msg_type, topic, lambda m: None, 10)
+    ready = robot.create_publisher(Bool, "/robot_0/ready", LATCHED)
+    ready.publish(Bool(data=False))
+    spin_for(ros, 2.0)
+    assert not sim.clock.started  # present and connected, but not ready: tick 0 waits
+    ready.publish(Bool(data=True))
+    assert ros.spin_until(lambda: sim.clock.started)
