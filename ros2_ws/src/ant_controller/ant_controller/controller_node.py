@@ -15,10 +15,10 @@ latched, from the team supervisor): a disabled robot is absent to this controlle
 core's ``active`` mask) and its pose is not waited for, so a robot the localiser loses
 does not freeze the team; this robot disabled, the controller holds still. Output:
 ``behaviour`` (std_msgs/UInt16, bit i = behaviour i + 1 of Table 2), ``/diagnostics``, and
-``ready`` (std_msgs/Bool, latched): true once every input above (but the optional
-``enabled`` flags) has a connected publisher, so that a message sent from then on reaches
-the node; the lockstep simulator waits for it before tick 0 when the poses come from the
-perception nodes (``wait_for_ready``).
+with ``lockstep: true`` ``ready`` (std_msgs/Bool, latched): true once every input above
+(but the optional ``enabled`` flags) has a connected publisher, so that a message sent from
+then on reaches the node; the lockstep simulator waits for it before tick 0 when the poses
+come from the perception nodes (``wait_for_ready``).
 
 With ``lockstep: true`` (used with ``excavation_sim sim``) the node decides exactly once per
 simulator tick, when all of that tick's inputs have arrived (same stamp), and never
@@ -237,8 +237,8 @@ class ControllerNode(Node):
         In lockstep mode the timer only refreshes diagnostics; commands go out once per
         simulator tick, when :meth:`InputGate.lockstep_ready` says the tick is complete.
         """
-        self.update_ready()
         if self.lockstep and not lockstep_decision:
+            self.update_ready()
             waiting = self.missing_input() or self.gate.lockstep_waiting()
             self.last_reason = waiting or self.last_reason
             self.publish_diagnostics()
