@@ -30,9 +30,10 @@ Faults, settable at runtime (``tests/test_faults.py``): ``paused`` (no camera fr
 true), ``laser_paused`` (no laser sweeps while true), ``frame_period`` (at least this many
 wall-clock seconds between frames: 0.2 is a 5 Hz camera), ``dropout`` and ``occlude``. A
 frame or sweep held back goes out when the fault ends, showing the latest truth. Frames
-(sweeps) also wait until some node subscribes to ``/overhead/image_raw``
-(``/worksite/scan``): nothing is rendered for nobody, and a lockstep tick's only frame is
-not lost to a localizer whose subscription the middleware has not matched yet.
+(sweeps) also wait, rendered, until some node subscribes to ``/overhead/image_raw``
+(``/worksite/scan``): a lockstep tick's only frame is not lost to a localizer whose
+subscription the middleware has not matched yet, and the noise drawn does not depend on
+when the listeners came.
 """
 
 from __future__ import annotations
@@ -184,6 +185,8 @@ class SensorsNode(Node):
         self.heights: tuple[tuple[int, int], np.ndarray] | None = None
         self.last: tuple[int, int] | None = None
         self.ready: tuple | None = None  # (stamp, heights, views, anchors) to send
+        self.frame: tuple | None = None  # (stamp key, rendered Image) not sent yet
+        self.sweep_msgs: tuple | None = None  # (stamp key, [(mount, scan)]) not sent yet
         self.camera_done: tuple[int, int] | None = None
         self.laser_done: tuple[int, int] | None = None
         self.frame_time = -float("inf")  # time.monotonic() of the last frame
@@ -277,47 +280,54 @@ class SensorsNode(Node):
         self.send_ready()
 
     def send_ready(self) -> None:
-        """Publish the ready instant's frame and sweep unless a fault holds them back."""
+        """Publish the ready instant's frame and sweep unless a fault holds them back.
+
+        A frame (sweep) is rendered as soon as no fault holds it, so the noise stream does
+        not depend on who listens; it goes out once some node subscribes to the camera (the
+        laser), and is dropped unsent if a newer instant comes first.
+        """
         if self.ready is None:
             return
         stamp, heights, views, anchors = self.ready
         key = (stamp.sec, stamp.nanosec)
         p = self.params
         now = time.monotonic()
-        # A frame or sweep waits for its readers too: published before the middleware has
-        # matched the localizer's (the mapper's) subscription, it would be lost, and in a
-        # lockstep trial the whole team would miss that tick.
-        camera_heard = self.image_pub.get_subscription_count() > 0
-        laser_heard = self.scan_pub.get_subscription_count() > 0
-        if (
-            self.camera_done != key
-            and camera_heard
-            and not p.paused
-            and now - self.frame_time >= p.frame_period
-        ):
-            if self.camera is None:
-                self.camera = OverheadCamera(
-                    self.camera_params, default_beacons(), self.rows, self.cols, self.cell_size
-                )
-            image, _ = self.camera.render(views, heights, self.rng, self.hidden)
-            self.image_pub.publish(frame_to_message(image, Image(), stamp=stamp))
-            self.camera_done, self.frame_time = key, now
-        if self.laser_done != key and laser_heard and not p.laser_paused:
-            self.sweep(stamp, heights, anchors)
-            self.laser_done = key
+        if self.camera_done != key and not p.paused and now - self.frame_time >= p.frame_period:
+            if self.frame is None or self.frame[0] != key:
+                if self.camera is None:
+                    self.camera = OverheadCamera(
+                        self.camera_params, default_beacons(), self.rows, self.cols, self.cell_size
+                    )
+                image, _ = self.camera.render(views, heights, self.rng, self.hidden)
+                self.frame = (key, frame_to_message(image, Image(), stamp=stamp))
+            # Held until the localizer's subscription is matched: a lockstep tick has one
+            # frame, and one sent before would be lost (the whole team would miss the tick).
+            if self.image_pub.get_subscription_count() > 0:
+                self.image_pub.publish(self.frame[1])
+                self.frame = None
+                self.camera_done, self.frame_time = key, now
+        if self.laser_done != key and not p.laser_paused:
+            if self.sweep_msgs is None or self.sweep_msgs[0] != key:
+                self.sweep_msgs = (key, self.sweep(stamp, heights, anchors))
+            if self.scan_pub.get_subscription_count() > 0:
+                for mount, scan in self.sweep_msgs[1]:
+                    self.mount_pub.publish(mount)
+                    self.scan_pub.publish(scan)
+                self.sweep_msgs = None
+                self.laser_done = key
         if self.camera_done == key and self.laser_done == key:
             self.ready = None
             self.frames += 1
 
-    def sweep(self, stamp: TimeMsg, heights: np.ndarray, anchors: list) -> None:
-        """Publish one laser sweep of this instant."""
+    def sweep(self, stamp: TimeMsg, heights: np.ndarray, anchors: list) -> list[tuple]:
+        """One laser sweep of this instant: (mount joint state, scan) pairs to publish."""
         lp = self.laser_params
         surface = surface_with_robots(heights, np.array(anchors), lp.robot_height)
+        out = []
         for i, (pan, tilt, ranges) in enumerate(self.laser.sweep(surface, self.rng)):
             scan_stamp = _add(stamp, i * self.scan_period)
             mount = JointState(name=[PAN_JOINT, TILT_JOINT], position=[pan, tilt])
             mount.header.stamp = scan_stamp
-            self.mount_pub.publish(mount)
             scan = LaserScan()
             scan.header.stamp = scan_stamp
             scan.header.frame_id = "overhead_laser"
@@ -328,7 +338,8 @@ class SensorsNode(Node):
             scan.range_min = lp.range_min
             scan.range_max = lp.range_max
             scan.ranges = ranges.tolist()
-            self.scan_pub.publish(scan)
+            out.append((mount, scan))
+        return out
 
 
 def main(args: list[str] | None = None) -> int:
