@@ -55,6 +55,24 @@ def snapshots(tmp_path) -> int:
         return 0
 
 
+def warnings(tmp_path, limit: int = 40) -> str:
+    """The WARN and ERROR lines of every node's log (for a failure's message)."""
+    lines = []
+    for log in sorted((tmp_path / "run" / "logs").glob("*.log")):
+        lines += [
+            f"{log.stem}: {x}"
+            for x in log.read_text().splitlines()
+            if "[WARN]" in x or "[ERROR]" in x
+        ]
+    return "\n".join(lines[:limit]) or "no warnings in the node logs"
+
+
+def divergence(a: list, b: list) -> str:
+    """Where two runs' words first differ."""
+    t = next((i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y), min(len(a), len(b)))
+    return f"words first differ at tick {t}: {a[t : t + 1]} != {b[t : t + 1]}"
+
+
 def _free_port() -> int:
     import socket
 
@@ -96,7 +114,9 @@ def test_dome_up_sim_runs_40_ticks_with_the_fitness_of_ant_trial(tmp_path):
         perception="full",
         exact=True,
     )
-    assert result["commands"] == trial.commands
+    assert result["commands"] == trial.commands, (
+        divergence(result["commands"], trial.commands) + "\n" + warnings(tmp_path)
+    )
     assert summary["fitness"] == trial.fitness
     assert np.array_equal(np.array(result["heights"]), trial.heights)
     logs = {p.stem for p in (tmp_path / "run" / "logs").glob("*.log")}

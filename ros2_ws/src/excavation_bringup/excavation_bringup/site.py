@@ -851,7 +851,7 @@ def team_tick_params(site: Site, ticks: int, result_file: str, sim: bool = True)
     seconds for them; in the dome it reads each blade driver's ``blade/joint_states``, the
     localiser's poses and the mapper's height map, on the wall clock.
     """
-    from excavation_bringup.continuous_processes import SIM_BLADE_WAIT
+    from excavation_bringup.continuous_processes import SIM_BLADE_WAIT, SIM_SNAPSHOT_RETRY
     from excavation_bringup.continuous_trial import tick_parameters
 
     params = {**tick_parameters(_sim_spec(site, ticks)), "result_file": str(result_file)}
@@ -860,6 +860,7 @@ def team_tick_params(site: Site, ticks: int, result_file: str, sim: bool = True)
     return {
         **params,
         "blade_wait": SIM_BLADE_WAIT,
+        "snapshot_retry": SIM_SNAPSHOT_RETRY,
         "first_word_timeout": float(site.sim.first_command_timeout),
     }
 
@@ -917,7 +918,15 @@ def localizer_params(
 
 
 def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
-    """``terrain_mapper mapper``: grid, mount pose and offsets; never a map_info publisher."""
+    """``terrain_mapper mapper``: grid, mount pose and offsets; never a map_info publisher.
+
+    ``reliable`` (``--sim``: the synthetic laser's reliable QoS, and the localizer a process
+    on the same loaded machine) also lengthens the waits that are fallbacks only: a scan's
+    for its mount state, a sweep's for the localizer's poses of its instant
+    (:data:`excavation_bringup.perception.PROCESS_POSE_WAIT`).
+    """
+    from excavation_bringup.perception import POSE_WAIT, PROCESS_POSE_WAIT
+
     w, las = site.worksite, site.laser
     return _merge(
         site,
@@ -940,7 +949,7 @@ def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
             "prior_height": float(w.prior_height or 0.0),
             "robot_height": float(las.robot_height),
             "publish_map_info": False,
-            "pose_wait": 2.0,
+            "pose_wait": PROCESS_POSE_WAIT if reliable else POSE_WAIT,
             # reliable delivery repairs a lost sample within a heartbeat (seconds): wait
             "mount_wait": 10.0 if reliable else 1.0,
             "reliable": bool(reliable),

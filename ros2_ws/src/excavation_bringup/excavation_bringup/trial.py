@@ -467,7 +467,12 @@ def process_commands(spec: TrialSpec, workdir: Path) -> dict[str, list[str]]:
         from excavation_bringup.perception import perception_parameters
 
         values = perception_parameters(
-            spec.robots, spec.seed, bp, str(Path(workdir) / "camera.yaml"), spec.occlude
+            spec.robots,
+            spec.seed,
+            bp,
+            str(Path(workdir) / "camera.yaml"),
+            spec.occlude,
+            processes=True,
         )
         commands["sensors"] = node("sensors", "excavation_sim.sensors_node", **values["sensors"])
         commands["localizer"] = node(
