@@ -344,6 +344,10 @@ def test_sensor_stalls(tmp_path, full_reference, knob, seconds, timeout, loses_t
         result = trial.result()
         sim = trial.messages(SIM)
     missed = result["missed"]
+    print(
+        f"{knob} for {seconds} s: missed {missed}, fitness {result['fitness']} "
+        f"(undisturbed {full_reference})"
+    )
     if loses_ticks:
         # Both robots wait for the same frame or sweep, so the stall times out both robots'
         # ticks together. The tick in which the sensor comes back may time out between the
@@ -354,12 +358,11 @@ def test_sensor_stalls(tmp_path, full_reference, knob, seconds, timeout, loses_t
         assert min(missed.values()) >= 1 and abs(missed["0"] - missed["1"]) <= 1
         assert max(missed.values()) <= seconds / timeout + 2
     else:
-        # Finding (docs/reliability.md): a stall shorter than the tick timeout should lose
-        # nothing, yet in our runs it cost each robot one tick (the mapper fuses the held
-        # sweep after pose_wait with the robots' previous poses). At most that one tick:
-        assert missed["0"] <= 1 and missed["1"] <= 1
-        if missed == {"0": 0, "1": 0}:
-            assert result["fitness"] == full_reference  # nothing lost at all
+        # A stall shorter than the tick timeout loses nothing: the held frame goes out with
+        # the latest truth when the camera resumes, and the mapper waits for its poses (a
+        # process trial's pose_wait, 30 s, is longer than the stall).
+        assert missed == {"0": 0, "1": 0}
+        assert result["fitness"] == full_reference
     assert stalled >= 5
 
 
