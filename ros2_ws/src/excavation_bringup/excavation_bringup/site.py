@@ -925,7 +925,7 @@ def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
     for its mount state, a sweep's for the localizer's poses of its instant
     (:data:`excavation_bringup.perception.PROCESS_POSE_WAIT`).
     """
-    from excavation_bringup.perception import POSE_WAIT, PROCESS_POSE_WAIT
+    from excavation_bringup.perception import POSE_WAIT, PROCESS_POSE_WAIT, RELIABLE_MOUNT_WAIT
 
     w, las = site.worksite, site.laser
     return _merge(
@@ -951,7 +951,7 @@ def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
             "publish_map_info": False,
             "pose_wait": PROCESS_POSE_WAIT if reliable else POSE_WAIT,
             # reliable delivery repairs a lost sample within a heartbeat (seconds): wait
-            "mount_wait": 10.0 if reliable else 1.0,
+            "mount_wait": RELIABLE_MOUNT_WAIT if reliable else 1.0,
             "reliable": bool(reliable),
         },
     )
