@@ -160,3 +160,56 @@ def test_two_robots_with_the_same_colours(ros, frame, tmp_path):
     assert "shares LED colours" in probe.status["/localizer: robot_0"].message
     ros.spin_until(lambda: False, 0.3)
     assert not any(probe.poses.values())
+
+
+def test_a_tracked_robot_unseen_asks_for_a_retake_and_holds_the_frame(ros):
+    """Frame 1 tracks both robots; frame 2 (glare over robot 1's front LED, here: hidden)
+    publishes nothing and asks for the instant again; the retake shows both: its poses go out.
+    With the retakes spent, the incomplete frame's poses go out as they are."""
+    from std_msgs.msg import Header
+
+    camera = OverheadCamera(CameraParams(), default_beacons(), 16, 16, 0.25, seed=0)
+    rng = np.random.default_rng(1)
+
+    def render(hidden=frozenset()):
+        return frame_to_message(camera.render(VIEWS, np.zeros((16, 16)), rng, hidden)[0], Image())
+
+    localizer(ros, retakes=1)
+    probe = Probe(ros)
+    asked = []
+    probe.node.create_subscription(Header, "/overhead/retake", asked.append, 10)
+    probe.send(render(), 7)
+    assert ros.spin_until(lambda: all(probe.poses.values()))
+    probe.send(render({(1, "front")}), 8)
+    assert ros.spin_until(lambda: asked)
+    ros.spin_until(lambda: False, 0.5)
+    assert asked[0].stamp.sec == 8 and "robots [1] not seen" in asked[0].frame_id
+    assert [len(p) for p in probe.poses.values()] == [1, 1]  # frame 2 held back whole
+    probe.send(render(), 8)  # the retake: same instant, its own noise
+    assert ros.spin_until(lambda: all(len(p) == 2 for p in probe.poses.values()))
+    assert [p[-1].header.stamp.sec for p in probe.poses.values()] == [8, 8]
+    # the next instant: hidden in its frame and in the one retake allowed
+    probe.send(render({(1, "front")}), 9)
+    assert ros.spin_until(lambda: len(asked) == 2)
+    probe.send(render({(1, "front")}), 9)
+    assert ros.spin_until(lambda: len(probe.poses[0]) == 3)
+    ros.spin_until(lambda: False, 0.5)
+    assert len(asked) == 2 and len(probe.poses[1]) == 2  # no third ask; robot 1 not sent
+    assert probe.poses[0][-1].header.stamp.sec == 9
+
+
+def test_retakes_off_never_ask(ros, frame):
+    from std_msgs.msg import Header
+
+    localizer(ros)
+    probe = Probe(ros)
+    asked = []
+    probe.node.create_subscription(Header, "/overhead/retake", asked.append, 10)
+    camera = OverheadCamera(CameraParams(), default_beacons(), 16, 16, 0.25, seed=0)
+    probe.send(frame_to_message(frame, Image()), 7)
+    assert ros.spin_until(lambda: all(probe.poses.values()))
+    hidden = camera.render(VIEWS, np.zeros((16, 16)), np.random.default_rng(2), {(1, "front")})
+    probe.send(frame_to_message(hidden[0], Image()), 8)
+    assert ros.spin_until(lambda: len(probe.poses[0]) == 2)
+    ros.spin_until(lambda: False, 0.3)
+    assert not asked and len(probe.poses[1]) == 1

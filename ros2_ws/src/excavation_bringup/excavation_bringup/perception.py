@@ -44,6 +44,12 @@ tests/test_faults.py every robot lost a tick). A fallback only: current poses en
 wait at once."""
 
 
+RETAKES = 2
+"""Frames of one instant the localizer may ask the synthetic camera for when a robot it was
+tracking is not seen (``retakes``). One frame per tick means a robot hidden by one frame's
+glare (about 1 robot-frame in 2,000, docs/perception.md) would hold a lockstep team for a
+whole tick timeout; a second frame of the same instant has its own glare."""
+
 RELIABLE_MOUNT_WAIT = 10.0
 """Wall seconds a laser scan waits for the mount state of its stamp before the mapper drops
 it (the mapper's default: 1 s). The trial's laser is reliable, so the state comes; a mapper
@@ -120,7 +126,12 @@ def perception_parameters(
             "reliable": True,
             **({"occlude": occlude} if occlude else {}),  # "-p occlude:=" would not parse
         },
-        "localizer": {"robots": robots, "calibration": calibration, "reliable": True},
+        "localizer": {
+            "robots": robots,
+            "calibration": calibration,
+            "reliable": True,
+            "retakes": RETAKES,
+        },
         "mapper": {
             "robots": robots,
             "rows": rows,

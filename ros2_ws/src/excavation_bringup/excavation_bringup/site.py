@@ -901,6 +901,8 @@ def localizer_params(
     site: Site, calibration: str, beacons: str, reliable: bool = False
 ) -> dict[str, Any]:
     """``overhead_localizer localizer``: camera topics, calibration and the site's LED table."""
+    from excavation_bringup.perception import RETAKES
+
     c = site.camera
     return _merge(
         site,
@@ -913,6 +915,8 @@ def localizer_params(
             "compressed": c.compressed,
             "camera_info_topic": c.camera_info_topic,
             "reliable": bool(reliable),
+            # --sim: the synthetic camera renders one frame per tick and answers retakes
+            "retakes": RETAKES if reliable else 0,
         },
     )
 

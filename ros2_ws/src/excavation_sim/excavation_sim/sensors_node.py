@@ -34,6 +34,12 @@ frame or sweep held back goes out when the fault ends, showing the latest truth.
 (``/worksite/scan``): a lockstep tick's only frame is not lost to a localizer whose
 subscription the middleware has not matched yet, and the noise drawn does not depend on
 when the listeners came.
+
+A ``std_msgs/Header`` on ``/overhead/retake`` stamped with the last frame sent (the
+localizer's ``retakes``: a robot it tracks was not seen, most often under a glare spot)
+renders that instant again with the generator's next draws and sends it, as a camera's next
+frame of a scene that has not moved; a request for any other stamp, or while ``paused``, is
+ignored. The requests depend only on the frames, so the noise stream stays deterministic.
 """
 
 from __future__ import annotations
@@ -49,6 +55,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image, JointState, LaserScan
+from std_msgs.msg import Header
 
 from excavation_common.frames import robot_anchor
 from excavation_common.messages import MessageError, image_to_grid
@@ -57,6 +64,7 @@ from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_nod
 from excavation_sim.camera import CameraParams, OverheadCamera, RobotView, default_beacons
 from excavation_sim.laser import LaserParams, OverheadLaser, surface_with_robots
 from overhead_localizer.images import frame_to_message
+from overhead_localizer.params import RETAKE_TOPIC
 from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, yaw_of
 
 
@@ -190,7 +198,9 @@ class SensorsNode(Node):
         self.camera_done: tuple[int, int] | None = None
         self.laser_done: tuple[int, int] | None = None
         self.frame_time = -float("inf")  # time.monotonic() of the last frame
+        self.sent: tuple | None = None  # (stamp key, stamp, heights, views) of the last frame
         self.frames = 0
+        self.retakes = 0
         self.problem = ""
 
         self.image_pub = self.create_publisher(Image, "/overhead/image_raw", qos)
@@ -206,6 +216,7 @@ class SensorsNode(Node):
                 10,
             )
         self.create_subscription(Image, f"{prefix}/worksite/height_map", self.on_heights, LATCHED)
+        self.create_subscription(Header, RETAKE_TOPIC, self.on_retake, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(1.0, self.publish_diagnostics)
         self.create_timer(0.01, self.send_ready)  # what a fault held back, once it ends
@@ -225,7 +236,8 @@ class SensorsNode(Node):
         message = self.problem or (
             f"rendered {self.frames} frames and sweeps" if self.frames else "waiting for truth"
         )
-        self.diag_pub.publish(diagnostics(self, level, message, {"frames": self.frames}))
+        values = {"frames": self.frames, "retakes": self.retakes}
+        self.diag_pub.publish(diagnostics(self, level, message, values))
 
     def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
         """A robot's true pose."""
@@ -304,6 +316,7 @@ class SensorsNode(Node):
             # frame, and one sent before would be lost (the whole team would miss the tick).
             if self.image_pub.get_subscription_count() > 0:
                 self.image_pub.publish(self.frame[1])
+                self.sent = (key, stamp, heights, views)
                 self.frame = None
                 self.camera_done, self.frame_time = key, now
         if self.laser_done != key and not p.laser_paused:
@@ -318,6 +331,16 @@ class SensorsNode(Node):
         if self.camera_done == key and self.laser_done == key:
             self.ready = None
             self.frames += 1
+
+    def on_retake(self, msg: Header) -> None:
+        """Render the last frame's instant again (a localizer missed a robot in it)."""
+        key = (msg.stamp.sec, msg.stamp.nanosec)
+        if self.sent is None or self.sent[0] != key or self.params.paused:
+            return
+        _, stamp, heights, views = self.sent
+        image, _ = self.camera.render(views, heights, self.rng, self.hidden)
+        self.image_pub.publish(frame_to_message(image, Image(), stamp=stamp))
+        self.retakes += 1
 
     def sweep(self, stamp: TimeMsg, heights: np.ndarray, anchors: list) -> list[tuple]:
         """One laser sweep of this instant: (mount joint state, scan) pairs to publish."""

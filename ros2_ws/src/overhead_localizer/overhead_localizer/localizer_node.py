@@ -16,6 +16,14 @@ colourless mono8 frames), and one per robot (``/localizer: robot_k``; OK seen, W
 coasting / lost / ambiguous, ERROR when two robots share LED colours). Bad input never
 stops the node and never produces a pose.
 
+With ``retakes`` > 0, a frame in which a robot the node was tracking is not seen (a glare
+spot washing out one of its LEDs) publishes nothing yet: the node asks for another frame of
+the same instant on ``retake_topic`` (std_msgs/Header, the frame's stamp), up to
+``retakes`` times, and publishes the poses of the first frame that shows every tracked
+robot, or of the last one. The trials' synthetic camera (``excavation_sim sensors``)
+answers; a lockstep team then no longer waits a whole tick timeout for a pose that one
+frame's glare hid.
+
 The node refuses to start (one line on stderr, exit code 2) without ``calibration``, or
 with a calibration or LED table file it cannot use: it never falls back to another camera.
 
@@ -36,6 +44,7 @@ from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
+from std_msgs.msg import Header
 
 from excavation_common.errors import FieldError
 from excavation_common.messages import MessageError, image_to_grid
@@ -55,6 +64,7 @@ from overhead_localizer.images import (
 from overhead_localizer.localize import (
     COASTING,
     DUPLICATE,
+    LOST,
     SEEN,
     Localizer,
     LocalizerParams,
@@ -129,6 +139,12 @@ class LocalizerNode(Node):
         self.info_received = not c.camera_info_topic
         self.encoding = ""
         self.last_annotated = -math.inf
+        self.retake_stamp: tuple[int, int] | None = None
+        self.retakes_asked = 0
+        self.retakes_total = 0
+        self.retake_pub = (
+            self.create_publisher(Header, c.retake_topic, 10) if c.retakes > 0 else None
+        )
 
         self.pose_pubs = [
             self.create_publisher(PoseWithCovarianceStamped, f"/robot_{k}/pose", 10)
@@ -199,6 +215,7 @@ class LocalizerNode(Node):
             check_image(frame, self.localizer.model, self.config.image_topic)
             heights = self.heights if self.cell_size is not None else None
             stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            tracked = set(self.localizer.tracks)
             self.blobs = self.localizer.detect(frame)
             self.estimates = self.localizer.associate(
                 self.blobs, heights, self.cell_size or 0.25, stamp
@@ -209,6 +226,8 @@ class LocalizerNode(Node):
             return
         self.image_error = None
         self.frames += 1
+        if self.retake(msg.header.stamp, tracked):
+            return
         for k, estimate in enumerate(self.estimates):
             if estimate.reportable:
                 self.pose_pubs[k].publish(pose_with_covariance(estimate, msg.header.stamp))
@@ -221,6 +240,25 @@ class LocalizerNode(Node):
                     image, CompressedImage(), "jpeg", 80, stamp=msg.header.stamp
                 )
                 self.annotated_pub.publish(out)
+
+    def retake(self, stamp, tracked: set[int]) -> bool:
+        """Ask for another frame of ``stamp`` when a tracked robot was not seen in this one.
+
+        True: asked (this frame's poses are held back); False: publish this frame's poses
+        (every tracked robot seen, retakes off, or this instant's retakes spent).
+        """
+        if self.retake_pub is None:
+            return False
+        unseen = [k for k in sorted(tracked) if self.estimates[k].status == LOST]
+        key = (stamp.sec, stamp.nanosec)
+        if key != self.retake_stamp:
+            self.retake_stamp, self.retakes_asked = key, 0
+        if not unseen or self.retakes_asked >= self.config.retakes:
+            return False
+        self.retakes_asked += 1
+        self.retakes_total += 1
+        self.retake_pub.publish(Header(stamp=stamp, frame_id=f"robots {unseen} not seen"))
+        return True
 
     def camera_status(self) -> tuple[bytes, str]:
         """The camera's level and message."""
@@ -263,7 +301,11 @@ class LocalizerNode(Node):
     def publish_diagnostics(self) -> None:
         """The camera's status (named after the node) and one per robot."""
         level, message = self.camera_status()
-        values = {"frames": self.frames, "encoding": self.encoding or "none yet"}
+        values = {
+            "frames": self.frames,
+            "encoding": self.encoding or "none yet",
+            "retakes": self.retakes_total,
+        }
         msg = diagnostics(self, level, message, values, hardware_id="overhead_camera")
         msg.status += self.robot_statuses()
         self.diag_pub.publish(msg)

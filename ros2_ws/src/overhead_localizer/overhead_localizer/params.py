@@ -12,6 +12,9 @@ from dataclasses import dataclass
 
 from excavation_common.params import param
 
+RETAKE_TOPIC = "/overhead/retake"
+"""Where the localizer asks a camera for another frame of an instant (``retakes``)."""
+
 
 @dataclass(frozen=True)
 class LocalizerNodeParams:
@@ -31,6 +34,13 @@ class LocalizerNodeParams:
         annotated_period: Seconds between annotated frames on ``/overhead/image_annotated``
             (jpeg, detected LEDs and poses drawn); 0: none.
         diagnostics_period: Seconds between ``/diagnostics`` reports.
+        retakes: Frames of the same instant the node asks for on ``retake_topic`` when a
+            robot it was tracking is not seen in a frame (a glare spot over one LED); the
+            frame's poses are held until every tracked robot is seen or the retakes are
+            spent. 0 (the default, a camera that streams): never. The trials' synthetic
+            camera, which renders one frame per simulator tick, answers with a new frame of
+            the same instant (its next noise and glare).
+        retake_topic: ``std_msgs/Header`` stamped with the frame to take again.
     """
 
     robots: int = param(4, "robots localized (first entries of the LED table)", low=1, high=64)
@@ -45,3 +55,7 @@ class LocalizerNodeParams:
         0.0, "s between annotated frames on /overhead/image_annotated; 0: none", low=0.0
     )
     diagnostics_period: float = param(1.0, "s between diagnostics", low=0.01, high=3600.0)
+    retakes: int = param(
+        0, "frames of an instant asked for when a tracked robot is unseen", low=0, high=10
+    )
+    retake_topic: str = param(RETAKE_TOPIC, "Header: the frame stamp to take again")
