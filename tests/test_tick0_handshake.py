@@ -136,3 +136,41 @@ def test_simulator_waits_for_every_controller_to_be_ready(ros):
     assert not sim.clock.started  # present and connected, but not ready: tick 0 waits
     ready.publish(Bool(data=True))
     assert ros.spin_until(lambda: sim.clock.started)
+
+
+def test_team_tick_waits_for_every_controller_to_be_ready(ros):
+    """The continuous trial's tick 0 as the lockstep simulator's: a recorder (or any other
+    node) subscribed to the tick topics must not stand in for a controller that is not yet
+    connected (seen: robot 1 missed tick 0 of a recorded process trial)."""
+    from action_msgs.msg import GoalInfo, GoalStatus
+
+    from excavation_bringup.team_tick import Phase
+    from excavation_bringup.team_tick_node import TeamTickNode
+
+    tick = ros.add(
+        TeamTickNode(
+            context=ros.context,
+            parameter_overrides=[
+                Parameter("robots", value=1),
+                Parameter("steps", value=2),
+                Parameter("startup_period", value=0.0),
+                Parameter("wait_for_ready", value=True),
+            ],
+        )
+    )
+    robot = ros.add(Node("robot", context=ros.context))
+    robot.create_publisher(UInt16, "/robot_0/behaviour", 10)
+    robot.create_publisher(GoalStatus, "/robot_0/drive/status", 10)
+    for msg_type, topic in (
+        (PoseWithCovarianceStamped, "/tick/robot_0/pose"),
+        (Bool, "/tick/robot_0/stuck"),
+        (GoalInfo, "/robot_0/drive/goal"),
+        (JointState, "/robot_0/blade/servo_state"),
+    ):
+        robot.create_subscription(msg_type, topic, lambda m: None, 10)
+    ready = robot.create_publisher(Bool, "/robot_0/ready", LATCHED)
+    ready.publish(Bool(data=False))
+    spin_for(ros, 2.0)
+    assert tick.core.phase is Phase.WAITING  # present and connected, but not ready
+    ready.publish(Bool(data=True))
+    assert ros.spin_until(lambda: tick.core.phase is not Phase.WAITING)

@@ -127,6 +127,7 @@ def tick_parameters(spec: TrialSpec) -> dict:
         "scenario": spec.scenario,
         "blueprint": spec.blueprint,
         "word_timeout": float(spec.command_timeout),
+        "wait_for_ready": True,  # tick 0 waits for every controller's inputs to be connected
     }
 
 

@@ -8,6 +8,9 @@ Reads, per robot k: ``/robot_k/pose`` (the localiser's, or the simulator's truth
 team is armed (a heartbeat saying ``armed`` younger than the 0.5 s deadman, no e-stop), and a
 robot disabled or lost is absent (:class:`~excavation_bringup.team_tick.TeamTick`).
 
+With ``wait_for_ready`` (set by every trial and dome table) tick 0 also waits for every
+controller's latched ``/robot_k/ready`` (std_msgs/Bool: its inputs are connected).
+
 Publishes for each tick t, stamped ``t * tick_period``: ``{output_prefix}/robot_k/pose``,
 ``{output_prefix}/robot_k/stuck`` (U1: the executor aborted), ``{output_prefix}/worksite/
 height_map`` (latched) and ``/robot_k/{blade_out}`` (the blade driver's ``servo_state``), so
@@ -59,6 +62,9 @@ class TeamTickNodeParams:
     blade_in: str = param("blade/plant_state", "measured blade joint state, per robot")
     blade_out: str = param("blade/servo_state", "the blade state republished per tick")
     startup_period: float = param(0.5, "wall s the team is present before tick 0", low=0.0)
+    wait_for_ready: bool = param(
+        False, "tick 0 also waits for every controller's latched /robot_k/ready"
+    )
     diagnostics_period: float = param(1.0, "wall s between diagnostics", low=0.05)
     result_file: str = param("", "JSON written when the last tick ends: TeamTick.summary")
 
@@ -120,6 +126,10 @@ class TeamTickNode(Node):
         self.tick_pub = self.create_publisher(Header, "/team/tick", 10)
         self.request_pub = self.create_publisher(Header, "/team/snapshot", 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.ready: set[int] = set()  # robots whose controller said ready (wait_for_ready)
+        if t.wait_for_ready:
+            for k in range(self.n):
+                sub(Bool, f"/robot_{k}/ready", lambda m, k=k: self.on_ready(k, m), LATCHED)
         self.create_timer(0.002, self.poll)
         self.create_timer(t.diagnostics_period, self.publish_diagnostics)
 
@@ -133,6 +143,13 @@ class TeamTickNode(Node):
             return None
         self.errors.pop(topic, None)
         return value
+
+    def on_ready(self, k: int, msg: Bool) -> None:
+        """Robot k's controller has (or has lost) every input connected."""
+        if msg.data:
+            self.ready.add(k)
+        else:
+            self.ready.discard(k)
 
     def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
         """A pose of robot k (kept with its stamp)."""
@@ -181,8 +198,14 @@ class TeamTickNode(Node):
         """Every controller, executor and blade driver of the team is on the graph and connected.
 
         Connected: the middleware has matched this node's word and status subscriptions with
-        their publishers (a word sent before that is lost, and the robot would miss tick 0).
+        their publishers (a word sent before that is lost, and the robot would miss tick 0),
+        and with ``wait_for_ready`` every controller has said ``ready`` (its subscriptions to
+        this node's tick topics are matched: a tick-0 pose sent before that is lost, and a
+        recorder subscribed to the same topic makes this node's own subscriber count say
+        nothing of the controllers; seen: robot 1 missed tick 0 of a recorded process trial).
         """
+        if self.topics.wait_for_ready and len(self.ready) < self.n:
+            return False
         return all(s.get_publisher_count() > 0 for s in self.inputs) and all(
             self.pose_pubs[k].get_subscription_count() > 0
             and self.stuck_pubs[k].get_subscription_count() > 0
