@@ -223,9 +223,15 @@ class FaultTrial:
             request = SetParameters.Request(
                 parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in values.items()]
             )
+            # Setting a value is idempotent: ask again every 5 s. A server that has not yet
+            # matched this client's reply reader drops its answer ("failed to send response
+            # (timeout)", seen in a rehearsal: the camera-5 Hz row waited 120 s for nothing).
             future = client.call_async(request)
-            deadline = time.monotonic() + timeout
+            asked = time.monotonic()
+            deadline = asked + timeout
             while not future.done() and time.monotonic() < deadline:
+                if time.monotonic() - asked > 5.0:
+                    future, asked = client.call_async(request), time.monotonic()
                 time.sleep(0.02)
             if not future.done():
                 raise RuntimeError(f"{node}/set_parameters did not answer")
