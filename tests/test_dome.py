@@ -90,6 +90,9 @@ def wait_for(condition, timeout):
     return condition()
 
 
+# docs/reliability.md "Pending": diverged at tick 8 in a rehearsal, the mapper ending three
+# sweeps short ("a sweep ended after 21 of 32 scans") with reliable scans.
+@pytest.mark.pending
 @pytest.mark.serial  # full perception on the continuous simulator: words equal only unloaded
 def test_dome_up_sim_runs_40_ticks_with_the_fitness_of_ant_trial(tmp_path):
     proc = dome(tmp_path)
