@@ -106,6 +106,21 @@ def test_controller_is_ready_once_every_input_is_connected(ros):
     assert not controller.ready
 
 
+def unready_controller(ros, publishes: list, subscribes: list):
+    """A stand-in for robot 0's controller: on the graph and connected, but not ready.
+
+    Returns its latched ``/robot_0/ready`` publisher (``false`` sent).
+    """
+    robot = ros.add(Node("robot", context=ros.context))
+    for msg_type, topic in publishes:
+        robot.create_publisher(msg_type, topic, 10)
+    for msg_type, topic in subscribes:
+        robot.create_subscription(msg_type, topic, lambda m: None, 10)
+    ready = robot.create_publisher(Bool, "/robot_0/ready", LATCHED)
+    ready.publish(Bool(data=False))
+    return ready
+
+
 def test_simulator_waits_for_every_controller_to_be_ready(ros):
     from excavation_sim.sim_node import SimNode
 
@@ -121,17 +136,15 @@ def test_simulator_waits_for_every_controller_to_be_ready(ros):
             ],
         )
     )
-    # A stand-in for robot 0's controller: on the graph and connected, but not ready.
-    robot = ros.add(Node("robot", context=ros.context))
-    robot.create_publisher(UInt16, "/robot_0/behaviour", 10)
-    for msg_type, topic in (
-        (PoseWithCovarianceStamped, "/robot_0/pose"),
-        (Bool, "/robot_0/stuck"),
-        (JointState, "/robot_0/blade/joint_states"),
-    ):
-        robot.create_subscription(msg_type, topic, lambda m: None, 10)
-    ready = robot.create_publisher(Bool, "/robot_0/ready", LATCHED)
-    ready.publish(Bool(data=False))
+    ready = unready_controller(
+        ros,
+        [(UInt16, "/robot_0/behaviour")],
+        [
+            (PoseWithCovarianceStamped, "/robot_0/pose"),
+            (Bool, "/robot_0/stuck"),
+            (JointState, "/robot_0/blade/joint_states"),
+        ],
+    )
     spin_for(ros, 2.0)
     assert not sim.clock.started  # present and connected, but not ready: tick 0 waits
     ready.publish(Bool(data=True))
@@ -158,18 +171,16 @@ def test_team_tick_waits_for_every_controller_to_be_ready(ros):
             ],
         )
     )
-    robot = ros.add(Node("robot", context=ros.context))
-    robot.create_publisher(UInt16, "/robot_0/behaviour", 10)
-    robot.create_publisher(GoalStatus, "/robot_0/drive/status", 10)
-    for msg_type, topic in (
-        (PoseWithCovarianceStamped, "/tick/robot_0/pose"),
-        (Bool, "/tick/robot_0/stuck"),
-        (GoalInfo, "/robot_0/drive/goal"),
-        (JointState, "/robot_0/blade/servo_state"),
-    ):
-        robot.create_subscription(msg_type, topic, lambda m: None, 10)
-    ready = robot.create_publisher(Bool, "/robot_0/ready", LATCHED)
-    ready.publish(Bool(data=False))
+    ready = unready_controller(
+        ros,
+        [(UInt16, "/robot_0/behaviour"), (GoalStatus, "/robot_0/drive/status")],
+        [
+            (PoseWithCovarianceStamped, "/tick/robot_0/pose"),
+            (Bool, "/tick/robot_0/stuck"),
+            (GoalInfo, "/robot_0/drive/goal"),
+            (JointState, "/robot_0/blade/servo_state"),
+        ],
+    )
     spin_for(ros, 2.0)
     assert tick.core.phase is Phase.WAITING  # present and connected, but not ready
     ready.publish(Bool(data=True))
