@@ -8,7 +8,10 @@ import time
 
 import pytest
 
+from excavation_common.middleware import use_profiles
+
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+use_profiles()  # what every node of the suite runs with (the tests' own nodes too)
 # Under pytest-xdist (`make test` runs `-n 2`) each worker takes its own block of domains,
 # handed out in order from a place its process id picks, so no two workers share one.
 _WORKERS = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))

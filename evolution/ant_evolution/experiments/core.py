@@ -281,9 +281,12 @@ def train_all(ctx: Context, jobs: Sequence[tuple[str, object]], desc: str) -> di
     """Every run of every ``(method, robots)`` job: ``{(method, robots): [history, ...]}``."""
     todo = [(m, r, k) for m, r in jobs for k in range(ctx.runs)]
     out: dict = {}
-    with tqdm(todo, desc=desc, unit="run") as bar:
-        for m, r, k in bar:
+    # An explicit count: tqdm's iterator writes its count back only when it redraws, so the
+    # runs finished before (read back at once) showed as 0 done while later ones trained.
+    with tqdm(total=len(todo), desc=desc, unit="run") as bar:
+        for m, r, k in todo:
             out.setdefault((m, r), []).append(train(ctx, m, r, k, bar))
+            bar.update(1)
     return out
 
 

@@ -40,7 +40,9 @@ def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> objec
     context = Context()
     if domain is None:
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
-    rclpy.init(args=["ant-bag", *ros_args], context=context, domain_id=domain)
+    from excavation_common.ros import init_rclpy
+
+    init_rclpy(args=["ant-bag", *ros_args], context=context, domain_id=domain)
     # Ctrl-C and SIGTERM only set a flag that the loop below checks: a KeyboardInterrupt
     # raised at a random point (inside a write, or inside rclpy) could leave the bag or
     # the executor half-done, and the bag must be finished cleanly.

@@ -210,7 +210,9 @@ def run_continuous_processes(spec: TrialSpec, exact: bool = False) -> TrialResul
     started = time.monotonic()
     counters = ExecutorCounters(spec.robots)
     context = Context()
-    rclpy.init(context=context, domain_id=spec.domain)
+    from excavation_common.ros import init_rclpy
+
+    init_rclpy(context=context, domain_id=spec.domain)
     node = rclpy.create_node("ant_trial", context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)

@@ -214,7 +214,6 @@ def run_continuous(
         ValueError: Without blade drivers.
     """
     check_spec(spec)
-    import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
@@ -236,7 +235,9 @@ def run_continuous(
         return [Parameter(k, value=v) for k, v in values.items()] + [sim_time]
 
     context = Context()
-    rclpy.init(context=context, domain_id=spec.domain)
+    from excavation_common.ros import init_rclpy
+
+    init_rclpy(context=context, domain_id=spec.domain)
     if events_executor:
         from rclpy.experimental.events_executor import EventsExecutor
 

@@ -58,6 +58,7 @@ import yaml
 
 from excavation_bringup import site as sitefile
 from excavation_common.files import write_text_atomic
+from excavation_common.middleware import use_profiles
 
 # --- the node table -------------------------------------------------------------------------
 
@@ -534,6 +535,7 @@ class Dome:
         self.specs = {s.name: s for s in specs}
         self.run_dir = run_dir
         self.env = dict(os.environ, **env)
+        use_profiles(self.env)  # the nodes' middleware settings (excavation_common.middleware)
         self.supervisor = Supervisor.create(specs, policy)
         self.procs: dict[str, subprocess.Popen] = {}
         self.echo = echo
@@ -609,7 +611,9 @@ class Dome:
 
         sup = self.supervisor
         context = Context()
-        rclpy.init(
+        from excavation_common.ros import init_rclpy
+
+        init_rclpy(
             context=context,
             domain_id=int(self.env["ROS_DOMAIN_ID"]),
             signal_handler_options=SignalHandlerOptions.NO,

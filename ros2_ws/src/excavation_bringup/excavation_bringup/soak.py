@@ -104,7 +104,6 @@ class _ClockWatcher:
     """The latest tick (``/clock`` seconds), from a node spun in a background thread."""
 
     def __init__(self, domain: int) -> None:
-        import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
@@ -114,7 +113,9 @@ class _ClockWatcher:
         self.tick = -1
         self.context = Context()
         # Ctrl-C must reach the soak's loop (which stops the nodes), not only rclpy.
-        rclpy.init(
+        from excavation_common.ros import init_rclpy
+
+        init_rclpy(
             context=self.context,
             domain_id=domain,
             signal_handler_options=SignalHandlerOptions.NO,
@@ -197,22 +198,34 @@ def run_soak(spec: TrialSpec, interval: float, workdir: str | Path, progress=Non
 
 
 def plot_memory(samples: list[dict], path: str | Path, title: str, warmup: int) -> None:
-    """RSS of every process over ticks (one line per node kind, robots' nodes summed)."""
+    """RSS of every process over ticks (one line per process), and the tick rate below it."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     names = sorted({n for s in samples for n in s["rss"]})
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig, (ax, rate) = plt.subplots(
+        2, 1, figsize=(8, 6), sharex=True, gridspec_kw={"height_ratios": [3, 1]}
+    )
     for name in names:
         pts = [(s["tick"], s["rss"][name]) for s in samples if name in s["rss"]]
         ax.plot([p[0] for p in pts], [p[1] for p in pts], label=name, linewidth=1)
     ax.axvline(warmup, color="grey", linestyle=":", label="end of warm-up")
-    ax.set_xlabel("tick")
     ax.set_ylabel("resident memory (MB)")
     ax.set_title(title)
     ax.legend(fontsize=7, ncol=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    # ticks per wall second between consecutive samples: a slowdown shows as a drop
+    pairs = list(zip(samples, samples[1:], strict=False))
+    rate.plot(
+        [b["tick"] for _, b in pairs],
+        [(b["tick"] - a["tick"]) / max(b["seconds"] - a["seconds"], 1e-9) for a, b in pairs],
+        color="black",
+        linewidth=1,
+    )
+    rate.set_ylim(bottom=0)
+    rate.set_xlabel("tick")
+    rate.set_ylabel("ticks / s")
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)

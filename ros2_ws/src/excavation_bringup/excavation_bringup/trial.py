@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from excavation_common.limits import MAX_ROBOTS, int_in
+from excavation_common.middleware import use_profiles
 
 
 @dataclass
@@ -312,7 +313,6 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
         spec.timeout,
         spec.perception,
     )
-    import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
@@ -324,7 +324,9 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
     from team_supervisor.supervisor_node import SupervisorNode
 
     context = Context()
-    rclpy.init(context=context, domain_id=domain)
+    from excavation_common.ros import init_rclpy
+
+    init_rclpy(context=context, domain_id=domain)
     executor = SingleThreadedExecutor(context=context)
     nodes = []
     recorder = None
@@ -527,6 +529,7 @@ class TrialProcesses:
         self.commands = commands if commands is not None else process_commands(spec, self.workdir)
         self.final = final
         self.env = dict(env if env is not None else os.environ, ROS_DOMAIN_ID=str(spec.domain))
+        use_profiles(self.env)  # the nodes' middleware settings (excavation_common.middleware)
         self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         self.procs: dict[str, subprocess.Popen] = {}
         self.result_file = self.workdir / "result.json"

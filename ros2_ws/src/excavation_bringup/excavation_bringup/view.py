@@ -432,7 +432,9 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"ant-view: serving ws://{args.host}:{server.port} (Foxglove: open connection)", flush=True
     )
-    rclpy.init(args=["ant-view", *argv])
+    from excavation_common.ros import init_rclpy
+
+    init_rclpy(args=["ant-view", *argv])
     view = ViewNode(robots, frames, unit, args.period)
     try:
         rclpy.spin(view.node)

@@ -39,6 +39,7 @@ from rclpy.qos import (
 )
 
 from excavation_common.errors import FieldError
+from excavation_common.middleware import use_profiles
 from excavation_common.params import ParameterError, specs, validate
 from excavation_common.params import replace as replace_params
 
@@ -183,6 +184,17 @@ def declare_params(
     return current
 
 
+def init_rclpy(**kwargs: Any) -> None:
+    """``rclpy.init(**kwargs)`` with the suite's middleware settings.
+
+    Every process of the suite initialises ROS through this: it first points Fast DDS at
+    the suite's profiles (:func:`excavation_common.middleware.use_profiles`), which must
+    happen before the process's first participant.
+    """
+    use_profiles()
+    rclpy.init(**kwargs)
+
+
 def spin_node(
     make_node: Callable[[], Node],
     args: list[str] | None = None,
@@ -194,7 +206,7 @@ def spin_node(
     :class:`~excavation_common.errors.FieldError` while building the node (a bad parameter,
     an unreadable input file) is printed as one line on stderr and gives exit code 2.
     """
-    rclpy.init(args=args)
+    init_rclpy(args=args)
     try:
         node = make_node()
     except FieldError as exc:

@@ -55,7 +55,9 @@ class Operator:
         self.supervisor = "/" + supervisor.strip("/")
         self.timeout = timeout
         self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain)
+        from excavation_common.ros import init_rclpy
+
+        init_rclpy(context=self.context, domain_id=domain)
         self.node = rclpy.create_node(f"ant_operator_{os.getpid()}", context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)

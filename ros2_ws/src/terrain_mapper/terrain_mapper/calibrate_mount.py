@@ -233,9 +233,9 @@ def read_live(scan_topic: str, mount_topic: str, n_scans: int, timeout: float) -
     from rclpy.node import Node
     from sensor_msgs.msg import JointState, LaserScan
 
-    from excavation_common.ros import SENSOR_DATA
+    from excavation_common.ros import SENSOR_DATA, init_rclpy
 
-    rclpy.init()
+    init_rclpy()
     scans, mounts = [], []
     try:
         node = Node("calibrate_mount")
