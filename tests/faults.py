@@ -46,7 +46,7 @@ class Status:
 class Watcher:
     """An rclpy node on the trial's domain, spun in a background thread."""
 
-    def __init__(self, domain: int, perception: str) -> None:
+    def __init__(self, domain: int, perception: str, continuous: bool = False) -> None:
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.context import Context
@@ -55,6 +55,7 @@ class Watcher:
         from rclpy.signals import SignalHandlerOptions
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import Image
+        from std_msgs.msg import Header
 
         from excavation_common.ros import LATCHED
 
@@ -70,7 +71,10 @@ class Watcher:
         self.ticks_seen: list[int] = []
         self.statuses: list[Status] = []
         self.maps: dict[str, dict[tuple[int, int], np.ndarray]] = {"truth": {}, "mapped": {}}
-        self.node.create_subscription(Clock, "/clock", self.on_clock, 100)
+        if continuous:  # the team tick's tick (sim time runs on between ticks)
+            self.node.create_subscription(Header, "/team/tick", self.on_team_tick, 100)
+        else:
+            self.node.create_subscription(Clock, "/clock", self.on_clock, 100)
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 100)
         if perception == "full":
             for kind, topic in (
@@ -97,6 +101,12 @@ class Watcher:
         """The simulator's tick (sim time, 1 s per tick)."""
         with self.lock:
             self.tick = int(msg.clock.sec)
+            self.ticks_seen.append(self.tick)
+
+    def on_team_tick(self, msg) -> None:
+        """The continuous trial's tick (``/team/tick``, the tick in ``frame_id``)."""
+        with self.lock:
+            self.tick = int(msg.frame_id)
             self.ticks_seen.append(self.tick)
 
     def on_diagnostics(self, msg) -> None:
@@ -133,7 +143,11 @@ class FaultTrial:
         workdir: Logs, ``result.json``, the calibration (and bags, when asked).
         robots, steps, seed, controller, blueprint, command_timeout, blade_driver,
         perception, record: As ``ant-trial``'s options.
-        start: Start every node now.
+        start: Start every node now (else: change ``processes.commands``, then
+            ``processes.start()``).
+        continuous: The continuous trial (``--drive continuous``): drive executors, the
+            ``dynamics`` simulator and the team tick, whose ``/team/tick`` is the tick and
+            whose ``result.json`` is :meth:`result`.
     """
 
     def __init__(
@@ -149,6 +163,7 @@ class FaultTrial:
         perception: str = "truth",
         record: str | None = None,
         start: bool = True,
+        continuous: bool = False,
     ) -> None:
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
         self.domain = next_domain()
@@ -166,8 +181,14 @@ class FaultTrial:
             record,
             perception,
         )
-        self.processes = TrialProcesses(self.spec, workdir)
-        self.watcher = Watcher(self.domain, perception)
+        if continuous:  # ant-trial --drive continuous --processes (exact: no slip noise)
+            from excavation_bringup.continuous_processes import FINAL, continuous_commands
+
+            commands = continuous_commands(self.spec, Path(workdir), exact=True)
+            self.processes = TrialProcesses(self.spec, workdir, commands=commands, final=FINAL)
+        else:
+            self.processes = TrialProcesses(self.spec, workdir)
+        self.watcher = Watcher(self.domain, perception, continuous)
         self.started = time.monotonic()
         if start:
             self.processes.start()

@@ -16,7 +16,6 @@ import signal
 import subprocess
 import sys
 import time
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -486,197 +485,79 @@ def test_evolve_killed_during_checkpoint_writes(tmp_path):
     assert evolve_outputs(out) == evolve_outputs(straight)
 
 
-# --- the continuous trial (ant-trial --drive continuous): composed nodes ---------------------
+# --- the continuous trial (ant-trial --drive continuous --processes) ---------------------------
 #
-# The continuous trial runs composed in one process today, so its rows remove a node from the
-# executor and destroy it (what a crash of that node's process leaves: its subscriptions and
-# publishers gone, no clean shutdown) and later build the same node again with the dead one's
-# parameters (its restart). ``run_continuous(..., fault=...)`` calls the fault between spins.
-
+# Every node its own process (excavation_bringup.continuous_processes): the fault is a SIGKILL
+# of the node's process and its restart with the same command line.
 
 MOTION_LIMIT = 15.0
+"""The team tick leaves a robot out after ``motion_limit`` s of sim time (120 by default);
+these rows wait 15 s (a primitive takes a few)."""
 
 
-class ComposedFault:
-    """Kill a composed node at tick ``at`` and restart it ``down`` ticks later.
-
-    Args:
-        name, namespace: The node (``executor``, ``/robot_1``).
-        at, down: Ticks of the team tick.
-        make: ``make(old_node, parameters) -> new node`` (configured and active).
-    """
-
-    def __init__(self, name: str, namespace: str, at: int, down: int, make) -> None:
-        self.name, self.namespace, self.at, self.down, self.make = name, namespace, at, down, make
-        self.killed: int | None = None
-        self.restarted: int | None = None
-        self.parameters = None
-        self.wheels: list[tuple[int, float]] = []  # while dead: (sim ns, |cmd_vel| of robot)
-        self.dead = None
-        self.dead_for = 0
-
-    def __call__(self, nodes, executor) -> None:
-        from excavation_bringup.team_tick_node import TeamTickNode
-        from excavation_sim.dynamics_node import DynamicsNode
-
-        team_tick = next(n for n in nodes if isinstance(n, TeamTickNode))
-        tick = team_tick.core.tick
-        if self.dead is not None:
-            self.dead_for += 1
-            if self.dead_for > 20:  # destroyed once the events queued for it have run
-                self.dead.destroy_node()
-                self.dead = None
-        if self.killed is not None and self.restarted is None:
-            dynamics = next(n for n in nodes if isinstance(n, DynamicsNode))
-            robot = int(self.namespace.rsplit("_", 1)[1])
-            speed = float(np.abs(dynamics.sim.commands[robot]).sum())
-            self.wheels.append((dynamics.now_ns, speed))
-        if self.killed is None and tick >= self.at:
-            old = self.find(nodes)
-            self.parameters = old.get_parameters_by_prefix("")
-            self.context = old.context
-            executor.remove_node(old)
-            nodes.remove(old)
-            self.dead = old
-            self.killed = tick
-            # The tick leaves a robot out after motion_limit s of sim time (120 by default);
-            # the row waits 15 s (a primitive takes a few) to fit the suite.
-            team_tick.core.params = replace(team_tick.core.params, motion_limit=MOTION_LIMIT)
-        elif self.killed is not None and self.restarted is None and tick >= self.killed + self.down:
-            self.restarted = tick
-            node = self.make(self, list(self.parameters.values()))
-            nodes.append(node)
-            executor.add_node(node)
-
-    def find(self, nodes):
-        return next(
-            n for n in nodes if n.get_name() == self.name and n.get_namespace() == self.namespace
-        )
+def executor(k: int) -> str:
+    """Diagnostics name of robot k's drive executor."""
+    return f"/robot_{k}/executor"
 
 
-def continuous_trial(steps: int, seed: int, fault) -> tuple:
-    """A 2-robot hand-coded continuous trial (slip and noise off) with ``fault``."""
-    from ant_controller.controller import Controller
-    from excavation_bringup.continuous_trial import run_continuous
-    from excavation_bringup.trial import TrialSpec
-
-    spec = TrialSpec(
-        "hand-coded",
-        2,
-        steps,
-        seed,
-        "default:1",
-        0,
-        next_domain(),
-        30.0,
-        900.0,
-        True,
-        None,
-        "truth",
-    )
-    return run_continuous(Controller.hand_coded(), spec, exact=True, fault=fault)
+def continuous_fault_trial(tmp_path, robots: int, steps: int) -> FaultTrial:
+    """A continuous process trial (truth perception) whose team tick waits 15 s for a robot."""
+    trial = FaultTrial(tmp_path, robots=robots, steps=steps, continuous=True, start=False)
+    trial.processes.commands["team_tick"] += ["-p", f"motion_limit:={MOTION_LIMIT}"]
+    trial.processes.start()
+    return trial
 
 
-def test_drive_executor_killed_and_restarted():
-    """Robot 1's executor dies mid-trial: its wheels stop (the base's cmd_vel timeout), the
-    tick goes on without it after ``motion_limit``; the restarted executor takes the next
-    tick's goal."""
-    from rclpy.parameter import Parameter
-
-    from drive_executor.executor_node import ExecutorNode
-
-    def make(fault, parameters):
-        node = ExecutorNode(
-            context=fault.context,
-            namespace=fault.namespace,
-            parameter_overrides=[Parameter(p.name, value=p.value) for p in parameters],
-        )
-        node.trigger_configure()
-        node.trigger_activate()
-        return node
-
-    fault = ComposedFault("executor", "/robot_1", at=3, down=1, make=make)
+def test_drive_executor_killed_and_restarted(tmp_path):
+    """Robot 1's executor process is SIGKILLed: its wheels stop by the base's own deadman
+    (``dynamics``' ``cmd_vel_timeout``), the tick goes on without it after ``motion_limit``;
+    the restarted executor takes the next ticks' goals."""
     steps = 12
-    result = continuous_trial(steps, 3, fault)
+    with continuous_fault_trial(tmp_path, 2, steps) as trial:
+        killed = trial.wait_tick(3)
+        assert trial.kill("executor_1") == -9
+        restarted = trial.wait_tick(killed + 1)
+        trial.restart("executor_1")
+        result = trial.result()
+        dynamics = trial.log("dynamics")
+        driving = [
+            int(m.group(1))
+            for m in (re.fullmatch(r"driving tick (\d+)", t) for t in trial.messages(executor(1)))
+            if m
+        ]
     print(
-        f"executor killed at tick {fault.killed}, restarted at tick {fault.restarted}: "
-        f"late {result.robots_late}, missed {result.missed}, fitness {result.fitness:.4f}"
+        f"executor_1 SIGKILLed at tick {killed}, restarted at tick {restarted}: late "
+        f"{result['robots_late']}, missed {result['missed']}; robot 1 drove ticks {driving}"
     )
-    assert fault.killed is not None and fault.restarted is not None
-    assert len(result.tick_wall) == steps  # the trial ran to its end
-    assert result.robots_late >= 1  # the dead executor's tick went on without it
-    start = fault.wheels[0][0]
-    after = [speed for ns, speed in fault.wheels if ns - start > 0.6e9]
-    assert after and max(after) == 0.0  # its wheels stopped (cmd_vel timeout 0.5 s)
-    words = np.array(result.commands)
-    assert words[fault.restarted + 1 :, 1].any()  # robot 1's controller kept deciding
+    assert len(result["tick_wall"]) == steps  # the trial ran to its end
+    assert result["robots_late"] >= 1  # the dead executor's tick went on without it
+    assert re.search(r"robot 1: no cmd_vel for [0-9.]+ s: wheels stopped", dynamics)
+    assert any(t > restarted for t in driving)  # the restarted executor drove again
+    words = np.array(result["commands"])
+    assert words[restarted + 1 :, 1].any()  # robot 1's controller kept deciding
 
 
-class TeamTickRestarted(Exception):
-    """The restarted team tick ran its ticks: the trial ends here (carries that node)."""
-
-    def __init__(self, node) -> None:
-        super().__init__("restarted team tick finished")
-        self.node = node
-
-
-def test_team_tick_killed_and_restarted():
-    """The team tick dies: no snapshot, no goals, every robot stands once its primitive ends;
-    the restarted tick begins again at tick 0 on the site as it is (a new trial)."""
-    from rclpy.parameter import Parameter
-
-    from excavation_bringup.team_tick import Phase
-    from excavation_bringup.team_tick_node import TeamTickNode
-    from excavation_sim.dynamics_node import DynamicsNode
-
-    steps = 8
-    state = {"restarted": None, "speeds": []}
-
-    def make(fault, parameters):
-        node = TeamTickNode(
-            context=fault.context,
-            parameter_overrides=[Parameter(p.name, value=p.value) for p in parameters],
-        )
-        state["restarted"] = node
-        return node
-
-    class TickFault(ComposedFault):
-        def __call__(self, nodes, executor) -> None:
-            new = state["restarted"]
-            if new is not None:
-                if new.core.phase is Phase.FINISHED:
-                    raise TeamTickRestarted(new)
-                return
-            dynamics = next(n for n in nodes if isinstance(n, DynamicsNode))
-            if self.killed is None:
-                if next(n for n in nodes if isinstance(n, TeamTickNode)).core.tick >= self.at:
-                    old = self.find(nodes)
-                    self.parameters = old.get_parameters_by_prefix("")
-                    self.context = old.context
-                    executor.remove_node(old)
-                    nodes.remove(old)
-                    self.dead, self.killed = old, dynamics.now_ns
-                return
-            self.dead_for += 1
-            if self.dead is not None and self.dead_for > 20:
-                self.dead.destroy_node()
-                self.dead = None
-            state["speeds"].append((dynamics.now_ns, float(np.abs(dynamics.sim.commands).sum())))
-            if dynamics.now_ns - self.killed > 20e9:  # 20 s of sim time without a team tick
-                node = make(self, list(self.parameters.values()))
-                nodes.append(node)
-                executor.add_node(node)
-
-    fault = TickFault("team_tick", "/", at=3, down=0, make=None)
-    with pytest.raises(TeamTickRestarted) as done:
-        continuous_trial(steps, 3, fault)
-    new = done.value.node
-    speeds = state["speeds"]
-    standing = [s for ns, s in speeds if ns - fault.killed > 15e9]
+def test_team_tick_killed_and_restarted(tmp_path):
+    """The team tick's process is SIGKILLed: no snapshot, no goals, every executor finishes
+    its primitive and stands; the restarted team tick begins again at tick 0 on the site as
+    it is (a new trial of its own, which runs to its end)."""
+    steps, robots = 8, 2
+    with continuous_fault_trial(tmp_path, robots, steps) as trial:
+        killed = trial.wait_tick(3)
+        assert trial.kill("team_tick") == -9
+        dead = time.monotonic()
+        trial.wait_seconds(15.0)  # every primitive ends within a few seconds
+        heard = [
+            s for k in range(robots) for s in trial.statuses(executor(k)) if s.wall > dead + 10.0
+        ]
+        trial.restart("team_tick")
+        result = trial.result()
     print(
-        f"team tick killed, restarted after 20 s of sim time; the new one ran {new.core.tick} "
-        f"ticks, missed {new.core.missed}"
+        f"team tick SIGKILLed at tick {killed}; executors heard 10-15 s later: "
+        f"{sorted({(s.name, s.message) for s in heard})}; the restarted one ran "
+        f"{len(result['tick_wall'])} ticks, missed {result['missed']}"
     )
-    assert standing and max(standing) == 0.0  # every robot stood still without a team tick
-    assert len(new.core.records) == steps  # the restarted tick ran a whole trial
-    assert any(any(r.words) for r in new.core.records)  # and the robots acted in it
+    assert {s.name for s in heard} == {executor(k) for k in range(robots)}
+    assert all(s.message == "ready" for s in heard)  # no robot driving without a team tick
+    assert len(result["tick_wall"]) == steps  # the restarted tick ran a whole trial
+    assert any(any(w) for w in result["commands"])  # and the robots acted in it

@@ -189,7 +189,6 @@ def run_continuous(
     exact: bool = False,
     events_executor: bool = True,
     time_factor: float = 0.0,
-    fault=None,
 ) -> TrialResult:
     """Run the trial of ``spec`` through executors, team tick and ``dynamics``.
 
@@ -205,9 +204,6 @@ def run_continuous(
             the team answers; 1: as in the dome). Nodes in other processes that follow sim
             time (an external supervisor's heartbeat, against the 0.5 s sim-time deadman)
             need it.
-        fault: Called as ``fault(nodes, executor)`` between spins (the fault matrix,
-            tests/test_faults.py): it may remove and destroy a node (a crash) and add a new
-            one to both (its restart).
 
     Raises:
         TimeoutError: When the trial does not finish within ``spec.timeout`` seconds.
@@ -328,8 +324,6 @@ def run_continuous(
                     f"{tick.core.phase.value})"
                 )
             executor.spin_once(timeout_sec=0.05)
-            if fault is not None:
-                fault(nodes, executor)
         result = continuous_result(
             tick.core.summary(),
             dynamics.result(),
