@@ -17,7 +17,14 @@ from ant_evolution.baselines.fixed import (
     mutate,
     random_network,
 )
-from ant_evolution.baselines.network import decide_program_reference, program_decide
+from ant_evolution.baselines.network import (
+    LANES,
+    decide_program_reference,
+    lane_layout,
+    program_decide,
+    program_decide_into,
+    program_scratch,
+)
 from ant_evolution.baselines.runs import (
     load_program,
     program_from_dict,
@@ -121,6 +128,69 @@ def test_neat_compiled_equals_neat_python_and_reference(tmp_path):
                     assert values[o] == pytest.approx(outs[q], abs=1e-12)
 
 
+def _deep_neat_programs(tmp_path, count: int):
+    """NEAT programs with hidden nodes that read hidden nodes (nodes added on connections)."""
+    import neat
+
+    from ant_evolution.baselines.neat_baseline import compile_neat, neat_config
+
+    cfg = neat_config(tmp_path / "deep.ini", count, hidden=8)
+    pop = neat.Population(cfg, seed=11)
+    genomes = list(pop.population.values())[:count]
+    for g in genomes:
+        for _ in range(12):
+            g.mutate_add_node(cfg.genome_config)
+            g.mutate(cfg.genome_config)
+    return [compile_neat(g, cfg) for g in genomes]
+
+
+def test_lane_layout_keeps_every_nodes_inputs_in_order_and_groups_independent(tmp_path):
+    programs = _neat_programs(tmp_path, 3)[2] + _deep_neat_programs(tmp_path, 3)
+    programs += [_fixed_program(s)[1] for s in range(2)]
+    sizes = set()
+    for prog in programs:
+        groups, rows, src, w = lane_layout(prog.edge_start, prog.edge_src, prog.edge_w)
+        pad = len(SENSOR_SCALE) + prog.n_nodes
+        assert groups[0] == 0 and groups[-1] == prog.n_nodes and np.all(np.diff(groups) >= 1)
+        assert src.shape == w.shape == (rows[-1], LANES)
+        for g in range(len(groups) - 1):
+            first, last = groups[g], groups[g + 1]
+            sizes.add(last - first)
+            for lane in range(LANES):
+                lane_src = src[rows[g] : rows[g + 1], lane]
+                lane_w = w[rows[g] : rows[g + 1], lane]
+                node = first + lane
+                n = 0
+                if node < last:
+                    a, b = prog.edge_start[node], prog.edge_start[node + 1]
+                    n = b - a
+                    assert np.array_equal(lane_src[:n], prog.edge_src[a:b])
+                    assert np.array_equal(lane_w[:n], prog.edge_w[a:b])
+                    assert (
+                        n == 0 or lane_src[:n].max() < len(SENSOR_SCALE) + first
+                    )  # no reads in its group
+                assert np.all(lane_src[n:] == pad) and np.all(lane_w[n:] == 0.0)
+    assert 1 in sizes and LANES in sizes  # deep networks cut groups short, layers fill them
+
+
+def test_kernel_node_values_equal_the_sequential_reference_exactly(tmp_path):
+    """Summing four nodes side by side changes no value: the kernel's scratch holds the
+    reference's node values bit for bit (not only the same masks)."""
+    programs = _neat_programs(tmp_path, 3)[2] + _deep_neat_programs(tmp_path, 3)
+    programs += [_fixed_program(s)[1] for s in range(2)]
+    codes = _random_codes(np.random.default_rng(8), 200)
+    n_s = len(SENSOR_SCALE)
+    for prog in programs:
+        record = prog.record()
+        scratch = program_scratch(record)
+        for c in codes:
+            mask = program_decide_into(c, record, scratch)
+            ref, values = decide_program_reference(prog, c)
+            assert mask == ref
+            assert scratch[n_s : n_s + prog.n_nodes].tolist() == values
+            assert scratch[-1] == 0.0
+
+
 def test_batched_kernel_equals_stepping_with_the_reference():
     """The one kernel with a network program: whole episodes agree with Python decisions."""
     _, prog = _fixed_program(11)
@@ -204,16 +274,22 @@ def test_neat_resume_keeps_the_node_indexer(tmp_path):
 # --- NEAT: the numpy compile and the linear-time crossover give neat-python's results ---------
 
 
-def _evolved_neat_genomes(tmp_path, genome_type, generations: int = 3, count: int = 12):
+def _evolved_neat_genomes(
+    tmp_path, genome_type, generations: int = 3, count: int = 12, overrides: dict | None = None
+):
     """A small NEAT population after a few generations of a made-up fitness (varied
-    topologies: added and deleted nodes and connections, disabled connections)."""
+    topologies: added and deleted nodes and connections, disabled connections);
+    ``overrides``: :func:`config_overrides`' arguments."""
     import neat
 
-    from ant_evolution.baselines.neat_baseline import neat_config
+    from ant_evolution.baselines.neat_baseline import config_overrides, neat_config
 
     tmp_path.mkdir(parents=True, exist_ok=True)
-    cfg = neat_config(tmp_path / "neat.ini", count, hidden=20)
+    keys = config_overrides(**overrides) if overrides else None
+    cfg = neat_config(tmp_path / "neat.ini", count, hidden=20, overrides=keys)
     cfg.genome_type = genome_type
+    if genome_type is neat.DefaultGenome:  # the library's genes too: a reference of its own
+        cfg.genome_config.connection_gene_type = neat.genes.DefaultConnectionGene
     cfg.genome_config.node_add_prob = 0.6
     cfg.genome_config.conn_delete_prob = 0.6
     pop = neat.Population(cfg, seed=11)
@@ -249,8 +325,14 @@ def test_neat_compile_gives_neat_pythons_network_exactly(tmp_path):
             assert program_decide(c, prog.record()) == mask
 
 
-def test_neat_genome_crossover_equals_neat_pythons(tmp_path):
-    """NeatGenome's crossover gives neat-python's children: same genes, same draws."""
+@pytest.mark.parametrize(
+    "overrides",
+    [{}, {"activation": "modular", "budget": "ant", "perturb": True}],
+    ids=["v1", "paper"],
+)
+def test_neat_genome_crossover_equals_neat_pythons(tmp_path, overrides):
+    """NeatGenome's reproduction (crossover, mutation, distance) gives neat-python's
+    children: same genes, same draws, under both profiles' configurations."""
     import neat
 
     from ant_evolution.baselines.neat_baseline import NeatGenome
@@ -264,6 +346,17 @@ def test_neat_genome_crossover_equals_neat_pythons(tmp_path):
             for g in genomes
         ]
 
-    _, ours = _evolved_neat_genomes(tmp_path / "a", NeatGenome, generations=4)
-    _, theirs = _evolved_neat_genomes(tmp_path / "b", neat.DefaultGenome, generations=4)
+    _, ours = _evolved_neat_genomes(tmp_path / "a", NeatGenome, 4, overrides=overrides)
+    _, theirs = _evolved_neat_genomes(tmp_path / "b", neat.DefaultGenome, 4, overrides=overrides)
     assert genes(ours) == genes(theirs)
+
+
+def test_neat_config_reads_single_structural_mutation_as_false(tmp_path):
+    """neat-python 2.0.0 returns an unset boolean option as its default string 'false'
+    (true in an ``if``): the run's neat.ini sets it, so each structural mutation is drawn
+    on its own with its configured rate."""
+    from ant_evolution.baselines.neat_baseline import config_overrides, neat_config
+
+    for overrides in (None, config_overrides("modular", "ant")):
+        cfg = neat_config(tmp_path / "neat.ini", 10, hidden=5, overrides=overrides)
+        assert cfg.genome_config.single_structural_mutation is False

@@ -105,21 +105,30 @@ generation at most 1.5 x an ANT generation of the same size.
   pickled); NEAT genomes compile in the main process (numpy, about 0.6 ms each) because
   a genome of 1,600 gene objects takes longer to pickle and unpickle (about 5 ms) than to
   compile.
+* **Run-to-run spread.** On this shared 2-core machine the same code measures differently
+  from one session to the next: the evolved genome's kernel took 81 ns per robot-step in
+  the previous session's bench and 91 to 94 ns in this one, for the code before and after
+  this session's changes alike (its tissue path did not change). Compare rows of one run
+  (the ratios), not runs.
 * **NEAT.** The library's crossover checked every inherited connection for a cycle by
   rescanning all connections so far (quadratic; about 3 s of a 3.5 s generation at P 100).
-  `NeatGenome` answers those checks once per child from the fitter parent's graph and
-  inlines the connection genes' copy / crossover / mutate with the library's random
-  draws; `tests/test_baselines.py` checks the children equal neat-python's own. What is
-  left of a NEAT generation is its evaluation: evolving NEAT networks (75 nodes, 1,600
-  connections) drive robots through many distinct sensor vectors, and each decision-cache
-  miss evaluates 1,600 connections in order (the order neat-python sums them in, so the
-  results stay exact), and neat-python's reproduction (about 0.4 s at P 100), which runs
-  in the main process while the workers wait. The target (a NEAT generation at most 1.5 x
-  an ANT generation) is not met: early ANT generations are cheap because most random
-  tissues come to rest (fixed points), while NEAT's robots keep moving. What would close
-  the gap: evaluating several independent nodes of a NEAT network at once (each node's sum
-  kept in its own order, so still exact); reproduction faster still would need genes held
-  as arrays, which would no longer make neat-python's random draws.
+  `NeatGenome` answers those checks from the fitter parent's graph (worked out once per
+  parent) and writes out the connection genes' copy / crossover / mutation / distance with
+  the library's operations and random draws in its order; `tests/test_baselines.py` checks
+  that the children equal neat-python's own (its own genome and gene classes, both
+  profiles' configurations). The network's nodes are summed four at a time
+  (`baselines/network.py`, `lane_layout`: independent nodes side by side, each node's sum
+  in its own order, so every value is bit for bit the sequential one's): 1.3 to 1.4 x
+  faster decisions on generation-5 NEAT networks (75 nodes, 1,600 connections: 716 against
+  976, 326 against 461, 569 against 802 ns per robot-step, same programs, same run).
+  What is left of a NEAT generation: its evaluation is decisions (about 90 % of the kernel
+  on those networks: robots keep meeting new sensor vectors, and each decision-cache miss
+  sums 1,600 connections), and neat-python's reproduction (about 0.4 s at P 100: a Python
+  object per gene, copied and mutated one by one), which runs in the main process while the
+  workers wait. The target (a NEAT generation at most 1.5 x an ANT generation) is not met:
+  early ANT generations are cheap because most random tissues come to rest (fixed points),
+  while NEAT's robots keep moving. Closing it would take genes held as arrays (no longer
+  neat-python's draws) and smaller networks than the paper's 40 to 120 neurons.
 
 Reproduce: `make bench` (a few minutes; it pauses nothing else, so run it on an idle
 machine: on a loaded one the rates below are lower bounds).

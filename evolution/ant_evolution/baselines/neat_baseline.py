@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import random
 import warnings
+import weakref
 from pathlib import Path
 
 import neat
@@ -67,6 +68,7 @@ num_inputs              = {inputs}
 num_outputs             = {outputs}
 num_hidden              = {hidden}
 feed_forward            = True
+single_structural_mutation = false
 initial_connection      = full_nodirect
 activation_default      = sigmoid
 activation_mutate_rate  = 0.0
@@ -162,25 +164,39 @@ class NeatConnectionGene(DefaultConnectionGene):
 
     def mutate(self, config):
         """``FloatAttribute.mutate_value`` of the weight, then ``BoolAttribute``'s of enabled."""
-        weight_attr, _ = self._gene_attributes
-        mutate_rate = config.weight_mutate_rate
-        r = random.random()
+        mutate_connections((self,), config)
+
+
+def mutate_connections(genes, config) -> None:
+    """:meth:`NeatConnectionGene.mutate` of every gene in turn, as one loop.
+
+    The library's draws in its order (``neat/attributes.py``: ``FloatAttribute.mutate_value``
+    of the weight, then ``BoolAttribute.mutate_value`` of ``enabled``), with the
+    configuration's values read once instead of once per gene.
+    """
+    rnd = random.random
+    gauss = random.gauss
+    weight_attr = NeatConnectionGene._gene_attributes[0]
+    mutate_rate = config.weight_mutate_rate
+    replace_below = config.weight_replace_rate + mutate_rate
+    power = config.weight_mutate_power
+    high, low = config.weight_max_value, config.weight_min_value
+    rate_enabled = config.enabled_mutate_rate + config.enabled_rate_to_false_add
+    rate_disabled = config.enabled_mutate_rate + config.enabled_rate_to_true_add
+    for gene in genes:
+        r = rnd()
         if r < mutate_rate:
-            w = self.weight + random.gauss(0.0, config.weight_mutate_power)
-            self.weight = max(min(w, config.weight_max_value), config.weight_min_value)
-        elif r < config.weight_replace_rate + mutate_rate:
-            self.weight = weight_attr.init_value(config)
-        rate = config.enabled_mutate_rate
-        if self.enabled:
-            rate += config.enabled_rate_to_false_add
-        else:
-            rate += config.enabled_rate_to_true_add
-        if rate > 0 and random.random() < rate:
-            self.enabled = random.random() < 0.5
+            w = gene.weight + gauss(0.0, power)
+            gene.weight = max(min(w, high), low)
+        elif r < replace_below:
+            gene.weight = weight_attr.init_value(config)
+        rate = rate_enabled if gene.enabled else rate_disabled
+        if rate > 0 and rnd() < rate:
+            gene.enabled = rnd() < 0.5
 
 
 class NeatGenome(neat.DefaultGenome):
-    """neat-python's ``DefaultGenome`` with a linear-time cycle check in crossover.
+    """neat-python's ``DefaultGenome``, faster, with the library's children and draws.
 
     :meth:`configure_crossover` is the library's (neat-python 2.0.0,
     ``neat/genome.py``, BSD-3-Clause) line for line, except for its check, per inherited
@@ -189,8 +205,11 @@ class NeatGenome(neat.DefaultGenome):
     connection is one of the fitter parent's, so when that parent's connections form no
     cycle (one topological sort) no check can fail and none is made; otherwise each check
     walks the child's successor lists kept as genes are added. Either way every check has
-    the library's answer, so the child and the random draws are the same. Connection
-    genes are :class:`NeatConnectionGene`.
+    the library's answer, so the child and the random draws are the same (whether a
+    parent's connections form a cycle is worked out once per parent). The connection
+    genes' copy, crossover and mutation are written out in :meth:`configure_crossover` and
+    :func:`mutate_connections`, and their distance in :meth:`distance`, all with the
+    library's operations in its order. Connection genes are :class:`NeatConnectionGene`.
     """
 
     @classmethod
@@ -199,6 +218,74 @@ class NeatGenome(neat.DefaultGenome):
         config = super().parse_config(param_dict)
         config.connection_gene_type = NeatConnectionGene
         return config
+
+    def mutate(self, config):
+        """The library's ``DefaultGenome.mutate`` with its connection loop as one call.
+
+        The same structural mutations, then :func:`mutate_connections` over the connection
+        genes, then each node gene's own ``mutate``: the library's draws in its order.
+        """
+        if config.single_structural_mutation:  # not in this project's configurations
+            super().mutate(config)
+            return
+        if random.random() < config.node_add_prob:
+            self.mutate_add_node(config)
+        if random.random() < config.node_delete_prob:
+            self.mutate_delete_node(config)
+        if random.random() < config.conn_add_prob:
+            self.mutate_add_connection(config)
+        if random.random() < config.conn_delete_prob:
+            self.mutate_delete_connection()
+        mutate_connections(self.connections.values(), config)
+        for ng in self.nodes.values():
+            ng.mutate(config)
+
+    def distance(self, other, config):
+        """The library's ``DefaultGenome.distance`` with the connection part written out.
+
+        ``DefaultConnectionGene.distance`` of each homologous pair inline, summed in the
+        library's order: the same value.
+        """
+        node_distance = 0.0
+        if self.nodes or other.nodes:
+            disjoint_nodes = 0
+            for k2 in other.nodes:
+                if k2 not in self.nodes:
+                    disjoint_nodes += 1
+            for k1, n1 in self.nodes.items():
+                n2 = other.nodes.get(k1)
+                if n2 is None:
+                    disjoint_nodes += 1
+                else:
+                    node_distance += n1.distance(n2, config)
+            max_nodes = max(len(self.nodes), len(other.nodes))
+            node_distance = (
+                node_distance + (config.compatibility_disjoint_coefficient * disjoint_nodes)
+            ) / max_nodes
+        connection_distance = 0.0
+        mine, theirs = self.connections, other.connections
+        if mine or theirs:
+            disjoint_connections = 0
+            for k2 in theirs:
+                if k2 not in mine:
+                    disjoint_connections += 1
+            coefficient = config.compatibility_weight_coefficient
+            get = theirs.get
+            for k1, c1 in mine.items():
+                c2 = get(k1)
+                if c2 is None:
+                    disjoint_connections += 1
+                else:
+                    d = abs(c1.weight - c2.weight)
+                    if c1.enabled != c2.enabled:
+                        d += 1.0
+                    connection_distance += d * coefficient
+            max_conn = max(len(mine), len(theirs))
+            connection_distance = (
+                connection_distance
+                + (config.compatibility_disjoint_coefficient * disjoint_connections)
+            ) / max_conn
+        return node_distance + connection_distance
 
     def configure_crossover(self, genome1, genome2, config):
         """Configure a new genome by crossover from two parent genomes (NEAT, p. 108)."""
@@ -211,37 +298,62 @@ class NeatGenome(neat.DefaultGenome):
         all_innovations = set(parent1_innovations.keys()) | set(parent2_innovations.keys())
         # Every gene added below has a key of parent1's. When the child starts empty and
         # parent1's connections form no cycle, no subset of them does: no check can fail.
-        check = config.feed_forward and (bool(self.connections) or _has_cycle(parent1))
+        check = config.feed_forward and (bool(self.connections) or _has_cycle_cached(parent1))
         successors: dict[int, list[int]] = {}
         if check:
             for a, b in self.connections:
                 successors.setdefault(a, []).append(b)
+        new = object.__new__
+        gene_type = NeatConnectionGene
+        rnd = random.random
+        connections = self.connections
         for innovation_num in all_innovations:
             cg1 = parent1_innovations.get(innovation_num)
             if cg1 is None:
                 continue  # genes only in the less fit parent are not inherited
             cg2 = parent2_innovations.get(innovation_num)
-            if cg2 is None:
-                gene = cg1.copy()
-            elif cg1.key != cg2.key:
+            # NeatConnectionGene.copy / .crossover, written out (the same draws)
+            gene = new(gene_type)
+            gene.key = cg1.key
+            gene.innovation = cg1.innovation
+            if cg2 is not None and cg1.key != cg2.key:
                 warnings.warn(
                     f"Innovation number collision: innovation {innovation_num} assigned to "
                     f"both {cg1.key} and {cg2.key}. Treating as disjoint genes.",
                     RuntimeWarning,
                     stacklevel=2,
                 )
-                gene = cg1.copy()
+                cg2 = None
+            if cg2 is None:
+                gene.weight = cg1.weight
+                gene.enabled = cg1.enabled
             else:
-                gene = cg1.crossover(cg2)
+                gene.weight = cg1.weight if rnd() > 0.5 else cg2.weight
+                gene.enabled = cg1.enabled if rnd() > 0.5 else cg2.enabled
+                if (not cg1.enabled or not cg2.enabled) and rnd() < 0.75:
+                    gene.enabled = False
             if check:
                 if _closes_cycle(successors, gene.key):
                     continue
                 successors.setdefault(gene.key[0], []).append(gene.key[1])
-            self.connections[gene.key] = gene
+            connections[gene.key] = gene
         for key, ng1 in parent1.nodes.items():
             ng2 = parent2.nodes.get(key)
             assert key not in self.nodes
             self.nodes[key] = ng1.copy() if ng2 is None else ng1.crossover(ng2)
+
+
+_CYCLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""``_has_cycle`` of each parent genome (a parent has many children; its genes do not change
+once it is a parent)."""
+
+
+def _has_cycle_cached(genome) -> bool:
+    """:func:`_has_cycle`, once per genome object."""
+    found = _CYCLES.get(genome)
+    if found is None:
+        found = _CYCLES[genome] = _has_cycle(genome)
+    return found
 
 
 def _has_cycle(genome) -> bool:

@@ -52,6 +52,14 @@ class NetworkRecord(NamedTuple):
     edge_src: np.ndarray
     edge_w: np.ndarray
     out_node: np.ndarray
+    group_start: np.ndarray
+    row_start: np.ndarray
+    row_src: np.ndarray
+    row_w: np.ndarray
+
+
+LANES = 4
+"""Nodes a decision sums side by side (:func:`lane_layout`)."""
 
 
 @dataclass(frozen=True)
@@ -106,6 +114,9 @@ class NetworkProgram:
 
     def record(self) -> NetworkRecord:
         """The arrays as a :class:`NetworkRecord`, the form the kernels take."""
+        group_start, row_start, row_src, row_w = lane_layout(
+            self.edge_start, self.edge_src, self.edge_w
+        )
         return NetworkRecord(
             node_act=self.node_act,
             node_agg=self.node_agg,
@@ -116,7 +127,58 @@ class NetworkProgram:
             edge_src=self.edge_src,
             edge_w=self.edge_w,
             out_node=self.out_node,
+            group_start=group_start,
+            row_start=row_start,
+            row_src=row_src,
+            row_w=row_w,
         )
+
+
+def lane_layout(edge_start, edge_src, edge_w):
+    """The edges laid out for :data:`LANES` nodes summed side by side.
+
+    Nodes, in evaluation order, are cut into groups of at most ``LANES`` consecutive nodes
+    none of which reads another of its group (so their sums are independent: the CPU
+    overlaps them instead of waiting on one sum at a time). Group g holds nodes
+    ``group_start[g]:group_start[g + 1]`` and rows ``row_start[g]:row_start[g + 1]`` of
+    ``row_src`` / ``row_w`` (``[rows, LANES]``); row r, lane l is the r-th input of the
+    group's l-th node. A lane shorter than its group's longest (or a lane with no node)
+    is padded with weight 0 reading the scratch's last value, which stays 0: each node's
+    sum adds its inputs in its own order, then only exact zeros, so every value and mask is
+    the sequential one's.
+
+    Returns:
+        ``(group_start, row_start, row_src, row_w)``.
+    """
+    n = edge_start.shape[0] - 1
+    pad = N_SENSORS + n  # the scratch's last slot: always 0.0
+    counts = np.diff(edge_start)
+    reads = np.full(n, -1, dtype=np.int64)  # the latest value each node reads
+    has = counts > 0
+    if has.any():
+        reads[has] = np.maximum.reduceat(edge_src, edge_start[:-1][has])
+    starts = [0]
+    j = 0
+    while j < n:
+        first, j = j, j + 1
+        while j < n and j - first < LANES and reads[j] < N_SENSORS + first:
+            j += 1
+        starts.append(j)
+    group_start = np.array(starts, dtype=np.int64)
+    rows = np.array(
+        [counts[a:b].max(initial=0) for a, b in zip(starts, starts[1:], strict=False)],
+        dtype=np.int64,
+    )
+    row_start = np.concatenate(([0], np.cumsum(rows))).astype(np.int64)
+    row_src = np.full((int(row_start[-1]), LANES), pad, dtype=np.int64)
+    row_w = np.zeros((int(row_start[-1]), LANES))
+    for g in range(len(starts) - 1):
+        for lane, node in enumerate(range(starts[g], starts[g + 1])):
+            a, b = edge_start[node], edge_start[node + 1]
+            r = row_start[g]
+            row_src[r : r + b - a, lane] = edge_src[a:b]
+            row_w[r : r + b - a, lane] = edge_w[a:b]
+    return group_start, row_start, row_src, row_w
 
 
 @nb.njit(cache=True, inline="always")
@@ -130,32 +192,57 @@ def _node_activation(act, theta1, theta2, z):
 
 
 @nb.njit(cache=True, inline="always")
+def _finish_node(program, values, n_s, j, num, den):
+    """Node j's value from its weighted sum and its sum of inputs."""
+    if program.node_agg[j] == AGG_MEAN:
+        z = num / den if den != 0.0 else 0.0
+    else:
+        z = program.node_bias[j] + program.node_resp[j] * num
+    theta = program.node_theta
+    values[n_s + j] = _node_activation(program.node_act[j], theta[j, 0], theta[j, 1], z)
+
+
+@nb.njit(cache=True, inline="always")
 def program_decide_into(codes, program, values):
-    """Behaviour mask of one sensor vector; ``values`` (length 14 + N) is scratch."""
-    node_act = program.node_act
-    node_agg = program.node_agg
-    node_bias = program.node_bias
-    node_resp = program.node_resp
-    node_theta = program.node_theta
-    edge_start = program.edge_start
-    edge_src = program.edge_src
-    edge_w = program.edge_w
+    """Behaviour mask of one sensor vector; ``values`` (length 14 + N + 1) is scratch.
+
+    The nodes are summed four at a time along :func:`lane_layout`'s rows; each node's
+    sum is the sequential one's (its inputs in order, then exact zeros).
+    """
+    group_start = program.group_start
+    row_start = program.row_start
+    row_src = program.row_src
+    row_w = program.row_w
     out_node = program.out_node
     n_s = codes.shape[0]
     for i in range(n_s):
         values[i] = codes[i] * SENSOR_SCALE[i]
-    for j in range(node_act.shape[0]):
-        num = 0.0
-        den = 0.0
-        for e in range(edge_start[j], edge_start[j + 1]):
-            v = values[edge_src[e]]
-            num += edge_w[e] * v
-            den += v
-        if node_agg[j] == AGG_MEAN:
-            z = num / den if den != 0.0 else 0.0
-        else:
-            z = node_bias[j] + node_resp[j] * num
-        values[n_s + j] = _node_activation(node_act[j], node_theta[j, 0], node_theta[j, 1], z)
+    values[values.shape[0] - 1] = 0.0  # the padding's input
+    for g in range(group_start.shape[0] - 1):
+        n0 = n1 = n2 = n3 = 0.0
+        d0 = d1 = d2 = d3 = 0.0
+        for r in range(row_start[g], row_start[g + 1]):
+            v0 = values[row_src[r, 0]]
+            v1 = values[row_src[r, 1]]
+            v2 = values[row_src[r, 2]]
+            v3 = values[row_src[r, 3]]
+            n0 += row_w[r, 0] * v0
+            n1 += row_w[r, 1] * v1
+            n2 += row_w[r, 2] * v2
+            n3 += row_w[r, 3] * v3
+            d0 += v0
+            d1 += v1
+            d2 += v2
+            d3 += v3
+        j = group_start[g]
+        m = group_start[g + 1] - j
+        _finish_node(program, values, n_s, j, n0, d0)
+        if m > 1:
+            _finish_node(program, values, n_s, j + 1, n1, d1)
+        if m > 2:
+            _finish_node(program, values, n_s, j + 2, n2, d2)
+        if m > 3:
+            _finish_node(program, values, n_s, j + 3, n3, d3)
     mask = 0
     for q in range(out_node.shape[0]):
         o = out_node[q]
@@ -167,7 +254,7 @@ def program_decide_into(codes, program, values):
 @nb.njit(cache=True)
 def program_scratch(program):
     """Scratch of :func:`program_decide_into` for one :class:`NetworkRecord`."""
-    return np.zeros(N_SENSORS + program.node_act.shape[0])
+    return np.zeros(N_SENSORS + program.node_act.shape[0] + 1)
 
 
 @nb.njit(cache=True)
