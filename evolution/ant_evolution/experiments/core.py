@@ -252,7 +252,7 @@ def train(ctx: Context, method: str, robots, run: int, bar: tqdm | None = None) 
     config = train_config(ctx, method, robots, run)
     d = run_dir(ctx, method, robots, run)
     hist = d / "history.csv"
-    if hist.exists() and _history_length(hist) >= config.generations:
+    if _trained(ctx, method, robots, run):
         return read_history(hist)
     resume = (d / "checkpoint.json").exists() or (d / "neat-checkpoint.gz").exists()
 
@@ -281,13 +281,22 @@ def train_all(ctx: Context, jobs: Sequence[tuple[str, object]], desc: str) -> di
     """Every run of every ``(method, robots)`` job: ``{(method, robots): [history, ...]}``."""
     todo = [(m, r, k) for m, r in jobs for k in range(ctx.runs)]
     out: dict = {}
-    # An explicit count: tqdm's iterator writes its count back only when it redraws, so the
-    # runs finished before (read back at once) showed as 0 done while later ones trained.
-    with tqdm(total=len(todo), desc=desc, unit="run") as bar:
-        for m, r, k in todo:
-            out.setdefault((m, r), []).append(train(ctx, m, r, k, bar))
-            bar.update(1)
+    # Runs finished before count from the start (tqdm's rate and ETA leave them out); the
+    # count is kept by hand: tqdm's iterator writes it back only when it redraws.
+    done = {job for job in todo if _trained(ctx, *job)}
+    with tqdm(total=len(todo), initial=len(done), desc=desc, unit="run") as bar:
+        for job in todo:
+            out.setdefault(job[:2], []).append(train(ctx, *job, bar))
+            if job not in done:
+                bar.update(1)
     return out
+
+
+def _trained(ctx: Context, method: str, robots, run: int) -> bool:
+    """Whether that run's history already holds all its generations (read back, not run)."""
+    hist = run_dir(ctx, method, robots, run) / "history.csv"
+    generations = train_config(ctx, method, robots, run).generations
+    return hist.exists() and _history_length(hist) >= generations
 
 
 def read_history(path: Path) -> list[dict]:
