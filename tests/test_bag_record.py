@@ -92,6 +92,36 @@ def test_process_trial_waits_for_a_late_recorder(tmp_path):
     assert ticks == list(range(steps + 1))
 
 
+def test_continuous_process_trial_waits_for_a_late_recorder(tmp_path):
+    """The continuous trial's tick 0 waits for the recorder too (the team tick's
+    ``wait_for_recorder``): the bag has every tick although the recorder starts last."""
+    from excavation_bringup.continuous_processes import FINAL, continuous_commands
+
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    steps, bag_dir = 4, tmp_path / "bag"
+    spec = TrialSpec(
+        "hand-coded", 2, steps, 1, "default:1", 0, next_domain(), 30.0, 300.0, True,
+        str(bag_dir), "truth",
+    )  # fmt: skip
+    work = tmp_path / "nodes"
+    commands = continuous_commands(spec, work, exact=True)
+    assert "wait_for_recorder:=true" in commands[FINAL]
+    with TrialProcesses(spec, work, commands=commands, final=FINAL) as trial:
+        for name in trial.commands:
+            if name != "recorder":
+                trial.start(name)
+        time.sleep(5.0)  # the team is up long before the recorder
+        assert not trial.result_file.exists()
+        trial.start("recorder")
+        result = trial.wait(300.0)
+    assert len(result["tick_wall"]) == steps
+    bag = open_bag(bag_dir)
+    ticks = [
+        int(bag.decode("/team/tick", raw).frame_id) for _, _, raw in bag.messages(["/team/tick"])
+    ]
+    assert ticks == list(range(steps))
+
+
 @pytest.mark.parametrize("stop", ["SIGKILL", "SIGINT", "SIGTERM"])
 def test_recorder_stopped_mid_recording(ros, tmp_path, stop):
     from rosbags.rosbag2 import Reader

@@ -30,8 +30,10 @@ from excavation_common.safety import ESTOPPED, HELD
 GENOME = "genomes/best.json"
 ROBOTS = 4
 SEED = 3
-STOP_LIMIT = 0.1
-"""Sim seconds from an e-stop or pause to zero ``cmd_vel`` from every executor."""
+STOP_LIMIT = 0.1 + 1e-9
+"""Sim seconds from an e-stop or pause to zero ``cmd_vel`` from every executor: 100 ms, two
+steps (stamps are float seconds here: a stop two steps after a pause at 39.25 s measured
+39.35 - 39.25 = 0.10000000000000142 and failed a bare 0.1)."""
 DEADMAN = 0.5
 STEP = 0.05
 """The simulator's step: an executor answers each pose, so a stop shows one step later."""

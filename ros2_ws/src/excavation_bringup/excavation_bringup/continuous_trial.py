@@ -128,6 +128,7 @@ def tick_parameters(spec: TrialSpec) -> dict:
         "blueprint": spec.blueprint,
         "word_timeout": float(spec.command_timeout),
         "wait_for_ready": True,  # tick 0 waits for every controller's inputs to be connected
+        "wait_for_recorder": bool(spec.record),  # and for the recorder, so the bag has tick 0
     }
 
 

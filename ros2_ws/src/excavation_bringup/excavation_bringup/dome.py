@@ -155,8 +155,12 @@ def executors(site: sitefile.Site, sim: bool) -> list[NodeSpec]:
     ]
 
 
-def team_tick(site: sitefile.Site, run_dir: Path, ticks: int, sim: bool = True) -> NodeSpec:
+def team_tick(
+    site: sitefile.Site, run_dir: Path, ticks: int, sim: bool = True, record: bool = False
+) -> NodeSpec:
     """The team tick: last, and its exit after ``ticks`` ticks ends the run (0: never).
+
+    With ``record`` its tick 0 waits for the recorder (the bag then holds every tick).
 
     Not restartable: a new one would start the ticks over.
     """
@@ -164,7 +168,7 @@ def team_tick(site: sitefile.Site, run_dir: Path, ticks: int, sim: bool = True) 
         "team_tick",
         "excavation_bringup.team_tick_node",
         {
-            **sitefile.team_tick_params(site, ticks, str(run_dir / RESULT_FILE), sim),
+            **sitefile.team_tick_params(site, ticks, str(run_dir / RESULT_FILE), sim, record),
             **(sitefile.SIM_CLOCK if sim else {}),
         },
         ("/team_tick",),
@@ -291,7 +295,8 @@ def node_table(
                 remaps=tuple(sitefile.controller_remaps(site, k, sim)),
             )
         )
-    table.append(team_tick(site, run_dir, (ticks or site.sim.ticks) if sim else (ticks or 0), sim))
+    ticks = (ticks or site.sim.ticks) if sim else (ticks or 0)
+    table.append(team_tick(site, run_dir, ticks, sim, record=bool(record)))
     if view:
         table.append(
             NodeSpec(

@@ -844,8 +844,13 @@ DOME_BLADE_OUT = "blade/tick_state"
 the serial driver's own joint state is stamped on the wall clock, never with a tick)."""
 
 
-def team_tick_params(site: Site, ticks: int, result_file: str, sim: bool = True) -> dict[str, Any]:
+def team_tick_params(
+    site: Site, ticks: int, result_file: str, sim: bool = True, record: bool = False
+) -> dict[str, Any]:
     """``excavation_bringup team_tick``: ``ticks`` ticks (0: until stopped), then ``result_file``.
+
+    With ``record`` (``--record``) tick 0 also waits for the bag recorder to subscribe the
+    team tick's topics (``wait_for_recorder``), so that the bag holds every tick.
 
     With ``--sim`` it reads the simulator's blades (``blade/plant_state``) and waits sim
     seconds for them; in the dome it reads each blade driver's ``blade/joint_states``, the
@@ -854,7 +859,11 @@ def team_tick_params(site: Site, ticks: int, result_file: str, sim: bool = True)
     from excavation_bringup.continuous_processes import SIM_BLADE_WAIT, SIM_SNAPSHOT_RETRY
     from excavation_bringup.continuous_trial import tick_parameters
 
-    params = {**tick_parameters(_sim_spec(site, ticks)), "result_file": str(result_file)}
+    params = {
+        **tick_parameters(_sim_spec(site, ticks)),
+        "result_file": str(result_file),
+        "wait_for_recorder": bool(record),
+    }
     if not sim:
         return {**params, "blade_in": DOME_BLADE_IN, "blade_out": DOME_BLADE_OUT}
     return {

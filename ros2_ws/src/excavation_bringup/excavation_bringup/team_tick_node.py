@@ -9,7 +9,9 @@ team is armed (a heartbeat saying ``armed`` younger than the 0.5 s deadman, no e
 robot disabled or lost is absent (:class:`~excavation_bringup.team_tick.TeamTick`).
 
 With ``wait_for_ready`` (set by every trial and dome table) tick 0 also waits for every
-controller's latched ``/robot_k/ready`` (std_msgs/Bool: its inputs are connected).
+controller's latched ``/robot_k/ready`` (std_msgs/Bool: its inputs are connected); with
+``wait_for_recorder`` (set by recording trials and ``ant-dome up --record``) also until the
+bag recorder subscribes every topic this node sends.
 
 Publishes for each tick t, stamped ``t * tick_period``: ``{output_prefix}/robot_k/pose``,
 ``{output_prefix}/robot_k/stuck`` (U1: the executor aborted), ``{output_prefix}/worksite/
@@ -65,8 +67,17 @@ class TeamTickNodeParams:
     wait_for_ready: bool = param(
         False, "tick 0 also waits for every controller's latched /robot_k/ready"
     )
+    wait_for_recorder: bool = param(
+        False, "tick 0 also waits until the bag recorder subscribes every topic this node sends"
+    )
     diagnostics_period: float = param(1.0, "wall s between diagnostics", low=0.05)
     result_file: str = param("", "JSON written when the last tick ends: TeamTick.summary")
+
+
+RECORDER = "bag_recorder"
+"""The bag recorder's node name (``excavation_bags``' recorder node)."""
+UNRECORDED = {"/rosout", "/parameter_events", "/diagnostics"}
+"""Topics of this node that ``wait_for_recorder`` does not wait for."""
 
 
 def _seconds(stamp) -> float:
@@ -206,6 +217,8 @@ class TeamTickNode(Node):
         """
         if self.topics.wait_for_ready and len(self.ready) < self.n:
             return False
+        if self.topics.wait_for_recorder and not self.recorder_subscribed():
+            return False
         return all(s.get_publisher_count() > 0 for s in self.inputs) and all(
             self.pose_pubs[k].get_subscription_count() > 0
             and self.stuck_pubs[k].get_subscription_count() > 0
@@ -213,6 +226,18 @@ class TeamTickNode(Node):
             and self.blade_pubs[k].get_subscription_count() > 0
             and self.count_publishers(f"/robot_{k}/behaviour") > 0
             for k in range(self.n)
+        )
+
+    def recorder_subscribed(self) -> bool:
+        """The bag recorder (node ``bag_recorder``) subscribes every topic this node sends.
+
+        It subscribes a topic only once it has seen it appear, so a tick sent before would
+        be missing from the bag (seen: a recorded process trial's bag lacked tick 0).
+        """
+        topics = {p.topic_name for p in self.publishers} - UNRECORDED
+        return all(
+            any(i.node_name == RECORDER for i in self.get_subscriptions_info_by_topic(t))
+            for t in topics
         )
 
     def poll(self) -> None:
