@@ -512,7 +512,7 @@ def test_drive_executor_killed_and_restarted(tmp_path):
     """Robot 1's executor process is SIGKILLed: its wheels stop by the base's own deadman
     (``dynamics``' ``cmd_vel_timeout``), the tick goes on without it after ``motion_limit``;
     the restarted executor takes the next ticks' goals."""
-    steps = 12
+    steps = 9
     with continuous_fault_trial(tmp_path, 2, steps) as trial:
         killed = trial.wait_tick(3)
         assert trial.kill("executor_1") == -9
@@ -541,7 +541,7 @@ def test_team_tick_killed_and_restarted(tmp_path):
     """The team tick's process is SIGKILLed: no snapshot, no goals, every executor finishes
     its primitive and stands; the restarted team tick begins again at tick 0 on the site as
     it is (a new trial of its own, which runs to its end)."""
-    steps, robots = 8, 2
+    steps, robots = 6, 2
     with continuous_fault_trial(tmp_path, robots, steps) as trial:
         killed = trial.wait_tick(3)
         assert trial.kill("team_tick") == -9
