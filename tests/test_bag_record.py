@@ -70,6 +70,17 @@ def _metadata_count(bag_dir) -> int:
         return 0
 
 
+def _run_with_a_late_recorder(trial: TrialProcesses) -> dict:
+    """Start every node but the recorder, the recorder 5 s later; the trial's result."""
+    for name in trial.commands:
+        if name != "recorder":
+            trial.start(name)
+    time.sleep(5.0)  # the team is up long before the recorder
+    assert not trial.result_file.exists()
+    trial.start("recorder")
+    return trial.wait(300.0)
+
+
 def test_process_trial_waits_for_a_late_recorder(tmp_path):
     """Tick 0 waits for the recorder process, even one that starts after every other node."""
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -79,13 +90,7 @@ def test_process_trial_waits_for_a_late_recorder(tmp_path):
         str(bag_dir), "truth",
     )  # fmt: skip
     with TrialProcesses(spec, tmp_path / "nodes") as trial:
-        for name in trial.commands:
-            if name != "recorder":
-                trial.start(name)
-        time.sleep(5.0)  # the team is up long before the recorder
-        assert not trial.result_file.exists()
-        trial.start("recorder")
-        result = trial.wait(300.0)
+        result = _run_with_a_late_recorder(trial)
     assert result["missed"] == {"0": 0, "1": 0}
     bag = open_bag(bag_dir)
     ticks = [bag.decode("/clock", raw).clock.sec for _, _, raw in bag.messages(["/clock"])]
@@ -107,13 +112,7 @@ def test_continuous_process_trial_waits_for_a_late_recorder(tmp_path):
     commands = continuous_commands(spec, work, exact=True)
     assert "wait_for_recorder:=true" in commands[FINAL]
     with TrialProcesses(spec, work, commands=commands, final=FINAL) as trial:
-        for name in trial.commands:
-            if name != "recorder":
-                trial.start(name)
-        time.sleep(5.0)  # the team is up long before the recorder
-        assert not trial.result_file.exists()
-        trial.start("recorder")
-        result = trial.wait(300.0)
+        result = _run_with_a_late_recorder(trial)
     assert len(result["tick_wall"]) == steps
     bag = open_bag(bag_dir)
     ticks = [

@@ -48,17 +48,21 @@ def _fixed_program(seed: int):
     return top, compile_fixed(top, random_network(rng, top))
 
 
-def _neat_programs(tmp_path, count: int):
+def _neat_programs(tmp_path, count: int, hidden: int = 30, seed: int = 7, deep: bool = False):
+    """NEAT programs mutated 5 times; ``deep``: 12 times, each after adding a node on a
+    connection (hidden nodes that read hidden nodes)."""
     import neat
 
     from ant_evolution.baselines.neat_baseline import compile_neat, neat_config
 
-    cfg = neat_config(tmp_path / "neat.ini", count, hidden=30)
-    pop = neat.Population(cfg, seed=7)
+    cfg = neat_config(tmp_path / f"neat-{seed}.ini", count, hidden=hidden)
+    pop = neat.Population(cfg, seed=seed)
     genomes = list(pop.population.values())[:count]
     # mutate a few times so that topologies differ from the initial full layer
     for g in genomes:
-        for _ in range(5):
+        for _ in range(12 if deep else 5):
+            if deep:
+                g.mutate_add_node(cfg.genome_config)
             g.mutate(cfg.genome_config)
     return cfg, genomes, [compile_neat(g, cfg) for g in genomes]
 
@@ -129,19 +133,8 @@ def test_neat_compiled_equals_neat_python_and_reference(tmp_path):
 
 
 def _deep_neat_programs(tmp_path, count: int):
-    """NEAT programs with hidden nodes that read hidden nodes (nodes added on connections)."""
-    import neat
-
-    from ant_evolution.baselines.neat_baseline import compile_neat, neat_config
-
-    cfg = neat_config(tmp_path / "deep.ini", count, hidden=8)
-    pop = neat.Population(cfg, seed=11)
-    genomes = list(pop.population.values())[:count]
-    for g in genomes:
-        for _ in range(12):
-            g.mutate_add_node(cfg.genome_config)
-            g.mutate(cfg.genome_config)
-    return [compile_neat(g, cfg) for g in genomes]
+    """:func:`_neat_programs` with hidden nodes that read hidden nodes."""
+    return _neat_programs(tmp_path, count, hidden=8, seed=11, deep=True)[2]
 
 
 def test_lane_layout_keeps_every_nodes_inputs_in_order_and_groups_independent(tmp_path):
