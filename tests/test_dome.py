@@ -148,7 +148,7 @@ def test_dome_up_sim_runs_40_ticks_with_the_fitness_of_ant_trial(tmp_path):
 
 
 def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
-    proc = dome(tmp_path, ticks=20)
+    proc = dome(tmp_path, ticks=12)
     try:
         assert wait_for(lambda: "all 13 nodes are up" in events(tmp_path), 600)
         assert wait_for(lambda: snapshots(tmp_path) >= 3, 600)  # a few ticks
@@ -160,7 +160,7 @@ def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
             proc.kill()
     assert proc.returncode == 0, err + events(tmp_path)
     summary = json.loads(out.strip().splitlines()[-1])
-    assert summary["ticks"] == 20 and summary["restarts"] == {"controller_1": 1}
+    assert summary["ticks"] == 12 and summary["restarts"] == {"controller_1": 1}
     log = events(tmp_path)
     assert "controller_1 exited with code -9" in log
     assert "restarting controller_1 in 1.0 s (restart 1)" in log

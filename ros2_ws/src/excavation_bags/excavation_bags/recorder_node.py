@@ -47,7 +47,7 @@ from excavation_bags.metadata import qos_from_profile
 from excavation_bags.topics import SUITE_TOPICS, known_type, topic_selected
 from excavation_bags.writer import BagWriter
 from excavation_common.params import ParameterError, param
-from excavation_common.ros import declare_params, diagnostics
+from excavation_common.ros import RECORDER_NODE, declare_params, diagnostics
 
 
 @dataclass(frozen=True)
@@ -119,7 +119,7 @@ class RecorderNode(Node):
     """
 
     def __init__(self, custom_data: dict[str, str] | None = None, **kwargs) -> None:
-        super().__init__(kwargs.pop("node_name", "bag_recorder"), **kwargs)
+        super().__init__(kwargs.pop("node_name", RECORDER_NODE), **kwargs)
         self.params = declare_params(self, RecorderParams, on_change=self._on_params)
         if not self.params.out:
             raise ParameterError(

@@ -51,7 +51,13 @@ from excavation_common.constants import BladeGeometry
 from excavation_common.files import write_text_atomic
 from excavation_common.messages import MessageError, blade_from_joint, pose_to_grid
 from excavation_common.params import param
-from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
+from excavation_common.ros import (
+    LATCHED,
+    declare_params,
+    diagnostics,
+    recorder_subscribes,
+    spin_node,
+)
 from excavation_common.safety import ENABLED_TOPIC, ESTOP_TOPIC, HEARTBEAT_TOPIC, MotionGate
 from excavation_sim.world import scenario_start
 
@@ -72,12 +78,6 @@ class TeamTickNodeParams:
     )
     diagnostics_period: float = param(1.0, "wall s between diagnostics", low=0.05)
     result_file: str = param("", "JSON written when the last tick ends: TeamTick.summary")
-
-
-RECORDER = "bag_recorder"
-"""The bag recorder's node name (``excavation_bags``' recorder node)."""
-UNRECORDED = {"/rosout", "/parameter_events", "/diagnostics"}
-"""Topics of this node that ``wait_for_recorder`` does not wait for."""
 
 
 def _seconds(stamp) -> float:
@@ -217,7 +217,9 @@ class TeamTickNode(Node):
         """
         if self.topics.wait_for_ready and len(self.ready) < self.n:
             return False
-        if self.topics.wait_for_recorder and not self.recorder_subscribed():
+        if self.topics.wait_for_recorder and not recorder_subscribes(
+            self, [p.topic_name for p in self.publishers]
+        ):
             return False
         return all(s.get_publisher_count() > 0 for s in self.inputs) and all(
             self.pose_pubs[k].get_subscription_count() > 0
@@ -226,18 +228,6 @@ class TeamTickNode(Node):
             and self.blade_pubs[k].get_subscription_count() > 0
             and self.count_publishers(f"/robot_{k}/behaviour") > 0
             for k in range(self.n)
-        )
-
-    def recorder_subscribed(self) -> bool:
-        """The bag recorder (node ``bag_recorder``) subscribes every topic this node sends.
-
-        It subscribes a topic only once it has seen it appear, so a tick sent before would
-        be missing from the bag (seen: a recorded process trial's bag lacked tick 0).
-        """
-        topics = {p.topic_name for p in self.publishers} - UNRECORDED
-        return all(
-            any(i.node_name == RECORDER for i in self.get_subscriptions_info_by_topic(t))
-            for t in topics
         )
 
     def poll(self) -> None:

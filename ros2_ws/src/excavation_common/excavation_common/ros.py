@@ -3,7 +3,8 @@
 QoS profiles, :func:`spin_node` (init, build, spin, clean shutdown; a bad parameter or
 input file at start is one line on stderr and exit code 2), :func:`declare_params` (a
 frozen parameter dataclass declared with descriptors and kept valid at runtime) and
-:func:`diagnostics` (the one ``/diagnostics`` helper every node uses).
+:func:`diagnostics` (the one ``/diagnostics`` helper every node uses) and
+:func:`recorder_subscribes` (whether the bag recorder already hears a node's topics).
 """
 
 from __future__ import annotations
@@ -57,6 +58,12 @@ LATEST_FRAME = QoSProfile(
     depth=1, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST
 )
 """QoS of a subscriber that only ever wants the newest camera frame (queue depth 1)."""
+
+RECORDER_NODE = "bag_recorder"
+"""Node name of the bag recorder (``excavation_bags``' recorder node; its default)."""
+
+UNRECORDED = frozenset({"/rosout", "/parameter_events", "/diagnostics"})
+"""Topics :func:`recorder_subscribes` leaves out when given a node's own publishers."""
 
 _PARAM_TYPES = {
     bool: ParameterType.PARAMETER_BOOL,
@@ -225,6 +232,23 @@ def spin_node(
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def recorder_subscribes(node: Node, topics) -> bool:
+    """Whether the bag recorder (node :data:`RECORDER_NODE`) subscribes every one of ``topics``.
+
+    The recorder subscribes a topic only once it has seen it on the graph, so a message sent
+    before that is missing from the bag (seen: a recorded trial's bag lacked tick 0). A
+    node that must not send its first tick before the recorder hears it polls this.
+
+    Args:
+        node: Any node on the graph (it only asks the graph).
+        topics: Topic names; :data:`UNRECORDED` ones are skipped.
+    """
+    return all(
+        any(i.node_name == RECORDER_NODE for i in node.get_subscriptions_info_by_topic(t))
+        for t in set(topics) - UNRECORDED
+    )
 
 
 def diagnostics(

@@ -78,7 +78,13 @@ from blueprint_server.blueprint import resolve_blueprint
 from excavation_common.constants import MAX_LOAD, BladeGeometry
 from excavation_common.files import write_text_atomic
 from excavation_common.messages import blade_joint, grid_to_image, pose_message
-from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
+from excavation_common.ros import (
+    LATCHED,
+    declare_params,
+    diagnostics,
+    recorder_subscribes,
+    spin_node,
+)
 from excavation_common.safety import (
     ENABLED_TOPIC,
     ESTOP_TOPIC,
@@ -277,10 +283,7 @@ class SimNode(Node):
         """
         if self.params.wait_for_ready and len(self.ready) < self.n:
             return False
-        if self.params.wait_for_recorder and not any(
-            info.node_name == "bag_recorder"
-            for info in self.get_subscriptions_info_by_topic("/clock")
-        ):
+        if self.params.wait_for_recorder and not recorder_subscribes(self, ["/clock"]):
             return False
         readers = self.n if not self.truth_prefix else 1
         matched = all(s.get_publisher_count() > 0 for s in self.inputs) and all(
