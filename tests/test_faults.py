@@ -520,6 +520,7 @@ def test_drive_executor_killed_and_restarted(tmp_path):
         trial.restart("executor_1")
         result = trial.result()
         dynamics = trial.log("dynamics")
+        world = json.loads((tmp_path / "world.json").read_text())
         driving = [
             int(m.group(1))
             for m in (re.fullmatch(r"driving tick (\d+)", t) for t in trial.messages(executor(1)))
@@ -527,11 +528,15 @@ def test_drive_executor_killed_and_restarted(tmp_path):
         ]
     print(
         f"executor_1 SIGKILLed at tick {killed}, restarted at tick {restarted}: late "
-        f"{result['robots_late']}, missed {result['missed']}; robot 1 drove ticks {driving}"
+        f"{result['robots_late']}, missed {result['missed']}; robot 1 drove ticks {driving}; "
+        f"dynamics took {world['late_steps']} steps without every cmd_vel"
     )
     assert len(result["tick_wall"]) == steps  # the trial ran to its end
     assert result["robots_late"] >= 1  # the dead executor's tick went on without it
     assert re.search(r"robot 1: no cmd_vel for [0-9.]+ s: wheels stopped", dynamics)
+    # The simulator waited out one command_timeout for the dead executor, not one per step
+    # until its wheels stopped (cmd_vel_timeout / dt = 10 steps: 50 s of a stalled team).
+    assert world["late_steps"] <= 2
     assert any(t > restarted for t in driving)  # the restarted executor drove again
     words = np.array(result["commands"])
     assert words[restarted + 1 :, 1].any()  # robot 1's controller kept deciding

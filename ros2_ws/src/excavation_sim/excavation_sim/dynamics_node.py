@@ -6,7 +6,9 @@ clock of the trial: every step it integrates each robot's latest ``cmd_vel`` for
 seconds of sim time and publishes ``/clock`` and every robot's pose. It waits for one
 ``cmd_vel`` per robot stamped with the current step (the executors answer every pose) or
 ``command_timeout`` wall seconds, whichever comes first, so a trial runs as fast as the
-executors answer: faster than real time, and every node runs on ``use_sim_time``. While
+executors answer: faster than real time, and every node runs on ``use_sim_time``. A robot
+that missed that deadline is not waited for again until it sends a ``cmd_vel`` (a dead
+executor costs one ``command_timeout``, not one per step until its wheels stop). While
 every command is zero (the team waits for its controllers or a camera frame) the clock
 runs at most ``idle_time_factor`` times real time, so that waiting costs neither CPU nor
 a race of sim time; ``max_time_factor`` caps it while robots move (nodes in separate
@@ -151,6 +153,7 @@ class DynamicsNode(Node):
         self.pending: list[tuple[int, int] | None] = [None] * self.n
         self.command_ns: list[int | None] = [None] * self.n  # sim time of each last cmd_vel
         self.timed_out: set[int] = set()
+        self.lagging: set[int] = set()  # missed a step's command_timeout: not waited for
         self.done_tick: list[int] = [-1] * self.n
         self.snapshot_request: str | None = None
         self.snapshot_due: int | None = None
@@ -199,6 +202,7 @@ class DynamicsNode(Node):
         """Robot k's command; one stamped with the current step counts as its answer."""
         self.sim.command(k, float(msg.twist.linear.x), float(msg.twist.angular.z))
         self.command_ns[k] = self.now_ns
+        self.lagging.discard(k)
         if k in self.timed_out:
             self.timed_out.discard(k)
             self.get_logger().info(f"robot {k}: cmd_vel again")
@@ -270,6 +274,7 @@ class DynamicsNode(Node):
             self.advance()
         elif wall - self.wait_started > self.params.command_timeout:
             self.late += 1
+            self.lagging |= set(range(self.n)) - self.answered - self.timed_out
             self.advance()
 
     def due(self, wall: float) -> bool:
@@ -287,8 +292,12 @@ class DynamicsNode(Node):
         return wall - self.wait_started >= self.physics.dt / min(factors)
 
     def all_answered(self) -> bool:
-        """Every robot answered this step, except those stopped for silence (not waited for)."""
-        return len(self.answered | self.timed_out) >= self.n
+        """Every robot answered this step, except those not waited for.
+
+        Not waited for: robots stopped for silence, and lagging ones (silent past a step's
+        ``command_timeout`` and not heard since).
+        """
+        return len(self.answered | self.timed_out | self.lagging) >= self.n
 
     def stop_silent_robots(self) -> None:
         """Zero the wheels of a robot whose last cmd_vel is older than ``cmd_vel_timeout``.
