@@ -32,6 +32,7 @@ lint: setup
 	$(BIN)/lint-imports
 
 test: setup lint
+	$(BIN)/python -m ant_evolution.warmup  # compile once, before the workers
 ifeq ($(NETNS),)
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not pending and not serial" tests ros2_ws/src
 	$(BIN)/python -m pytest -q -m "serial and not pending" tests
@@ -47,6 +48,7 @@ test-pending: setup
 # two cores), the shipped evolved genome with terrain snapshots, and the same genome's
 # scenario 0 offline (ant-eval) and through the ROS nodes (ant-trial): the two agree.
 demo: setup
+	$(BIN)/python -m ant_evolution.warmup
 	$(BIN)/ant-eval --hand-coded --robots 4 --scenarios 100 --seed 0 --snapshots $(DEMO_OUT)/hand_coded
 	rm -rf $(DEMO_OUT)/evolve
 	$(BIN)/ant-evolve --out $(DEMO_OUT)/evolve --population 40 --generations 25 --scenarios 20 --seed 0
