@@ -28,3 +28,20 @@ def test_zero_workers_is_refused():
     )
     assert proc.returncode == 2 and "--workers: must be at least 1, got 0" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_scenario_arrays_have_one_type_however_the_set_arrived():
+    """A set made here and one unpickled (as a pool worker gets it) give the kernel the same
+    argument types, so the kernel the warm-up compiled is the one every worker loads."""
+    import pickle
+
+    import numba
+
+    from ant_evolution.evaluate import ScenarioSet
+    from blueprint_server.blueprint import default_blueprint
+
+    batch = ScenarioSet.create(default_blueprint(1), 2, 2, 10, 0)
+    here, there = batch.arrays(), pickle.loads(pickle.dumps(batch)).arrays()
+    assert numba.typeof(here) == numba.typeof(there)
+    assert all(not a.flags.writeable for a in here)
+    assert batch.heights.flags.writeable  # the set's own arrays are left as they were

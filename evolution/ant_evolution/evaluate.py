@@ -131,9 +131,26 @@ class ScenarioSet:
         )
 
     def arrays(self) -> ScenarioArrays:
-        """The starting states as the kernel takes them."""
+        """The starting states as the kernel takes them: read-only views, always.
+
+        numba compiles a kernel once per argument type, and a read-only array is another
+        type: sets made here, unpickled in a pool worker or read from Ray's object store
+        differ in which arrays are writable, and each kind would compile the kernel again
+        (about a minute per decision program). The kernel only reads them.
+        """
         return ScenarioArrays(
-            self.heights, self.zones, self.goal, self.robots, self.active, self.rng, self.params
+            *(
+                _read_only(a)
+                for a in (
+                    self.heights,
+                    self.zones,
+                    self.goal,
+                    self.robots,
+                    self.active,
+                    self.rng,
+                    self.params,
+                )
+            )
         )
 
     def score(self, program: DecisionProgram, n_robots: int = 0) -> np.ndarray:
@@ -141,6 +158,13 @@ class ScenarioSet:
         scores = np.zeros(self.size)
         run_scenarios(self.arrays(), self.steps, program.record(), n_robots, scores)
         return scores
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """A read-only view of ``array`` (the array itself is left as it is)."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 def program_fitness(program: DecisionProgram, sets: Sequence[ScenarioSet]) -> float:

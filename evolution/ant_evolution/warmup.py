@@ -26,14 +26,16 @@ def compile_kind(kind: str) -> float:
     """Run every kernel entry point once with a ``kind`` program; returns the seconds taken.
 
     Entry points: scoring a scenario set (``run_scenarios``), stepping one world
-    (``run_episode``), one world's sensing and step (the lockstep simulator's), and one
-    decision (the controller node's).
+    (``run_episode``), one world's sensing and step (the lockstep simulator's), one
+    decision (the controller node's) and, for tissues and the hand-coded rules, the
+    per-phase timing of ``ant-bench`` (:func:`ant_evolution.breakdown.phase_times`).
     """
     import numpy as np
 
     from ant_controller.controller import Controller
     from ant_evolution.baselines.network import program_decide
     from ant_evolution.baselines.runs import FixedStrategy
+    from ant_evolution.breakdown import phase_times
     from ant_evolution.evaluate import advance, program_fitness
     from ant_evolution.evolve import AntStrategy, EvolveConfig, blueprints_of, scenario_sets
 
@@ -57,6 +59,8 @@ def compile_kind(kind: str) -> float:
         program = strategy.compiler(state)(population[0])
         program_decide(codes, program.record())
     program_fitness(program, sets)
+    if kind != "network":
+        phase_times(program, sets[0], repeats=1)
     advance(world, program, 2)
     world.step(np.zeros(world.n_robots, dtype=np.int64))
     return time.perf_counter() - started
