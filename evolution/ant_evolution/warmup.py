@@ -3,9 +3,10 @@
 A fresh checkout (or any change to the kernel packages' sources, which keys the cache:
 ``ant_controller/__init__.py``) compiles the step kernels on first use: about 35 s for the
 hand-coded rules, 40 s for an ANT tissue and 80 s for a network program (NEAT and the fixed
-network) on one core here. Every process that starts before the cache holds a kernel
-compiles it again, so a test suite's workers, an evaluator's pool or a team of controller
-nodes started together on a cold cache each pay it. This compiles each kind once, the
+network) in one process here (docs/benchmarks.md, "Compiling the kernels"). Every process
+that starts before the cache holds a kernel compiles it again, so a test suite's workers,
+an evaluator's pool or a team of controller nodes started together on a cold cache each
+pay it. This compiles each kind once, the
 three kinds in parallel processes, and returns when the cache holds them; ``make test``
 and ``make demo`` run it first. Running it again on a warm cache takes seconds.
 """
@@ -47,20 +48,16 @@ def compile_kind(kind: str) -> float:
     codes = world.sense()[0]
     if kind == "hand-coded":
         program = Controller.hand_coded()
-        program.decide(codes)
-    elif kind == "ant":
-        strategy = AntStrategy(config)
-        population, state = strategy.ask(strategy.init())
-        program = strategy.compiler(state)(population[0])
-        program.decide(codes)
     else:
-        strategy = FixedStrategy(config)
+        strategy = (AntStrategy if kind == "ant" else FixedStrategy)(config)
         population, state = strategy.ask(strategy.init())
         program = strategy.compiler(state)(population[0])
+    if kind == "network":
         program_decide(codes, program.record())
-    program_fitness(program, sets)
-    if kind != "network":
+    else:
+        program.decide(codes)
         phase_times(program, sets[0], repeats=1)
+    program_fitness(program, sets)
     advance(world, program, 2)
     world.step(np.zeros(world.n_robots, dtype=np.int64))
     return time.perf_counter() - started
@@ -74,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.workers < 1:
         parser.error(f"--workers: must be at least 1, got {args.workers}")
     started = time.perf_counter()
-    print("compiling the kernels into numba's cache (cold: 1-2 min) ...", flush=True)
+    print("compiling the kernels into numba's cache (cold: 2-4 min on 2 cores) ...", flush=True)
     if args.workers == 1:
         times = [compile_kind(k) for k in KINDS]
     else:
