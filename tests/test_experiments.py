@@ -105,3 +105,36 @@ def test_tested_scale_is_the_campaigns_budget():
     assert s.runs >= 10
     assert s.population * s.scenarios * s.generations >= 4.3e6
     assert s.generations > 433 and s.scenarios % len(s.depths) == 0
+
+
+def test_method_and_run_select_part_of_a_campaign(tmp_path, capsys, monkeypatch):
+    """--method/--run train exactly those runs, stop before the summary, and the full command
+    then reads them back: the same histories as one process training everything."""
+    monkeypatch.setitem(cli.SCALES, "quick", TINY)
+    base = ["compare", "--scale", "quick", "--runs", "2", "--out", str(tmp_path)]
+    assert cli.main([*base, "--method", "fixed", "--run", "1"]) == 0
+    assert "trained 1 run(s) (fixed-n2-r1)" in capsys.readouterr().out
+    ctx = Context(tmp_path, TINY, runs=2)
+    trained = [p.name for p in (tmp_path / "runs" / "quick").iterdir()]
+    assert trained == ["fixed-n2-r1"]
+    assert not (tmp_path / "compare" / "summary.json").exists()
+    part = (run_dir(ctx, "fixed", 2, 1) / "history.csv").read_text()
+    assert cli.main(base) == 0
+    assert (tmp_path / "compare" / "summary.json").exists()
+    assert (run_dir(ctx, "fixed", 2, 1) / "history.csv").read_text() == part
+    whole = tmp_path / "whole"
+    assert cli.main([*base[:-1], str(whole)]) == 0
+    strip = [{k: v for k, v in r.items() if k != "seconds"} for r in read_history(
+        run_dir(ctx, "fixed", 2, 1) / "history.csv")]  # fmt: skip
+    other = Context(whole, TINY, runs=2)
+    assert strip == [{k: v for k, v in r.items() if k != "seconds"} for r in read_history(
+        run_dir(other, "fixed", 2, 1) / "history.csv")]  # fmt: skip
+
+
+def test_method_and_run_are_checked(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["antagonism", "--run", "0", "--out", str(tmp_path)])
+    assert "antagonism trains none" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["compare", "--scale", "quick", "--run", "2", "--out", str(tmp_path)])
+    assert "runs 0 to 1" in capsys.readouterr().err

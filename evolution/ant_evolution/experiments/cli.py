@@ -5,8 +5,11 @@ Example::
     ant-experiment training --scale medium --workers 2 --out runs/exp
     ant-experiment compare --scale medium --workers 2 --out runs/exp   # reuses training's runs
     ant-experiment compare --scale tested --workers 2 --out runs/exp-tested   # the campaign
+    ant-experiment compare --scale tested --method neat --run 3 --out runs/exp-tested   # one run
 
-Every experiment is resumable: run the same command again after an interruption.
+Every experiment is resumable: run the same command again after an interruption. With
+``--method`` or ``--run`` a training experiment trains only those runs and stops before its
+summary, so that processes or machines can share one ``--out``, each with its own runs.
 """
 
 from __future__ import annotations
@@ -17,7 +20,13 @@ import sys
 from pathlib import Path
 
 from ant_evolution.errors import CheckpointError, ConfigError
-from ant_evolution.experiments.core import SCALES, Context, scale_dict
+from ant_evolution.experiments.core import (
+    METHODS,
+    SCALES,
+    Context,
+    PartialTraining,
+    scale_dict,
+)
 from ant_evolution.limits import MAX_WORKERS, option
 from ant_evolution.profiles import PROFILES, assignment, resolve_switches
 from excavation_common.limits import int_in
@@ -34,6 +43,9 @@ def _experiments() -> dict:
     out["behaviours"] = behaviours
     return out
 
+
+TRAINING = ("training", "compare", "coarse-coding", "scaleup", "evolve-robots")
+"""The experiments that train runs (``--method`` and ``--run`` select among them)."""
 
 NAMES = (
     "training",
@@ -87,12 +99,34 @@ def main(argv: list[str] | None = None) -> int:
         metavar="KEY=VALUE",
         help="override one switch of the profile (repeatable)",
     )
+    p.add_argument(
+        "--method",
+        dest="methods",
+        action="append",
+        choices=METHODS,
+        default=None,
+        help="train only this method's runs, then stop before the summary (repeatable)",
+    )
+    p.add_argument(
+        "--run",
+        dest="run_indices",
+        action="append",
+        type=int_in(0, 999),
+        default=None,
+        metavar="K",
+        help="train only run K (seed 1000 + K), then stop before the summary (repeatable)",
+    )
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
+    if (args.methods or args.run_indices) and args.name not in TRAINING:
+        p.error(f"--method and --run select training runs; {args.name} trains none")
     scale = SCALES[args.scale]
     runs = args.runs if args.runs is not None else scale.runs
     if runs < 1:
         p.error(f"--runs must be at least 1, got {runs}")
+    for k in args.run_indices or ():
+        if k >= runs:
+            p.error(f"--run {k}: this scale has runs 0 to {runs - 1} (--runs {runs})")
     if args.genome is not None and not args.genome.is_file():
         p.error(f"--genome {args.genome}: no such file")
     experiments = _experiments()
@@ -117,6 +151,8 @@ def main(argv: list[str] | None = None) -> int:
         args.generations,
         args.profile,
         switches,
+        tuple(args.methods) if args.methods else None,
+        tuple(args.run_indices) if args.run_indices else None,
     )
     args.out.mkdir(parents=True, exist_ok=True)
     readings = {} if args.profile == "v1" and not args.assignments else {
@@ -126,6 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         experiments[args.name](ctx)
+    except PartialTraining as done:
+        print(f"ant-experiment: {done}")
+        return 0
     except (CheckpointError, ConfigError, FileNotFoundError, ValueError) as exc:
         print(f"ant-experiment: error: {exc}", file=sys.stderr)
         return 2

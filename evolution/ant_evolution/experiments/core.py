@@ -170,6 +170,11 @@ class Context:
             live under ``runs/SCALE-PROFILE``.
         switches: Every switch (the profile's, with ``--set`` applied); ``None``: the
             profile's.
+        only_methods: Train only these methods (``--method``); ``None``: every one.
+        only_runs: Train only these run indices (``--run``); ``None``: every one. With
+            either set, a training experiment trains that part of its runs and stops
+            before its summary (:class:`PartialTraining`), so that several processes or
+            machines can share one campaign directory, each training its own runs.
     """
 
     out: Path
@@ -182,6 +187,13 @@ class Context:
     generations: int | None = None
     profile: str = "v1"
     switches: dict | None = None
+    only_methods: tuple[str, ...] | None = None
+    only_runs: tuple[int, ...] | None = None
+
+    @property
+    def partial(self) -> bool:
+        """Whether only part of the training runs is to be trained (``--method``/``--run``)."""
+        return self.only_methods is not None or self.only_runs is not None
 
     @property
     def readings(self) -> dict:
@@ -277,9 +289,34 @@ def train(ctx: Context, method: str, robots, run: int, bar: tqdm | None = None) 
     return read_history(hist)
 
 
+class PartialTraining(Exception):
+    """Raised after a ``--method``/``--run`` subset of an experiment's runs was trained.
+
+    Not an error: the experiment's summary needs every run, so it stops there.
+    """
+
+    def __init__(self, trained: list[str]) -> None:
+        self.trained = trained
+        super().__init__(
+            f"trained {len(trained)} run(s) ({', '.join(trained) or 'none selected'}); "
+            "run the command without --method/--run to write the summary"
+        )
+
+
 def train_all(ctx: Context, jobs: Sequence[tuple[str, object]], desc: str) -> dict:
-    """Every run of every ``(method, robots)`` job: ``{(method, robots): [history, ...]}``."""
+    """Every run of every ``(method, robots)`` job: ``{(method, robots): [history, ...]}``.
+
+    Raises:
+        PartialTraining: After training the subset of ``ctx.only_methods``/``ctx.only_runs``.
+    """
     todo = [(m, r, k) for m, r in jobs for k in range(ctx.runs)]
+    if ctx.partial:
+        todo = [
+            (m, r, k)
+            for m, r, k in todo
+            if (ctx.only_methods is None or m in ctx.only_methods)
+            and (ctx.only_runs is None or k in ctx.only_runs)
+        ]
     out: dict = {}
     # Runs finished before count from the start (tqdm's rate and ETA leave them out); the
     # count is kept by hand: tqdm's iterator writes it back only when it redraws.
@@ -289,6 +326,8 @@ def train_all(ctx: Context, jobs: Sequence[tuple[str, object]], desc: str) -> di
             out.setdefault(job[:2], []).append(train(ctx, *job, bar))
             if job not in done:
                 bar.update(1)
+    if ctx.partial:
+        raise PartialTraining([run_dir(ctx, *job).name for job in todo])
     return out
 
 
