@@ -119,7 +119,20 @@ def test_method_and_run_select_part_of_a_campaign(tmp_path, capsys, monkeypatch)
     assert trained == ["fixed-n2-r1"]
     assert not (tmp_path / "compare" / "summary.json").exists()
     part = (run_dir(ctx, "fixed", 2, 1) / "history.csv").read_text()
+    capsys.readouterr()
+    assert cli.main(["status", *base[1:]]) == 0
+    report = capsys.readouterr().out
+    assert "| compare | fixed network n2 | 1 of 2 | 0 |" in report
+    assert "| compare | ANT n2 | 0 of 2 | 0 | - |" in report
+    assert "`ant-experiment compare --scale quick --method ant --workers 2" in report
+    assert "| `fixed-n2-r1` | finished |" in report
     assert cli.main(base) == 0
+    capsys.readouterr()
+    assert cli.main(["status", *base[1:], "--write", str(tmp_path / "status.md")]) == 0
+    report = (tmp_path / "status.md").read_text()
+    assert report == capsys.readouterr().out
+    assert "| compare | NEAT n2 | 2 of 2 | 0 |" in report
+    assert "| training | ANT n1 | 0 of 2" in report
     assert (tmp_path / "compare" / "summary.json").exists()
     assert (run_dir(ctx, "fixed", 2, 1) / "history.csv").read_text() == part
     whole = tmp_path / "whole"
@@ -138,3 +151,20 @@ def test_method_and_run_are_checked(tmp_path, capsys):
     with pytest.raises(SystemExit):
         cli.main(["compare", "--scale", "quick", "--run", "2", "--out", str(tmp_path)])
     assert "runs 0 to 1" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["compare", "--write", str(tmp_path / "x.md"), "--out", str(tmp_path)])
+    assert "--write is an option of status" in capsys.readouterr().err
+
+
+def test_status_reads_runs_in_progress(tmp_path):
+    """A run interrupted after its first generation is reported with its checkpoint."""
+    from ant_evolution.experiments.status import report, run_status
+
+    ctx = Context(tmp_path, TINY, runs=1)
+    run_evolution(train_config(ctx, "ant", 2, 0), run_dir(ctx, "ant", 2, 0), workers=1,
+                  stop_after=1)  # fmt: skip
+    st = run_status(ctx, "ant", 2, 0)
+    assert (st.generations, st.target, st.checkpoint, st.finished) == (1, 2, True, False)
+    assert st.state == "at generation 1" and 0.0 <= st.best_ever <= 1.0
+    assert "| compare | ANT n2 | 0 of 1 | 1 | - |" in report(ctx)
+    assert run_status(ctx, "neat", 2, 0).state == "not started"

@@ -6,6 +6,7 @@ Example::
     ant-experiment compare --scale medium --workers 2 --out runs/exp   # reuses training's runs
     ant-experiment compare --scale tested --workers 2 --out runs/exp-tested   # the campaign
     ant-experiment compare --scale tested --method neat --run 3 --out runs/exp-tested   # one run
+    ant-experiment status --scale tested --out runs/exp-tested   # what is done, what is left
 
 Every experiment is resumable: run the same command again after an interruption. With
 ``--method`` or ``--run`` a training experiment trains only those runs and stops before its
@@ -23,6 +24,7 @@ from ant_evolution.errors import CheckpointError, ConfigError
 from ant_evolution.experiments.core import (
     METHODS,
     SCALES,
+    TRAINING_EXPERIMENTS,
     Context,
     PartialTraining,
     scale_dict,
@@ -44,9 +46,6 @@ def _experiments() -> dict:
     return out
 
 
-TRAINING = ("training", "compare", "coarse-coding", "scaleup", "evolve-robots")
-"""The experiments that train runs (``--method`` and ``--run`` select among them)."""
-
 NAMES = (
     "training",
     "compare",
@@ -57,6 +56,7 @@ NAMES = (
     "area",
     "evolve-robots",
     "behaviours",
+    "status",
 )
 
 
@@ -116,9 +116,15 @@ def main(argv: list[str] | None = None) -> int:
         metavar="K",
         help="train only run K (seed 1000 + K), then stop before the summary (repeatable)",
     )
+    p.add_argument(
+        "--write",
+        type=Path,
+        default=None,
+        help="status: also write the report to this markdown file",
+    )
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
-    if (args.methods or args.run_indices) and args.name not in TRAINING:
+    if (args.methods or args.run_indices) and args.name not in TRAINING_EXPERIMENTS:
         p.error(f"--method and --run select training runs; {args.name} trains none")
     scale = SCALES[args.scale]
     runs = args.runs if args.runs is not None else scale.runs
@@ -129,8 +135,10 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--run {k}: this scale has runs 0 to {runs - 1} (--runs {runs})")
     if args.genome is not None and not args.genome.is_file():
         p.error(f"--genome {args.genome}: no such file")
+    if args.write is not None and args.name != "status":
+        p.error("--write is an option of status")
     experiments = _experiments()
-    if args.name not in experiments:
+    if args.name not in experiments and args.name != "status":
         print(f"ant-experiment: error: {args.name} needs excavation_sim.detectors", file=sys.stderr)
         return 2
     if args.replay is not None and not (args.replay / "config.yaml").is_file():
@@ -154,6 +162,14 @@ def main(argv: list[str] | None = None) -> int:
         tuple(args.methods) if args.methods else None,
         tuple(args.run_indices) if args.run_indices else None,
     )
+    if args.name == "status":
+        from ant_evolution.experiments.status import report
+
+        text = report(ctx)
+        print(text, end="")
+        if args.write is not None:
+            args.write.write_text(text, encoding="utf-8")
+        return 0
     args.out.mkdir(parents=True, exist_ok=True)
     readings = {} if args.profile == "v1" and not args.assignments else {
         "profile": args.profile, "switches": switches}  # fmt: skip

@@ -212,6 +212,36 @@ class Context:
         return d
 
 
+def compare_robots(scale: Scale) -> int:
+    """The team size of ``compare`` and of the mixed setting: 4, or the scale's largest."""
+    return 4 if 4 in scale.train_robots else scale.train_robots[-1]
+
+
+TRAINING_EXPERIMENTS = ("compare", "training", "coarse-coding", "scaleup", "evolve-robots")
+"""The experiments that train runs, cheapest headline first (the campaign's order)."""
+
+
+def training_jobs(name: str, scale: Scale) -> list[tuple[str, object]]:
+    """The ``(method, robots)`` settings that training experiment ``name`` trains.
+
+    Raises:
+        ValueError: ``name`` is not a training experiment.
+    """
+    n = compare_robots(scale)
+    robots = scale.train_robots
+    if name == "compare":  # cheapest first: a cut-short campaign keeps the most
+        return [(m, n) for m in ("ant", "fixed", "neat")]
+    if name == "training":
+        return [("ant", k) for k in robots]
+    if name == "coarse-coding":
+        return [(m, k) for m in ("ant", "ant-nocc") for k in robots]
+    if name == "scaleup":
+        return [("ant", k) for k in robots] + [("ant", (1, n))] + [("fixed", k) for k in robots]
+    if name == "evolve-robots":
+        return [("ant", "evolve")]
+    raise ValueError(f"{name!r} is not a training experiment ({', '.join(TRAINING_EXPERIMENTS)})")
+
+
 def setting_label(robots: int | tuple[int, ...] | str) -> str:
     """Directory-safe name of a robot setting: ``n4``, ``mix1+4`` or ``evoN``."""
     if robots == "evolve":

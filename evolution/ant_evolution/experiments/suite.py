@@ -19,6 +19,7 @@ from ant_evolution.experiments.core import (
     METHOD_LABELS,
     Context,
     best_of_runs,
+    compare_robots,
     four_robot_genome,
     load_controller,
     pyplot,
@@ -27,15 +28,12 @@ from ant_evolution.experiments.core import (
     score_depths,
     setting_label,
     train_all,
+    training_jobs,
     write_csv,
     write_section,
 )
 
 SOLVED = 0.9
-
-
-def _compare_robots(ctx: Context) -> int:
-    return 4 if 4 in ctx.scale.train_robots else ctx.scale.train_robots[-1]
 
 
 def _curves(histories: list[list[dict]], key: str) -> np.ndarray:
@@ -54,7 +52,7 @@ def _fmt(x: float) -> str:
 def training(ctx: Context) -> None:
     """Best fitness per generation for each training robot count (mean and spread)."""
     s = ctx.scale
-    runs = train_all(ctx, [("ant", n) for n in s.train_robots], "training")
+    runs = train_all(ctx, training_jobs("training", s), "training")
     rows, table = [], []
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4), dpi=100)
@@ -114,9 +112,9 @@ def training(ctx: Context) -> None:
 def compare(ctx: Context) -> None:
     """ANT against NEAT and the fixed network: mean maximum fitness and P(fitness >= 0.9)."""
     s = ctx.scale
-    n = _compare_robots(ctx)
-    methods = ("ant", "fixed", "neat")  # cheapest first: a cut-short campaign keeps the most
-    runs = train_all(ctx, [(m, n) for m in methods], "compare")
+    n = compare_robots(s)
+    methods = ("ant", "fixed", "neat")
+    runs = train_all(ctx, training_jobs("compare", s), "compare")
     plt = pyplot()
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4), dpi=100)
     rows, final = [], {}
@@ -191,9 +189,7 @@ its probability of a solution is {p_ratio:.2f} times NEAT's.
 def coarse_coding(ctx: Context) -> None:
     """ANT with and without coarse coding for each training robot count."""
     s = ctx.scale
-    runs = train_all(
-        ctx, [(m, n) for m in ("ant", "ant-nocc") for n in s.train_robots], "coarse-coding"
-    )
+    runs = train_all(ctx, training_jobs("coarse-coding", s), "coarse-coding")
     rows, lines = [], []
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
@@ -255,9 +251,7 @@ def _sweep(ctx: Context, controller, label: str, bar) -> list[dict]:
 def scaleup(ctx: Context) -> None:
     """Controllers evolved with 1-5 robots (and mixed) applied to 1-10 robots on 8 x 8."""
     s = ctx.scale
-    mix = (1, _compare_robots(ctx))
-    settings = [("ant", n) for n in s.train_robots] + [("ant", mix)]
-    settings += [("fixed", n) for n in s.train_robots]
+    settings = training_jobs("scaleup", s)
     train_all(ctx, settings, "scaleup training")
     plan = [(f"{METHOD_LABELS[m]} {setting_label(r)}", m, r) for m, r in settings]
     rows = []
@@ -444,7 +438,7 @@ scenarios per cell split over goal depths {", ".join(map(str, s.depths))},
 def evolve_robots(ctx: Context) -> None:
     """N as a gene: which N the best genomes settle on."""
     s = ctx.scale
-    runs = train_all(ctx, [("ant", "evolve")], "evolve-robots")[("ant", "evolve")]
+    runs = train_all(ctx, training_jobs("evolve-robots", s), "evolve-robots")[("ant", "evolve")]
     lo, hi = s.robots_range
     best_n = []
     for k in range(ctx.runs):
