@@ -10,7 +10,14 @@ import pytest
 from ant_evolution.evolve import run_evolution
 from ant_evolution.experiments import cli
 from ant_evolution.experiments.behaviours import behaviours
-from ant_evolution.experiments.core import SCALES, Context, read_history, run_dir, train_config
+from ant_evolution.experiments.core import (
+    SCALES,
+    Context,
+    best_of_runs,
+    read_history,
+    run_dir,
+    train_config,
+)
 from ant_evolution.experiments.suite import EXPERIMENTS
 
 TINY = dataclasses.replace(
@@ -133,6 +140,21 @@ def test_method_and_run_select_part_of_a_campaign(tmp_path, capsys, monkeypatch)
     assert report == capsys.readouterr().out
     assert "| compare | NEAT n2 | 2 of 2 | 0 |" in report
     assert "| training | ANT n1 | 0 of 2" in report
+    # antagonism on every finished run's controller; the best run's rows are the main table's
+    assert cli.main(["antagonism", *base[1:]]) == 0
+    d = tmp_path / "antagonism"
+    with open(d / "antagonism.csv", newline="") as f:
+        main_rows = list(csv.DictReader(f))
+    with open(d / "antagonism_runs.csv", newline="") as f:
+        every = list(csv.DictReader(f))
+    assert len(every) == 2 * len(TINY.areas) * len(TINY.eval_robots)
+    best = best_of_runs(ctx, "ant", 2)[0].parent.name[-1]
+    mine = [r for r in every if r["run"] == best]
+    assert [(r["pit"], r["robots"], r["mean"]) for r in mine] == [
+        (r["pit"], r["robots"], r["mean"]) for r in main_rows
+    ]
+    assert "peak of each run's controller" in (d / "section.md").read_text()
+    assert (d / "antagonism_runs.png").stat().st_size > 0
     assert (tmp_path / "compare" / "summary.json").exists()
     assert (run_dir(ctx, "fixed", 2, 1) / "history.csv").read_text() == part
     whole = tmp_path / "whole"

@@ -402,6 +402,16 @@ def best_of_runs(ctx: Context, method: str, robots) -> tuple[Path, float]:
     return best
 
 
+def finished_runs(ctx: Context, method: str, robots) -> list[tuple[int, Path]]:
+    """``(k, best.json)`` of every finished run of a setting (all its generations trained)."""
+    return [
+        (k, run_dir(ctx, method, robots, k) / "best.json")
+        for k in range(ctx.runs)
+        if _trained(ctx, method, robots, k)
+        and (run_dir(ctx, method, robots, k) / "best.json").is_file()
+    ]
+
+
 def load_controller(path: Path) -> Controller | NetworkProgram:
     """An ANT genome file as a :class:`Controller`, a network-program file as a program."""
     data = json.loads(Path(path).read_text())

@@ -20,6 +20,7 @@ from ant_evolution.experiments.core import (
     Context,
     best_of_runs,
     compare_robots,
+    finished_runs,
     four_robot_genome,
     load_controller,
     pyplot,
@@ -309,7 +310,8 @@ def _genome_note(ctx: Context) -> tuple[Controller, str]:
     path = four_robot_genome(ctx)
     g = load_genome(path)
     fit = g.metadata.get("fitness") if isinstance(g.metadata, dict) else None
-    return Controller.from_genome(g, name=str(path)), f"`{path}` (training fitness {fit})"
+    shown = f"{fit:.3f}" if isinstance(fit, float) else fit
+    return Controller.from_genome(g, name=str(path)), f"`{path}` (training fitness {shown})"
 
 
 def _robot_grid(ctx: Context, name: str, keys, key_label: str, scorer, ylab: str) -> list[dict]:
@@ -362,6 +364,7 @@ def antagonism(ctx: Context) -> None:
         lambda a, n: score_depths(ctl, ctx, n, size=a),
         f"fitness after {s.steps} steps",
     )  # fmt: skip
+    every = "" if ctx.genome is not None else _antagonism_every_run(ctx)
     write_section(
         ctx,
         "antagonism",
@@ -374,8 +377,74 @@ The 4-robot controller {note} on square pits of {", ".join(map(str, s.areas))} c
 {_peak_table(rows, s.areas, "pit", s.eval_robots)}
 
 ![antagonism](figures/antagonism/antagonism.png)
-""",
+{every}""",
     )
+
+
+def _antagonism_every_run(ctx: Context) -> str:
+    """The antagonism grid for the best genome of every finished 4-robot ANT run.
+
+    One controller is one sample of what evolution finds; the peak of each run's own
+    controller shows how much the peak depends on the run. Writes ``antagonism_runs.csv``
+    and ``antagonism_runs.png``; returns a markdown part of the section ("" with fewer
+    than two finished runs).
+    """
+    s = ctx.scale
+    runs = finished_runs(ctx, "ant", compare_robots(s))
+    if len(runs) < 2:
+        return ""
+    rows = []
+    with tqdm(total=len(runs) * len(s.areas) * len(s.eval_robots), desc="antagonism, every run",
+              unit="setting") as bar:  # fmt: skip
+        for k, path in runs:
+            g = load_genome(path)
+            ctl = Controller.from_genome(g, name=str(path))
+            fit = g.metadata.get("fitness") if isinstance(g.metadata, dict) else None
+            for a in s.areas:
+                for n in s.eval_robots:
+                    sc = score_depths(ctl, ctx, n, size=a)
+                    rows.append({"run": k, "training_fitness": fit, "pit": a, "robots": n,
+                                 "mean": float(sc.mean()), "std": float(sc.std())})  # fmt: skip
+                    bar.update()
+    write_csv(ctx.dir("antagonism") / "antagonism_runs.csv", rows)
+    robots = list(s.eval_robots)
+    grid = {(r["run"], r["pit"], r["robots"]): r["mean"] for r in rows}
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
+    lines = [
+        "| pit | " + " | ".join(str(n) for n in robots) + " | peak of each run's controller |",
+        "|---|" + "---:|" * len(robots) + "---|",
+    ]
+    for a in s.areas:
+        per_run = np.array([[grid[(k, a, n)] for n in robots] for k, _ in runs])
+        mean, sd = per_run.mean(0), per_run.std(0)
+        ax.errorbar(robots, mean, yerr=sd, marker="o", ms=3, capsize=2, label=f"pit {a}")
+        peaks = [robots[int(np.argmax(row))] for row in per_run]
+        counts = ", ".join(f"{n}: {peaks.count(n)}" for n in sorted(set(peaks)))
+        lines.append(
+            f"| {a} | "
+            + " | ".join(f"{m:.3f} +- {d:.3f}" for m, d in zip(mean, sd, strict=True))
+            + f" | {counts} (median {float(np.median(peaks)):g}) |"
+        )
+    ax.set(xlabel="robots", ylabel=f"fitness after {s.steps} steps, mean over runs",
+           ylim=(0, 1.05))  # fmt: skip
+    ax.set_title(f"best genome of each of {len(runs)} 4-robot ANT runs ({s.name} scale)",
+                 fontsize=9)  # fmt: skip
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(ctx.dir("antagonism") / "antagonism_runs.png")
+    plt.close(fig)
+    return f"""
+The best genome of each of the {len(runs)} finished 4-robot ANT runs
+(runs {", ".join(str(k) for k, _ in runs)}) on the same scenarios: fitness mean +- std
+over the runs' controllers, and how many runs' controllers peak at each robot count
+(`antagonism_runs.csv` has every run).
+
+{chr(10).join(lines)}
+
+![antagonism, every run](figures/antagonism/antagonism_runs.png)
+"""
 
 
 def depth(ctx: Context) -> None:
