@@ -207,7 +207,14 @@ def behaviours(ctx: Context) -> None:
     plt.close(fig)
 
     robots = 4 if 4 in ctx.scale.train_robots else ctx.scale.train_robots[-1]
-    genome_path = ctx.genome or run_dir(ctx, "ant", robots, 0) / "best.json"
+    # the tissue of the replayed run (its best genome), unless --genome names another
+    replayed_best = None if ctx.replay is None else ctx.replay / "best.json"
+    if ctx.genome is not None:
+        genome_path = ctx.genome
+    elif replayed_best is not None and replayed_best.is_file():
+        genome_path = replayed_best
+    else:
+        genome_path = run_dir(ctx, "ant", robots, 0) / "best.json"
     genome: Genome = load_genome(genome_path)
     ctl = Controller.from_genome(genome)
     batch = ScenarioSet.create(site(8, 1), 4, 1, 250, EVAL_SEED + 11)
