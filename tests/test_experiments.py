@@ -140,21 +140,24 @@ def test_method_and_run_select_part_of_a_campaign(tmp_path, capsys, monkeypatch)
     assert report == capsys.readouterr().out
     assert "| compare | NEAT n2 | 2 of 2 | 0 |" in report
     assert "| training | ANT n1 | 0 of 2" in report
-    # antagonism on every finished run's controller; the best run's rows are the main table's
-    assert cli.main(["antagonism", *base[1:]]) == 0
-    d = tmp_path / "antagonism"
-    with open(d / "antagonism.csv", newline="") as f:
-        main_rows = list(csv.DictReader(f))
-    with open(d / "antagonism_runs.csv", newline="") as f:
-        every = list(csv.DictReader(f))
-    assert len(every) == 2 * len(TINY.areas) * len(TINY.eval_robots)
+    # the evaluation experiments on every finished run's controller: the best run's rows are
+    # the main table's
     best = best_of_runs(ctx, "ant", 2)[0].parent.name[-1]
-    mine = [r for r in every if r["run"] == best]
-    assert [(r["pit"], r["robots"], r["mean"]) for r in mine] == [
-        (r["pit"], r["robots"], r["mean"]) for r in main_rows
-    ]
-    assert "peak of each run's controller" in (d / "section.md").read_text()
-    assert (d / "antagonism_runs.png").stat().st_size > 0
+    for name, key, keys in (("antagonism", "pit", TINY.areas), ("depth", "depth", TINY.depths),
+                            ("area", "pit", TINY.area_sizes)):  # fmt: skip
+        assert cli.main([name, *base[1:]]) == 0
+        d = tmp_path / name
+        with open(d / f"{name}.csv", newline="") as f:
+            main_rows = list(csv.DictReader(f))
+        with open(d / f"{name}_runs.csv", newline="") as f:
+            every = list(csv.DictReader(f))
+        assert len(every) == 2 * len(keys) * len(TINY.eval_robots)
+        mine = [r for r in every if r["run"] == best]
+        assert [(r[key], r["robots"], r["mean"]) for r in mine] == [
+            (r[key], r["robots"], r["mean"]) for r in main_rows
+        ]
+        assert "peak of each run's controller" in (d / "section.md").read_text()
+        assert (d / f"{name}_runs.png").stat().st_size > 0
     assert (tmp_path / "compare" / "summary.json").exists()
     assert (run_dir(ctx, "fixed", 2, 1) / "history.csv").read_text() == part
     whole = tmp_path / "whole"

@@ -364,7 +364,11 @@ def antagonism(ctx: Context) -> None:
         lambda a, n: score_depths(ctl, ctx, n, size=a),
         f"fitness after {s.steps} steps",
     )  # fmt: skip
-    every = "" if ctx.genome is not None else _antagonism_every_run(ctx)
+    every = _every_run(
+        ctx, "antagonism", s.areas, "pit",
+        lambda c, a, n: score_depths(c, ctx, n, size=a),
+        f"fitness after {s.steps} steps",
+    )  # fmt: skip
     write_section(
         ctx,
         "antagonism",
@@ -381,69 +385,71 @@ The 4-robot controller {note} on square pits of {", ".join(map(str, s.areas))} c
     )
 
 
-def _antagonism_every_run(ctx: Context) -> str:
-    """The antagonism grid for the best genome of every finished 4-robot ANT run.
+def _every_run(ctx: Context, name: str, keys, key_label: str, scorer, ylab: str) -> str:
+    """An experiment's grid for the best genome of every finished 4-robot ANT run.
 
-    One controller is one sample of what evolution finds; the peak of each run's own
-    controller shows how much the peak depends on the run. Writes ``antagonism_runs.csv``
-    and ``antagonism_runs.png``; returns a markdown part of the section ("" with fewer
-    than two finished runs).
+    One controller is one sample of what evolution finds; the numbers of every run's own
+    controller show how much a result depends on the run. ``scorer(controller, key,
+    robots)`` gives the per-scenario fitness of one cell. Writes ``NAME_runs.csv`` and
+    ``NAME_runs.png``; returns a markdown part of the section ("" with fewer than two
+    finished runs, or when ``--genome`` names the controller).
     """
     s = ctx.scale
-    runs = finished_runs(ctx, "ant", compare_robots(s))
+    runs = [] if ctx.genome is not None else finished_runs(ctx, "ant", compare_robots(s))
     if len(runs) < 2:
         return ""
     rows = []
-    with tqdm(total=len(runs) * len(s.areas) * len(s.eval_robots), desc="antagonism, every run",
+    with tqdm(total=len(runs) * len(keys) * len(s.eval_robots), desc=f"{name}, every run",
               unit="setting") as bar:  # fmt: skip
         for k, path in runs:
             g = load_genome(path)
             ctl = Controller.from_genome(g, name=str(path))
             fit = g.metadata.get("fitness") if isinstance(g.metadata, dict) else None
-            for a in s.areas:
+            for key in keys:
                 for n in s.eval_robots:
-                    sc = score_depths(ctl, ctx, n, size=a)
-                    rows.append({"run": k, "training_fitness": fit, "pit": a, "robots": n,
+                    sc = scorer(ctl, key, n)
+                    rows.append({"run": k, "training_fitness": fit, key_label: key, "robots": n,
                                  "mean": float(sc.mean()), "std": float(sc.std())})  # fmt: skip
                     bar.update()
-    write_csv(ctx.dir("antagonism") / "antagonism_runs.csv", rows)
+    stem = name.replace("-", "_")
+    write_csv(ctx.dir(name) / f"{stem}_runs.csv", rows)
     robots = list(s.eval_robots)
-    grid = {(r["run"], r["pit"], r["robots"]): r["mean"] for r in rows}
+    grid = {(r["run"], r[key_label], r["robots"]): r["mean"] for r in rows}
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
     lines = [
-        "| pit | " + " | ".join(str(n) for n in robots) + " | peak of each run's controller |",
+        f"| {key_label} | " + " | ".join(str(n) for n in robots)
+        + " | peak of each run's controller |",
         "|---|" + "---:|" * len(robots) + "---|",
-    ]
-    for a in s.areas:
-        per_run = np.array([[grid[(k, a, n)] for n in robots] for k, _ in runs])
+    ]  # fmt: skip
+    for key in keys:
+        per_run = np.array([[grid[(k, key, n)] for n in robots] for k, _ in runs])
         mean, sd = per_run.mean(0), per_run.std(0)
-        ax.errorbar(robots, mean, yerr=sd, marker="o", ms=3, capsize=2, label=f"pit {a}")
+        ax.errorbar(robots, mean, yerr=sd, marker="o", ms=3, capsize=2, label=f"{key_label} {key}")
         peaks = [robots[int(np.argmax(row))] for row in per_run]
         counts = ", ".join(f"{n}: {peaks.count(n)}" for n in sorted(set(peaks)))
         lines.append(
-            f"| {a} | "
+            f"| {key} | "
             + " | ".join(f"{m:.3f} +- {d:.3f}" for m, d in zip(mean, sd, strict=True))
             + f" | {counts} (median {float(np.median(peaks)):g}) |"
         )
-    ax.set(xlabel="robots", ylabel=f"fitness after {s.steps} steps, mean over runs",
-           ylim=(0, 1.05))  # fmt: skip
+    ax.set(xlabel="robots", ylabel=f"{ylab}, mean over runs", ylim=(0, 1.05))
     ax.set_title(f"best genome of each of {len(runs)} 4-robot ANT runs ({s.name} scale)",
                  fontsize=9)  # fmt: skip
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(ctx.dir("antagonism") / "antagonism_runs.png")
+    fig.savefig(ctx.dir(name) / f"{stem}_runs.png")
     plt.close(fig)
     return f"""
 The best genome of each of the {len(runs)} finished 4-robot ANT runs
 (runs {", ".join(str(k) for k, _ in runs)}) on the same scenarios: fitness mean +- std
 over the runs' controllers, and how many runs' controllers peak at each robot count
-(`antagonism_runs.csv` has every run).
+(`{stem}_runs.csv` has every run).
 
 {chr(10).join(lines)}
 
-![antagonism, every run](figures/antagonism/antagonism_runs.png)
+![{name}, every run](figures/{name}/{stem}_runs.png)
 """
 
 
@@ -453,12 +459,14 @@ def depth(ctx: Context) -> None:
 
     s = ctx.scale
     ctl, note = _genome_note(ctx)
-    rows = _robot_grid(
-        ctx, "depth", s.depths, "depth",
-        lambda d, n: score(ctl, site(8, d, ctx.rules.fitted_site), n, s.eval_scenarios,
-                           s.long_steps, EVAL_SEED + n, ctx.rules),
-        f"fitness after {s.long_steps} steps",
-    )  # fmt: skip
+
+    def scorer(c, d, n):
+        return score(c, site(8, d, ctx.rules.fitted_site), n, s.eval_scenarios, s.long_steps,
+                     EVAL_SEED + n, ctx.rules)  # fmt: skip
+
+    ylab = f"fitness after {s.long_steps} steps"
+    rows = _robot_grid(ctx, "depth", s.depths, "depth", lambda d, n: scorer(ctl, d, n), ylab)
+    every = _every_run(ctx, "depth", s.depths, "depth", scorer, ylab)
     write_section(
         ctx,
         "depth",
@@ -471,7 +479,7 @@ The 4-robot controller {note} on the 8 x 8 pit at goal depths
 {_peak_table(rows, s.depths, "depth", s.eval_robots)}
 
 ![depth](figures/depth/depth.png)
-""",
+{every}""",
     )
 
 
@@ -479,11 +487,13 @@ def area(ctx: Context) -> None:
     """The 4-robot controller on growing pits after a long run, 1-10 robots."""
     s = ctx.scale
     ctl, note = _genome_note(ctx)
-    rows = _robot_grid(
-        ctx, "area", s.area_sizes, "pit",
-        lambda a, n: score_depths(ctl, ctx, n, steps=s.long_steps, size=a),
-        f"fitness after {s.long_steps} steps",
-    )  # fmt: skip
+
+    def scorer(c, a, n):
+        return score_depths(c, ctx, n, steps=s.long_steps, size=a)
+
+    ylab = f"fitness after {s.long_steps} steps"
+    rows = _robot_grid(ctx, "area", s.area_sizes, "pit", lambda a, n: scorer(ctl, a, n), ylab)
+    every = _every_run(ctx, "area", s.area_sizes, "pit", scorer, ylab)
     write_section(
         ctx,
         "area",
@@ -497,7 +507,7 @@ scenarios per cell split over goal depths {", ".join(map(str, s.depths))},
 {_peak_table(rows, s.area_sizes, "pit", s.eval_robots)}
 
 ![area](figures/area/area.png)
-""",
+{every}""",
     )
 
 
