@@ -169,10 +169,25 @@ def test_method_and_run_select_part_of_a_campaign(tmp_path, capsys, monkeypatch)
         run_dir(other, "fixed", 2, 1) / "history.csv")]  # fmt: skip
 
 
+def test_setting_selects_one_robot_setting(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(cli.SCALES, "quick", TINY)
+    argv = ["scaleup", "--scale", "quick", "--runs", "1", "--setting", "mix1+2", "--out",
+            str(tmp_path)]  # fmt: skip
+    assert cli.main(argv) == 0
+    assert "trained 1 run(s) (ant-mix1+2-r0)" in capsys.readouterr().out
+    assert [p.name for p in (tmp_path / "runs" / "quick").iterdir()] == ["ant-mix1+2-r0"]
+    with pytest.raises(SystemExit):
+        cli.main(["compare", "--scale", "quick", "--setting", "mix1+2", "--out", str(tmp_path)])
+    assert "--setting mix1+2: compare trains n2" in capsys.readouterr().err
+
+
 def test_method_and_run_are_checked(tmp_path, capsys):
     with pytest.raises(SystemExit):
         cli.main(["antagonism", "--run", "0", "--out", str(tmp_path)])
     assert "antagonism trains none" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["depth", "--setting", "n4", "--out", str(tmp_path)])
+    assert "depth trains none" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         cli.main(["compare", "--scale", "quick", "--run", "2", "--out", str(tmp_path)])
     assert "runs 0 to 1" in capsys.readouterr().err

@@ -9,8 +9,9 @@ Example::
     ant-experiment status --scale tested --out runs/exp-tested   # what is done, what is left
 
 Every experiment is resumable: run the same command again after an interruption. With
-``--method`` or ``--run`` a training experiment trains only those runs and stops before its
-summary, so that processes or machines can share one ``--out``, each with its own runs.
+``--method``, ``--run`` or ``--setting`` a training experiment trains only those runs and
+stops before its summary, so that processes or machines can share one ``--out``, each with
+its own runs.
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ from ant_evolution.experiments.core import (
     Context,
     PartialTraining,
     scale_dict,
+    setting_label,
+    training_jobs,
 )
 from ant_evolution.limits import MAX_WORKERS, option
 from ant_evolution.profiles import PROFILES, assignment, resolve_switches
@@ -117,6 +120,15 @@ def main(argv: list[str] | None = None) -> int:
         help="train only run K (seed 1000 + K), then stop before the summary (repeatable)",
     )
     p.add_argument(
+        "--setting",
+        dest="settings",
+        action="append",
+        default=None,
+        metavar="LABEL",
+        help="train only this robot setting's runs (n1..n5, mix1+4, evoN), then stop before "
+        "the summary (repeatable)",
+    )
+    p.add_argument(
         "--write",
         type=Path,
         default=None,
@@ -124,12 +136,19 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
-    if (args.methods or args.run_indices) and args.name not in TRAINING_EXPERIMENTS:
-        p.error(f"--method and --run select training runs; {args.name} trains none")
+    if (
+        args.methods or args.run_indices or args.settings
+    ) and args.name not in TRAINING_EXPERIMENTS:
+        p.error(f"--method, --run and --setting select training runs; {args.name} trains none")
     scale = SCALES[args.scale]
     runs = args.runs if args.runs is not None else scale.runs
     if runs < 1:
         p.error(f"--runs must be at least 1, got {runs}")
+    if args.settings and args.name in TRAINING_EXPERIMENTS:
+        known = {setting_label(r) for _, r in training_jobs(args.name, scale)}
+        for label in args.settings:
+            if label not in known:
+                p.error(f"--setting {label}: {args.name} trains {', '.join(sorted(known))}")
     for k in args.run_indices or ():
         if k >= runs:
             p.error(f"--run {k}: this scale has runs 0 to {runs - 1} (--runs {runs})")
@@ -161,6 +180,7 @@ def main(argv: list[str] | None = None) -> int:
         switches,
         tuple(args.methods) if args.methods else None,
         tuple(args.run_indices) if args.run_indices else None,
+        tuple(args.settings) if args.settings else None,
     )
     if args.name == "status":
         from ant_evolution.experiments.status import report

@@ -171,10 +171,12 @@ class Context:
         switches: Every switch (the profile's, with ``--set`` applied); ``None``: the
             profile's.
         only_methods: Train only these methods (``--method``); ``None``: every one.
-        only_runs: Train only these run indices (``--run``); ``None``: every one. With
-            either set, a training experiment trains that part of its runs and stops
-            before its summary (:class:`PartialTraining`), so that several processes or
-            machines can share one campaign directory, each training its own runs.
+        only_runs: Train only these run indices (``--run``); ``None``: every one.
+        only_settings: Train only these robot settings, by label (``--setting``: ``n4``,
+            ``mix1+4``, ``evoN``); ``None``: every one. With any of the three set, a
+            training experiment trains that part of its runs and stops before its summary
+            (:class:`PartialTraining`), so that several processes or machines can share one
+            campaign directory, each training its own runs.
     """
 
     out: Path
@@ -189,11 +191,13 @@ class Context:
     switches: dict | None = None
     only_methods: tuple[str, ...] | None = None
     only_runs: tuple[int, ...] | None = None
+    only_settings: tuple[str, ...] | None = None
 
     @property
     def partial(self) -> bool:
-        """Whether only part of the training runs is to be trained (``--method``/``--run``)."""
-        return self.only_methods is not None or self.only_runs is not None
+        """Whether only part of the runs is to be trained (--method, --run, --setting)."""
+        chosen = (self.only_methods, self.only_runs, self.only_settings)
+        return any(c is not None for c in chosen)
 
     @property
     def readings(self) -> dict:
@@ -320,7 +324,7 @@ def train(ctx: Context, method: str, robots, run: int, bar: tqdm | None = None) 
 
 
 class PartialTraining(Exception):
-    """Raised after a ``--method``/``--run`` subset of an experiment's runs was trained.
+    """Raised after a ``--method``/``--run``/``--setting`` subset of the runs was trained.
 
     Not an error: the experiment's summary needs every run, so it stops there.
     """
@@ -329,7 +333,7 @@ class PartialTraining(Exception):
         self.trained = trained
         super().__init__(
             f"trained {len(trained)} run(s) ({', '.join(trained) or 'none selected'}); "
-            "run the command without --method/--run to write the summary"
+            "run the command without --method/--run/--setting to write the summary"
         )
 
 
@@ -337,7 +341,7 @@ def train_all(ctx: Context, jobs: Sequence[tuple[str, object]], desc: str) -> di
     """Every run of every ``(method, robots)`` job: ``{(method, robots): [history, ...]}``.
 
     Raises:
-        PartialTraining: After training the subset of ``ctx.only_methods``/``ctx.only_runs``.
+        PartialTraining: After training the subset that ``ctx.partial`` selects.
     """
     todo = [(m, r, k) for m, r in jobs for k in range(ctx.runs)]
     if ctx.partial:
@@ -346,6 +350,7 @@ def train_all(ctx: Context, jobs: Sequence[tuple[str, object]], desc: str) -> di
             for m, r, k in todo
             if (ctx.only_methods is None or m in ctx.only_methods)
             and (ctx.only_runs is None or k in ctx.only_runs)
+            and (ctx.only_settings is None or setting_label(r) in ctx.only_settings)
         ]
     out: dict = {}
     # Runs finished before count from the start (tqdm's rate and ETA leave them out); the
