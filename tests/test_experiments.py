@@ -208,3 +208,34 @@ def test_status_reads_runs_in_progress(tmp_path):
     assert st.state == "at generation 1" and 0.0 <= st.best_ever <= 1.0
     assert "| compare | ANT n2 | 0 of 1 | 1 | - |" in report(ctx)
     assert run_status(ctx, "neat", 2, 0).state == "not started"
+
+
+def test_campaign_rescale_script_scores_every_finished_run(tmp_path, capsys):
+    """campaign/rescale.py: every finished run of the chosen settings on 1..N robots, with
+    the numbers antagonism gives the same controllers on the same scenarios."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    out = tmp_path / "camp"
+    argv = ["scaleup", "--scale", "quick", "--method", "ant", "--setting", "n2", "--setting",
+            "mix1+2", "--out", str(out)]  # fmt: skip
+    assert cli.main(argv) == 0
+    script = Path(__file__).resolve().parents[1] / "campaign" / "rescale.py"
+    subprocess.run(
+        [sys.executable, str(script), "--campaign", str(out), "--scale", "quick",
+         "--settings", "n2", "mix1+2", "--out", str(tmp_path / "rescale")],
+        check=True, capture_output=True, text=True,
+    )  # fmt: skip
+    with open(tmp_path / "rescale" / "rescale.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    quick = SCALES["quick"]
+    assert len(rows) == 2 * quick.runs * len(quick.eval_robots)
+    assert {r["setting"] for r in rows} == {"n2", "mix1+2"}
+    assert "| ANT mix1+2 (2) |" in (tmp_path / "rescale" / "section.md").read_text()
+    assert cli.main(["antagonism", "--scale", "quick", "--out", str(out)]) == 0
+    with open(out / "antagonism" / "antagonism_runs.csv", newline="") as f:
+        ant = [r for r in csv.DictReader(f) if r["pit"] == "8"]
+    assert [(r["run"], r["robots"], r["mean"]) for r in ant] == [
+        (r["run"], r["robots"], r["mean"]) for r in rows if r["setting"] == "n2"
+    ]
