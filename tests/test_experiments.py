@@ -131,7 +131,7 @@ def test_method_and_run_select_part_of_a_campaign(tmp_path, capsys, monkeypatch)
     report = capsys.readouterr().out
     assert "| compare | fixed network n2 | 1 of 2 | 0 |" in report
     assert "| compare | ANT n2 | 0 of 2 | 0 | - |" in report
-    assert "`ant-experiment compare --scale quick --method ant --workers 2" in report
+    assert "`ant-experiment compare --scale quick --method ant --setting n2 --workers 2" in report
     assert "| `fixed-n2-r1` | finished |" in report
     assert cli.main(base) == 0
     capsys.readouterr()

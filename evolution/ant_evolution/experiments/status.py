@@ -2,10 +2,10 @@
 
 ``ant-experiment status --scale tested --out campaign`` prints (or, with ``--write``,
 saves) a markdown report: one row per setting (runs finished, runs in progress, runs
-reaching 0.9, best fitness ever over the finished runs) and one per run, and the command
-that trains what is missing. It reads only ``history.csv``, ``best.json`` and the
-checkpoints' presence in each run directory; it trains nothing and needs no compiled
-kernel, so it can run beside the campaign it reports on.
+reaching 0.9, best fitness ever over the finished runs, the command that trains that
+setting's missing runs) and one per started run. It reads only ``history.csv``,
+``best.json`` and the checkpoints' presence in each run directory; it trains nothing and
+needs no compiled kernel, so it can run beside the campaign it reports on.
 """
 
 from __future__ import annotations
@@ -117,11 +117,11 @@ def _f(x: float | None) -> str:
     return "-" if x is None else f"{x:.3f}"
 
 
-def _command(ctx: Context, name: str, method: str) -> str:
+def _command(ctx: Context, name: str, method: str, robots) -> str:
     profile = "" if ctx.profile == "v1" else f" --profile {ctx.profile}"
     return (
         f"ant-experiment {name} --scale {ctx.scale.name}{profile} --method {method} "
-        f"--workers 2 --out {ctx.out}"
+        f"--setting {setting_label(robots)} --workers 2 --out {ctx.out}"
     )
 
 
@@ -153,7 +153,7 @@ def report(ctx: Context) -> str:
                 f"({min(ever):.3f}-{max(ever):.3f})"
             )
             solved = [r.first_solved for r in done if r.first_solved is not None]
-            todo = "" if len(done) == len(runs) else f"`{_command(ctx, name, method)}`"
+            todo = "" if len(done) == len(runs) else f"`{_command(ctx, name, method, robots)}`"
             lines.append(
                 f"| {name} | {METHOD_LABELS[method]} {setting_label(robots)} | "
                 f"{len(done)} of {len(runs)} | {len(going)} | "
