@@ -37,6 +37,7 @@ from ant_evolution.evolve import AntStrategy, blueprints_of, load_config, scenar
 from ant_evolution.experiments.core import (
     EVAL_SEED,
     Context,
+    compare_robots,
     pyplot,
     read_history,
     run_dir,
@@ -129,7 +130,7 @@ def neuron_states(tissue: CompiledTissue, codes: np.ndarray) -> tuple[np.ndarray
 
 def _replay(ctx: Context, out) -> tuple[list[dict], object]:
     """Replay the 4-robot training run, tracing detectors; resumable."""
-    robots = 4 if 4 in ctx.scale.train_robots else ctx.scale.train_robots[-1]
+    robots = compare_robots(ctx.scale)
     if ctx.replay is not None:
         config = load_config(ctx.replay / "config.yaml")
         robots = config.robots
@@ -206,7 +207,7 @@ def behaviours(ctx: Context) -> None:
     fig.savefig(out / "behaviours.png")
     plt.close(fig)
 
-    robots = 4 if 4 in ctx.scale.train_robots else ctx.scale.train_robots[-1]
+    robots = compare_robots(ctx.scale)
     # the tissue of the replayed run (its best genome), unless --genome names another
     replayed_best = None if ctx.replay is None else ctx.replay / "best.json"
     if ctx.genome is not None:

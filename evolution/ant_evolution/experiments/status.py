@@ -16,6 +16,7 @@ from pathlib import Path
 
 from ant_evolution.experiments.core import (
     METHOD_LABELS,
+    SOLVED,
     TRAINING_EXPERIMENTS,
     Context,
     read_history,
@@ -23,9 +24,6 @@ from ant_evolution.experiments.core import (
     setting_label,
     training_jobs,
 )
-
-SOLVED = 0.9
-"""The fitness the paper counts as a solution."""
 
 
 @dataclass(frozen=True)

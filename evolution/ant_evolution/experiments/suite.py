@@ -17,6 +17,7 @@ from ant_controller.controller import Controller
 from ant_controller.genome_io import load_genome
 from ant_evolution.experiments.core import (
     METHOD_LABELS,
+    SOLVED,
     Context,
     best_of_runs,
     compare_robots,
@@ -33,8 +34,6 @@ from ant_evolution.experiments.core import (
     write_csv,
     write_section,
 )
-
-SOLVED = 0.9
 
 
 def _curves(histories: list[list[dict]], key: str) -> np.ndarray:
