@@ -210,32 +210,55 @@ def test_status_reads_runs_in_progress(tmp_path):
     assert run_status(ctx, "neat", 2, 0).state == "not started"
 
 
-def test_campaign_rescale_script_scores_every_finished_run(tmp_path, capsys):
-    """campaign/rescale.py: every finished run of the chosen settings on 1..N robots, with
-    the numbers antagonism gives the same controllers on the same scenarios."""
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    out = tmp_path / "camp"
-    argv = ["scaleup", "--scale", "quick", "--method", "ant", "--setting", "n2", "--setting",
-            "mix1+2", "--out", str(out)]  # fmt: skip
-    assert cli.main(argv) == 0
-    script = Path(__file__).resolve().parents[1] / "campaign" / "rescale.py"
-    subprocess.run(
-        [sys.executable, str(script), "--campaign", str(out), "--scale", "quick",
-         "--settings", "n2", "mix1+2", "--out", str(tmp_path / "rescale")],
-        check=True, capture_output=True, text=True,
-    )  # fmt: skip
-    with open(tmp_path / "rescale" / "rescale.csv", newline="") as f:
-        rows = list(csv.DictReader(f))
-    quick = SCALES["quick"]
-    assert len(rows) == 2 * quick.runs * len(quick.eval_robots)
-    assert {r["setting"] for r in rows} == {"n2", "mix1+2"}
-    assert "| ANT mix1+2 (2) |" in (tmp_path / "rescale" / "section.md").read_text()
-    assert cli.main(["antagonism", "--scale", "quick", "--out", str(out)]) == 0
-    with open(out / "antagonism" / "antagonism_runs.csv", newline="") as f:
-        ant = [r for r in csv.DictReader(f) if r["pit"] == "8"]
-    assert [(r["run"], r["robots"], r["mean"]) for r in ant] == [
-        (r["run"], r["robots"], r["mean"]) for r in rows if r["setting"] == "n2"
-    ]
+def test_finished_summarises_a_campaign_in_part(tmp_path, capsys, monkeypatch):
+    """--finished trains nothing and summarises the finished runs; settings without one are
+    left out, every table says how many runs it holds, and scaleup scores every run."""
+    monkeypatch.setitem(cli.SCALES, "quick", TINY)
+    base = ["--scale", "quick", "--runs", "2", "--out", str(tmp_path)]
+    assert cli.main(["compare", *base, "--method", "ant", "--run", "0"]) == 0
+    assert cli.main(["compare", *base, "--method", "fixed"]) == 0
+    # an unfinished run is not summarised
+    ctx = Context(tmp_path, TINY, runs=2)
+    run_evolution(train_config(ctx, "ant", 1, 0), run_dir(ctx, "ant", 1, 0), workers=1,
+                  stop_after=1)  # fmt: skip
+    runs_dir = tmp_path / "runs" / "quick"
+    before = {p.name: (p / "history.csv").read_text() for p in runs_dir.iterdir()}
+    capsys.readouterr()
+    assert cli.main(["compare", *base, "--finished"]) == 0
+    section = (tmp_path / "compare" / "section.md").read_text()
+    assert "**In part**" in section and "ANT n2 1, fixed network n2 2, NEAT n2 0" in section
+    assert "| ANT | 1 |" in section and "| fixed network | 2 |" in section
+    assert "| NEAT |" not in section and "times NEAT's" not in section
+    assert "against the best conventional network" in section
+    assert cli.main(["training", *base, "--finished"]) == 0
+    table = (tmp_path / "training" / "section.md").read_text()
+    assert "| 2 |" in table and "| 1 |" not in table  # the 1-robot run is at generation 1
+    assert cli.main(["coarse-coding", *base, "--finished"]) == 0
+    assert "| 2 | " in (tmp_path / "coarse-coding" / "section.md").read_text()
+    assert "(1) | - |" in (tmp_path / "coarse-coding" / "section.md").read_text()
+    assert cli.main(["scaleup", *base, "--finished"]) == 0
+    d = tmp_path / "scaleup"
+    with open(d / "scaleup.csv", newline="") as f:
+        best_rows = list(csv.DictReader(f))
+    with open(d / "scaleup_runs.csv", newline="") as f:
+        every = list(csv.DictReader(f))
+    assert len(every) == 3 * len(TINY.eval_robots)  # ANT n2: 1 run, fixed n2: 2 runs
+    best = best_of_runs(ctx, "fixed", 2)[0].parent.name[-1]
+    assert [(r["robots"], r["mean"]) for r in every
+            if r["setting"] == "fixed network n2" and r["run"] == best] == [
+        (r["robots"], r["mean"]) for r in best_rows if r["controller"] == "fixed network n2"
+    ]  # fmt: skip
+    assert "| fixed network n2 | 2 |" in (d / "section.md").read_text()
+    assert (d / "scaleup_runs.png").stat().st_size > 0
+    assert {p.name: (p / "history.csv").read_text() for p in runs_dir.iterdir()} == before
+    capsys.readouterr()
+    assert cli.main(["evolve-robots", *base, "--finished"]) == 2
+    assert "evolve-robots: no finished run" in capsys.readouterr().err
+    for argv in (
+        ["antagonism", *base, "--finished"],
+        ["compare", *base, "--finished", "--run", "0"],
+    ):
+        with pytest.raises(SystemExit):
+            cli.main(argv)
+    err = capsys.readouterr().err
+    assert "antagonism trains none" in err and "leave out --method, --run and --setting" in err

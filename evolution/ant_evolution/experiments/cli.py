@@ -7,11 +7,12 @@ Example::
     ant-experiment compare --scale tested --workers 2 --out runs/exp-tested   # the campaign
     ant-experiment compare --scale tested --method neat --run 3 --out runs/exp-tested   # one run
     ant-experiment status --scale tested --out runs/exp-tested   # what is done, what is left
+    ant-experiment compare --scale tested --finished --out runs/exp-tested   # summary in part
 
 Every experiment is resumable: run the same command again after an interruption. With
 ``--method``, ``--run`` or ``--setting`` a training experiment trains only those runs and
 stops before its summary, so that processes or machines can share one ``--out``, each with
-its own runs.
+its own runs. With ``--finished`` it trains nothing and summarises the runs finished so far.
 """
 
 from __future__ import annotations
@@ -129,6 +130,11 @@ def main(argv: list[str] | None = None) -> int:
         "the summary (repeatable)",
     )
     p.add_argument(
+        "--finished",
+        action="store_true",
+        help="train nothing: summarise the runs finished so far (a campaign in part)",
+    )
+    p.add_argument(
         "--write",
         type=Path,
         default=None,
@@ -140,6 +146,10 @@ def main(argv: list[str] | None = None) -> int:
         args.methods or args.run_indices or args.settings
     ) and args.name not in TRAINING_EXPERIMENTS:
         p.error(f"--method, --run and --setting select training runs; {args.name} trains none")
+    if args.finished and args.name not in TRAINING_EXPERIMENTS:
+        p.error(f"--finished summarises training runs; {args.name} trains none")
+    if args.finished and (args.methods or args.run_indices or args.settings):
+        p.error("--finished trains nothing: leave out --method, --run and --setting")
     scale = SCALES[args.scale]
     runs = args.runs if args.runs is not None else scale.runs
     if runs < 1:
@@ -181,6 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         tuple(args.methods) if args.methods else None,
         tuple(args.run_indices) if args.run_indices else None,
         tuple(args.settings) if args.settings else None,
+        args.finished,
     )
     if args.name == "status":
         from ant_evolution.experiments.status import report

@@ -179,6 +179,9 @@ class Context:
             training experiment trains that part of its runs and stops before its summary
             (:class:`PartialTraining`), so that several processes or machines can share one
             campaign directory, each training its own runs.
+        finished_only: ``--finished``: a training experiment trains nothing and summarises
+            the runs that are finished (a campaign in part; every table says how many runs
+            each setting has).
     """
 
     out: Path
@@ -194,6 +197,7 @@ class Context:
     only_methods: tuple[str, ...] | None = None
     only_runs: tuple[int, ...] | None = None
     only_settings: tuple[str, ...] | None = None
+    finished_only: bool = False
 
     @property
     def partial(self) -> bool:
@@ -342,9 +346,17 @@ class PartialTraining(Exception):
 def train_all(ctx: Context, jobs: Sequence[tuple[str, object]], desc: str) -> dict:
     """Every run of every ``(method, robots)`` job: ``{(method, robots): [history, ...]}``.
 
+    With ``ctx.finished_only`` nothing is trained: each job's list holds the histories of
+    its finished runs only (possibly none).
+
     Raises:
         PartialTraining: After training the subset that ``ctx.partial`` selects.
     """
+    if ctx.finished_only:
+        return {
+            (m, r): [read_history(p.parent / "history.csv") for _, p in finished_runs(ctx, m, r)]
+            for m, r in jobs
+        }
     todo = [(m, r, k) for m, r in jobs for k in range(ctx.runs)]
     if ctx.partial:
         todo = [
@@ -392,14 +404,16 @@ def read_history(path: Path) -> list[dict]:
 # --- evolved controllers -------------------------------------------------------------------
 
 
+def training_fitness(path: Path) -> float:
+    """The training fitness a run recorded in its ``best.json`` (ANT genome or program)."""
+    return float(json.loads(Path(path).read_text())["metadata"]["fitness"])
+
+
 def best_of_runs(ctx: Context, method: str, robots) -> tuple[Path, float]:
-    """The fittest run's ``best.json`` of a setting (by its recorded training fitness)."""
+    """The fittest finished run's ``best.json`` of a setting (by its training fitness)."""
     best: tuple[Path, float] | None = None
-    for k in range(ctx.runs):
-        path = run_dir(ctx, method, robots, k) / "best.json"
-        if not path.exists():
-            continue
-        fit = float(json.loads(path.read_text())["metadata"]["fitness"])
+    for _, path in finished_runs(ctx, method, robots):
+        fit = training_fitness(path)
         if best is None or fit > best[1]:
             best = (path, fit)
     if best is None:
@@ -496,15 +510,30 @@ def pyplot():
     return plt
 
 
-def scale_note(ctx: Context) -> str:
-    """One line naming the scale an experiment ran at."""
+def scale_note(ctx: Context, runs: dict | None = None) -> str:
+    """The scale an experiment ran at; with ``--finished``, how many runs each setting has.
+
+    Args:
+        ctx: The context.
+        runs: ``train_all``'s answer (``{(method, robots): [history, ...]}``), for the
+            in-part note.
+    """
     s = ctx.scale
-    return (
+    note = (
         f"Scale `{s.name}`: {ctx.runs} runs per setting, P = {s.population}, "
         f"{s.generations} generations, {s.scenarios} scenarios of {s.steps} steps per "
         f"generation (goal depths {', '.join(map(str, s.depths))}); evaluations on "
         f"{s.eval_scenarios} unseen scenarios per setting."
     )
+    if ctx.finished_only and runs is not None:
+        have = ", ".join(
+            f"{METHOD_LABELS[m]} {setting_label(r)} {len(h)}" for (m, r), h in runs.items()
+        )
+        note += (
+            f"\n\n**In part** (`--finished`): only the runs finished so far, of {ctx.runs} per "
+            f"setting: {have}. Settings without a finished run are left out."
+        )
+    return note
 
 
 def write_section(ctx: Context, name: str, text: str) -> Path:

@@ -25,11 +25,11 @@ from ant_evolution.experiments.core import (
     four_robot_genome,
     load_controller,
     pyplot,
-    run_dir,
     scale_note,
     score_depths,
     setting_label,
     train_all,
+    training_fitness,
     training_jobs,
     write_csv,
     write_section,
@@ -56,8 +56,12 @@ def training(ctx: Context) -> None:
     rows, table = [], []
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4), dpi=100)
+    if not any(runs.values()):
+        raise FileNotFoundError(f"training: no finished run in {ctx.out}")
     for n in s.train_robots:
         hs = runs[("ant", n)]
+        if not hs:  # --finished: none of this setting's runs is finished yet
+            continue
         for k, h in enumerate(hs):
             rows += [
                 {
@@ -83,7 +87,7 @@ def training(ctx: Context) -> None:
         )
     ax.axhline(SOLVED, color="gray", ls=":", lw=0.8)
     ax.set(xlabel="generation", ylabel="best fitness of the generation", ylim=(0, 1))
-    ax.set_title(f"ANT training, mean +- std over {ctx.runs} runs ({s.name} scale)", fontsize=9)
+    ax.set_title(f"ANT training, mean +- std over the runs ({s.name} scale)", fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -95,7 +99,7 @@ def training(ctx: Context) -> None:
         "training",
         f"""### Training with 1 to 5 robots
 
-{scale_note(ctx)}
+{scale_note(ctx, runs)}
 
 | robots | best of generation, last 10% (mean +- std) | best ever (mean) | runs reaching {SOLVED} |
 |---:|---:|---:|---:|
@@ -118,13 +122,16 @@ def compare(ctx: Context) -> None:
     plt = pyplot()
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4), dpi=100)
     rows, final = [], {}
+    methods = tuple(m for m in methods if runs[(m, n)])  # --finished: those with a run
+    if not methods:
+        raise FileNotFoundError(f"compare: no finished run in {ctx.out}")
     for m in methods:
         hs = runs[(m, n)]
         ever = _curves(hs, "best_ever")
         evals = _curves(hs, "evaluations").mean(0)
         mean_max = ever.mean(0)
         p_sol = (ever >= SOLVED).mean(0)
-        final[m] = (mean_max[-1], ever[:, -1].std(), p_sol[-1])
+        final[m] = (mean_max[-1], ever[:, -1].std(), p_sol[-1], len(hs))
         a1.plot(evals, mean_max, label=METHOD_LABELS[m])
         a2.plot(evals, p_sol, label=METHOD_LABELS[m])
         rows += [
@@ -142,16 +149,21 @@ def compare(ctx: Context) -> None:
     for a in (a1, a2):
         a.grid(alpha=0.3)
         a.legend(fontsize=8)
-    fig.suptitle(f"{n} robots, {ctx.runs} runs per method ({s.name} scale)", fontsize=9)
+    counts = ", ".join(f"{METHOD_LABELS[m]} {final[m][3]}" for m in methods)
+    fig.suptitle(f"{n} robots, runs: {counts} ({s.name} scale)", fontsize=9)
     fig.tight_layout()
     fig.savefig(ctx.dir("compare") / "compare.png")
     plt.close(fig)
     write_csv(ctx.dir("compare") / "compare.csv", rows)
-    best_conv = max(final["neat"][0], final["fixed"][0])
-    gain = final["ant"][0] / best_conv - 1 if best_conv > 0 else float("nan")
-    p_ratio = final["ant"][2] / final["neat"][2] if final["neat"][2] > 0 else float("inf")
+    conventional = [final[m][0] for m in ("neat", "fixed") if m in final]
+    best_conv = max(conventional, default=float("nan"))
+    gain = final["ant"][0] / best_conv - 1 if "ant" in final and best_conv > 0 else float("nan")
+    p_ratio = float("nan")
+    if "ant" in final and "neat" in final:
+        p_ratio = final["ant"][2] / final["neat"][2] if final["neat"][2] > 0 else float("inf")
     table = "\n".join(
-        f"| {METHOD_LABELS[m]} | {_fmt(final[m][0])} +- {_fmt(final[m][1])} | {final[m][2]:.2f} |"
+        f"| {METHOD_LABELS[m]} | {final[m][3]} | {_fmt(final[m][0])} +- {_fmt(final[m][1])} | "
+        f"{final[m][2]:.2f} |"
         for m in methods
     )
     (ctx.dir("compare") / "summary.json").write_text(
@@ -169,18 +181,28 @@ def compare(ctx: Context) -> None:
         "compare",
         f"""### ANT against NEAT and a fixed-topology network ({n} robots)
 
-{scale_note(ctx)} Same seeds, hence the same scenarios, for every method.
+{scale_note(ctx, runs)} Same seeds, hence the same scenarios, for every method.
 
-| method | maximum fitness at the end (mean +- std over runs) | P(fitness >= {SOLVED}) |
-|---|---:|---:|
+| method | runs | maximum fitness at the end (mean +- std over runs) | P(fitness >= {SOLVED}) |
+|---|---:|---:|---:|
 {table}
 
-ANT's mean maximum fitness is {gain * 100:+.0f}% against the best conventional network;
-its probability of a solution is {p_ratio:.2f} times NEAT's.
+{_compare_sentence(gain, p_ratio)}
 
 ![compare](figures/compare/compare.png)
 """,
     )
+
+
+def _compare_sentence(gain: float, p_ratio: float) -> str:
+    """The two headline ratios, each only where both of its methods have runs."""
+    parts = []
+    if not np.isnan(gain):
+        parts.append(f"ANT's mean maximum fitness is {gain * 100:+.0f}% against the best "
+                     "conventional network")  # fmt: skip
+    if not np.isnan(p_ratio):
+        parts.append(f"its probability of a solution is {p_ratio:.2f} times NEAT's")
+    return ("; ".join(parts) + ".") if parts else "(ANT or both conventional networks: no run.)"
 
 
 # --- coarse coding -------------------------------------------------------------------------
@@ -195,21 +217,33 @@ def coarse_coding(ctx: Context) -> None:
     fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
     for m in ("ant", "ant-nocc"):
         means, sds = [], []
+        ns, means, sds = [], [], []
         for n in s.train_robots:
+            if not runs[(m, n)]:  # --finished: none of this setting's runs is finished yet
+                continue
             ever = _curves(runs[(m, n)], "best_ever")[:, -1]
+            ns.append(n)
             means.append(ever.mean())
             sds.append(ever.std())
-            rows.append({"method": m, "robots": n, "max_fitness_mean": float(ever.mean()),
+            rows.append({"method": m, "robots": n, "runs": len(ever),
+                         "max_fitness_mean": float(ever.mean()),
                          "max_fitness_std": float(ever.std()),
                          "p_solution": float((ever >= SOLVED).mean())})  # fmt: skip
-        ax.errorbar(s.train_robots, means, yerr=sds, marker="o", capsize=3, label=METHOD_LABELS[m])
+        if ns:
+            ax.errorbar(ns, means, yerr=sds, marker="o", capsize=3, label=METHOD_LABELS[m])
+    cell = {(r["method"], r["robots"]): r for r in rows}
+
+    def fmt_cell(r: dict | None) -> str:
+        if r is None:
+            return "-"
+        return f"{_fmt(r['max_fitness_mean'])} +- {_fmt(r['max_fitness_std'])} ({r['runs']})"
+
     for n in s.train_robots:
-        a = next(r for r in rows if r["method"] == "ant" and r["robots"] == n)
-        b = next(r for r in rows if r["method"] == "ant-nocc" and r["robots"] == n)
         lines.append(
-            f"| {n} | {_fmt(a['max_fitness_mean'])} +- {_fmt(a['max_fitness_std'])} | "
-            f"{_fmt(b['max_fitness_mean'])} +- {_fmt(b['max_fitness_std'])} |"
+            f"| {n} | {fmt_cell(cell.get(('ant', n)))} | {fmt_cell(cell.get(('ant-nocc', n)))} |"
         )
+    if not rows:
+        raise FileNotFoundError(f"coarse-coding: no finished run in {ctx.out}")
     ax.set(xlabel="robots in training", ylabel="maximum fitness (mean over runs)", ylim=(0, 1))
     ax.set_xticks(list(s.train_robots))
     ax.grid(alpha=0.3)
@@ -224,7 +258,8 @@ def coarse_coding(ctx: Context) -> None:
         "coarse-coding",
         f"""### ANT with and without coarse coding
 
-{scale_note(ctx)}
+{scale_note(ctx, runs)} Each cell: maximum fitness at the end, mean +- std over the runs
+(their number).
 
 | robots | with coarse coding | without coarse coding |
 |---:|---:|---:|
@@ -249,11 +284,17 @@ def _sweep(ctx: Context, controller, label: str, bar) -> list[dict]:
 
 
 def scaleup(ctx: Context) -> None:
-    """Controllers evolved with 1-5 robots (and mixed) applied to 1-10 robots on 8 x 8."""
+    """Controllers evolved with 1-5 robots (and mixed) applied to 1-10 robots on 8 x 8.
+
+    The main table is each setting's fittest genome (by training fitness); a second table
+    scores every finished run's genome (mean +- std over each setting's runs), since one
+    controller is one sample of what a setting's evolution finds.
+    """
     s = ctx.scale
-    settings = training_jobs("scaleup", s)
-    train_all(ctx, settings, "scaleup training")
-    plan = [(f"{METHOD_LABELS[m]} {setting_label(r)}", m, r) for m, r in settings]
+    runs = train_all(ctx, training_jobs("scaleup", s), "scaleup training")
+    plan = [(f"{METHOD_LABELS[m]} {setting_label(r)}", m, r) for (m, r), h in runs.items() if h]
+    if not plan:
+        raise FileNotFoundError(f"scaleup: no finished run in {ctx.out}")
     rows = []
     with tqdm(total=(len(plan) + 1) * len(s.eval_robots), desc="scaleup", unit="setting") as bar:
         for label, m, r in plan:
@@ -284,21 +325,26 @@ def scaleup(ctx: Context) -> None:
         f"| {lab} | " + " | ".join(_fmt(by[(lab, n)]["mean"]) for n in s.eval_robots) + " |"
         for lab in labels
     )
+    every = _every_run(
+        ctx, "scaleup", [(label, finished_runs(ctx, m, r)) for label, m, r in plan], "setting",
+        lambda c, _label, n: score_depths(c, ctx, n), f"fitness after {s.steps} steps (8 x 8)",
+        "each setting",
+    )  # fmt: skip
     write_section(
         ctx,
         "scaleup",
         f"""### Scaling the evolved controllers to 1-10 robots
 
-{scale_note(ctx)} Each row is the fittest genome (by training fitness) of that setting's
-runs; columns are robots at evaluation time on the 8 x 8 pit; `n4` = evolved with 4 robots,
-`mix1+4` = scenarios alternating 1 and 4 robots.
+{scale_note(ctx, runs)} Each row is the fittest genome (by training fitness) of that
+setting's runs; columns are robots at evaluation time on the 8 x 8 pit; `n4` = evolved with
+4 robots, `mix1+4` = scenarios alternating 1 and 4 robots.
 
 {head}
 {sep}
 {body}
 
 ![scaleup](figures/scaleup/scaleup.png)
-""",
+{every}""",
     )
 
 
@@ -364,9 +410,9 @@ def antagonism(ctx: Context) -> None:
         f"fitness after {s.steps} steps",
     )  # fmt: skip
     every = _every_run(
-        ctx, "antagonism", s.areas, "pit",
+        ctx, "antagonism", _four_robot_runs(ctx, s.areas), "pit",
         lambda c, a, n: score_depths(c, ctx, n, size=a),
-        f"fitness after {s.steps} steps",
+        f"fitness after {s.steps} steps", "the 4-robot ANT runs",
     )  # fmt: skip
     write_section(
         ctx,
@@ -384,27 +430,38 @@ The 4-robot controller {note} on square pits of {", ".join(map(str, s.areas))} c
     )
 
 
-def _every_run(ctx: Context, name: str, keys, key_label: str, scorer, ylab: str) -> str:
-    """An experiment's grid for the best genome of every finished 4-robot ANT run.
+def _every_run(
+    ctx: Context, name: str, groups, key_label: str, scorer, ylab: str, what: str
+) -> str:
+    """An experiment's grid for the best genome of every finished run, group by group.
 
     One controller is one sample of what evolution finds; the numbers of every run's own
-    controller show how much a result depends on the run. ``scorer(controller, key,
-    robots)`` gives the per-scenario fitness of one cell. Writes ``NAME_runs.csv`` and
-    ``NAME_runs.png``; returns a markdown part of the section ("" with fewer than two
-    finished runs, or when ``--genome`` names the controller).
+    controller show how much a result depends on the run.
+
+    Args:
+        ctx: The context.
+        name: The experiment (``NAME_runs.csv`` and ``NAME_runs.png`` go to its directory).
+        groups: ``[(key, [(run, best.json), ...]), ...]``: the runs scored for each key.
+        key_label: The key's column name (``pit``, ``depth``, ``setting``).
+        scorer: ``scorer(controller, key, robots)``: per-scenario fitness of one cell.
+        ylab: The figure's y label.
+        what: Which runs these are, for the text (``the 4-robot ANT runs``).
+
+    Returns:
+        A markdown part of the section; "" when no group has two finished runs.
     """
     s = ctx.scale
-    runs = [] if ctx.genome is not None else finished_runs(ctx, "ant", compare_robots(s))
-    if len(runs) < 2:
+    if max((len(runs) for _, runs in groups), default=0) < 2:
         return ""
     rows = []
-    with tqdm(total=len(runs) * len(keys) * len(s.eval_robots), desc=f"{name}, every run",
-              unit="setting") as bar:  # fmt: skip
-        for k, path in runs:
-            g = load_genome(path)
-            ctl = Controller.from_genome(g, name=str(path))
-            fit = g.metadata.get("fitness") if isinstance(g.metadata, dict) else None
-            for key in keys:
+    loaded: dict = {}
+    total = sum(len(runs) for _, runs in groups) * len(s.eval_robots)
+    with tqdm(total=total, desc=f"{name}, every run", unit="setting") as bar:
+        for key, runs in groups:
+            for k, path in runs:
+                if path not in loaded:
+                    loaded[path] = (load_controller(path), training_fitness(path))
+                ctl, fit = loaded[path]
                 for n in s.eval_robots:
                     sc = scorer(ctl, key, n)
                     rows.append({"run": k, "training_fitness": fit, key_label: key, "robots": n,
@@ -417,32 +474,32 @@ def _every_run(ctx: Context, name: str, keys, key_label: str, scorer, ylab: str)
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
     lines = [
-        f"| {key_label} | " + " | ".join(str(n) for n in robots)
+        f"| {key_label} | runs | " + " | ".join(str(n) for n in robots)
         + " | peak of each run's controller |",
-        "|---|" + "---:|" * len(robots) + "---|",
+        "|---|---:|" + "---:|" * len(robots) + "---|",
     ]  # fmt: skip
-    for key in keys:
+    for key, runs in groups:
+        if not runs:
+            continue
         per_run = np.array([[grid[(k, key, n)] for n in robots] for k, _ in runs])
         mean, sd = per_run.mean(0), per_run.std(0)
         ax.errorbar(robots, mean, yerr=sd, marker="o", ms=3, capsize=2, label=f"{key_label} {key}")
         peaks = [robots[int(np.argmax(row))] for row in per_run]
         counts = ", ".join(f"{n}: {peaks.count(n)}" for n in sorted(set(peaks)))
         lines.append(
-            f"| {key} | "
+            f"| {key} | {len(runs)} | "
             + " | ".join(f"{m:.3f} +- {d:.3f}" for m, d in zip(mean, sd, strict=True))
             + f" | {counts} (median {float(np.median(peaks)):g}) |"
         )
     ax.set(xlabel="robots", ylabel=f"{ylab}, mean over runs", ylim=(0, 1.05))
-    ax.set_title(f"best genome of each of {len(runs)} 4-robot ANT runs ({s.name} scale)",
-                 fontsize=9)  # fmt: skip
+    ax.set_title(f"best genome of every finished run of {what} ({s.name} scale)", fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(ctx.dir(name) / f"{stem}_runs.png")
     plt.close(fig)
     return f"""
-The best genome of each of the {len(runs)} finished 4-robot ANT runs
-(runs {", ".join(str(k) for k, _ in runs)}) on the same scenarios: fitness mean +- std
+The best genome of every finished run of {what} on the same scenarios: fitness mean +- std
 over the runs' controllers, and how many runs' controllers peak at each robot count
 (`{stem}_runs.csv` has every run).
 
@@ -450,6 +507,15 @@ over the runs' controllers, and how many runs' controllers peak at each robot co
 
 ![{name}, every run](figures/{name}/{stem}_runs.png)
 """
+
+
+def _four_robot_runs(ctx: Context, keys) -> list[tuple[object, list[tuple[int, object]]]]:
+    """``_every_run``'s groups for the 4-robot ANT runs, the same runs for every key.
+
+    None when ``--genome`` names the controller.
+    """
+    runs = [] if ctx.genome is not None else finished_runs(ctx, "ant", compare_robots(ctx.scale))
+    return [(key, runs) for key in keys]
 
 
 def depth(ctx: Context) -> None:
@@ -465,7 +531,8 @@ def depth(ctx: Context) -> None:
 
     ylab = f"fitness after {s.long_steps} steps"
     rows = _robot_grid(ctx, "depth", s.depths, "depth", lambda d, n: scorer(ctl, d, n), ylab)
-    every = _every_run(ctx, "depth", s.depths, "depth", scorer, ylab)
+    every = _every_run(ctx, "depth", _four_robot_runs(ctx, s.depths), "depth", scorer, ylab,
+                       "the 4-robot ANT runs")  # fmt: skip
     write_section(
         ctx,
         "depth",
@@ -492,7 +559,8 @@ def area(ctx: Context) -> None:
 
     ylab = f"fitness after {s.long_steps} steps"
     rows = _robot_grid(ctx, "area", s.area_sizes, "pit", lambda a, n: scorer(ctl, a, n), ylab)
-    every = _every_run(ctx, "area", s.area_sizes, "pit", scorer, ylab)
+    every = _every_run(ctx, "area", _four_robot_runs(ctx, s.area_sizes), "pit", scorer, ylab,
+                       "the 4-robot ANT runs")  # fmt: skip
     write_section(
         ctx,
         "area",
@@ -516,12 +584,14 @@ scenarios per cell split over goal depths {", ".join(map(str, s.depths))},
 def evolve_robots(ctx: Context) -> None:
     """N as a gene: which N the best genomes settle on."""
     s = ctx.scale
-    runs = train_all(ctx, training_jobs("evolve-robots", s), "evolve-robots")[("ant", "evolve")]
+    trained = train_all(ctx, training_jobs("evolve-robots", s), "evolve-robots")
+    runs = trained[("ant", "evolve")]
+    if not runs:
+        raise FileNotFoundError(f"evolve-robots: no finished run in {ctx.out}")
     lo, hi = s.robots_range
-    best_n = []
-    for k in range(ctx.runs):
-        g = load_genome(run_dir(ctx, "ant", "evolve", k) / "best.json")
-        best_n.append(int(g.tissue.robots))
+    best_n = [
+        int(load_genome(path).tissue.robots) for _, path in finished_runs(ctx, "ant", "evolve")
+    ]
     pop = np.zeros(hi + 1)
     for h in runs:
         for r in h[len(h) - max(1, len(h) // 5) :]:
@@ -543,7 +613,7 @@ def evolve_robots(ctx: Context) -> None:
     for a in (a1, a2):
         a.set_xticks(ns)
         a.grid(alpha=0.3, axis="y")
-    fig.suptitle(f"evolved number of robots, {ctx.runs} runs ({s.name} scale)", fontsize=9)
+    fig.suptitle(f"evolved number of robots, {len(runs)} runs ({s.name} scale)", fontsize=9)
     fig.tight_layout()
     fig.savefig(ctx.dir("evolve-robots") / "evolve_robots.png")
     plt.close(fig)
@@ -555,7 +625,7 @@ def evolve_robots(ctx: Context) -> None:
         "evolve-robots",
         f"""### Evolving the number of robots
 
-{scale_note(ctx)} N is a gene in {lo}..{hi} (every scenario places {hi} robots and a
+{scale_note(ctx, trained)} N is a gene in {lo}..{hi} (every scenario places {hi} robots and a
 genome uses its first N).
 
 | N | runs whose best genome has this N | share of the population, last 20% of generations |
