@@ -15,7 +15,7 @@ DEMO_OUT ?= demo_out
 # as root), which also proves that nothing in it talks to the outside.
 NETNS := $(shell unshare -n true 2>/dev/null && echo "unshare -n")
 
-.PHONY: setup lint test test-pending demo bench soak clean
+.PHONY: setup lint test test-system test-pending demo bench soak clean
 
 $(STAMP): requirements.txt $(addsuffix /setup.py,$(filter ros2_ws/%,$(PACKAGES))) evolution/pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -31,13 +31,29 @@ lint: setup
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports
 
+# make test: the suite without the whole-system runs (marker `system`: make test-system).
+# Each part runs on TEST_WORKERS workers, then its `serial` tests alone; pytest exits 5 when
+# a marker selects no test. $(1) is the part's marker expression.
+FAST := not pending and not system
+SYSTEM := system and not pending
+tests_of = { $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "$(1) and not serial" tests ros2_ws/src || [ $$? -eq 5 ]; } && { $(BIN)/python -m pytest -q -m "$(1) and serial" tests || [ $$? -eq 5 ]; }
+
 test: setup lint
 	$(BIN)/python -m ant_evolution.warmup  # compile once, before the workers
 ifeq ($(NETNS),)
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not pending and not serial" tests ros2_ws/src
-	$(BIN)/python -m pytest -q -m "serial and not pending" tests
+	$(call tests_of,$(FAST))
 else
-	unshare -n sh -c 'ip link set lo up 2>/dev/null; $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not pending and not serial" tests ros2_ws/src && exec $(BIN)/python -m pytest -q -m "serial and not pending" tests'
+	unshare -n sh -c 'ip link set lo up 2>/dev/null; $(call tests_of,$(FAST))'
+endif
+
+# The dome bring-up, the fault matrix and the short soak: long wall-clock runs of the whole
+# node suite (about 9 minutes on 2 cores). .ci/run runs them after make test.
+test-system: setup
+	$(BIN)/python -m ant_evolution.warmup
+ifeq ($(NETNS),)
+	$(call tests_of,$(SYSTEM))
+else
+	unshare -n sh -c 'ip link set lo up 2>/dev/null; $(call tests_of,$(SYSTEM))'
 endif
 
 # Integration tests marked pending (docs/reliability.md, "Pending"; none now).

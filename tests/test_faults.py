@@ -27,7 +27,8 @@ from excavation_bags.cli import main as bag_main
 from excavation_bags.reader import open_bag
 from excavation_bringup.trial import run_trial
 
-pytestmark = pytest.mark.serial  # wall-clock faults: run alone (make test)
+# wall-clock faults: run alone, in make test-system
+pytestmark = [pytest.mark.serial, pytest.mark.system]
 
 SIM = "/sim"
 

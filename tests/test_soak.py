@@ -43,7 +43,8 @@ def test_bad_arguments_are_one_line(capsys):
     assert "--steps = 3: must be at least 10" in capsys.readouterr().err
 
 
-@pytest.mark.serial  # promises no missed tick on an unloaded machine (make test: alone)
+@pytest.mark.system
+@pytest.mark.serial  # promises no missed tick on an unloaded machine (run alone)
 def test_short_soak_through_the_nodes(tmp_path, capsys):
     """2 robots, 40 ticks, full perception, every node a process: sampled, nothing missed."""
     out = tmp_path / "soak.json"
