@@ -47,7 +47,7 @@ else
 endif
 
 # The dome bring-up, the fault matrix and the short soak: long wall-clock runs of the whole
-# node suite (about 9 minutes on 2 cores). .ci/run runs them after make test.
+# node suite (about 10 minutes on 2 cores). .ci/run runs them after make test.
 test-system: setup
 	$(BIN)/python -m ant_evolution.warmup
 ifeq ($(NETNS),)

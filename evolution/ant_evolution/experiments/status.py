@@ -131,7 +131,8 @@ def report(ctx: Context) -> str:
         f"Campaign `{ctx.out}`, scale `{s.name}` ({ctx.runs} runs per setting, "
         f"{s.generations} generations of P = {s.population} x S = {s.scenarios}), "
         f"profile `{ctx.profile}`. Runs reaching {SOLVED} and best ever are over finished "
-        "runs; first >= 0.9 is a generation (scenario evaluations in millions).",
+        "runs (std: over the runs, as in the experiments' tables); first >= 0.9 is a "
+        "generation (scenario evaluations in millions).",
         "",
         "| experiment | setting | finished | in progress | reaching 0.9 | best ever, mean +- std "
         "(min-max) | first >= 0.9, median | training hours | to finish it |",
@@ -147,7 +148,7 @@ def report(ctx: Context) -> str:
                 "-"
                 if not ever
                 else f"{statistics.fmean(ever):.3f} +- "
-                f"{statistics.stdev(ever) if len(ever) > 1 else 0.0:.3f} "
+                f"{statistics.pstdev(ever):.3f} "
                 f"({min(ever):.3f}-{max(ever):.3f})"
             )
             solved = [r.first_solved for r in done if r.first_solved is not None]
