@@ -12,3 +12,9 @@ for seed in 1000 1001 1002; do
   done
   name=v1-s$seed; [ -f $name/history.csv ] || nice -n 10 $B --out $name --seed $seed --population 100 --scenarios 30 --steps 300 --generations 100 --robots 4 --workers 1 > $name.log 2>&1
 done
+# The paper profile alone on more seeds: which leave the plateau within 100 generations?
+for seed in 1003 1004 1005 1006 1007 1008 1009; do
+  name=none-s$seed
+  [ -f $name/history.csv ] && [ $(wc -l < $name/history.csv) -gt 100 ] && continue
+  nice -n 10 $B --profile paper --out $name --seed $seed --population 100 --scenarios 30 --steps 300 --generations 100 --robots 4 --workers 1 > $name.log 2>&1
+done
