@@ -45,3 +45,24 @@ def test_scenario_arrays_have_one_type_however_the_set_arrived():
     assert numba.typeof(here) == numba.typeof(there)
     assert all(not a.flags.writeable for a in here)
     assert batch.heights.flags.writeable  # the set's own arrays are left as they were
+
+
+def test_the_cache_key_covers_every_file_with_kernels(monkeypatch):
+    """The cache folder's hash covers every source file that uses numba in the three kernel
+    packages (the episode kernel inlines code from ant_evolution/baselines/network.py), and
+    changes when one of them is left out."""
+    import importlib.util
+    from pathlib import Path
+
+    import ant_controller
+
+    covered: set[Path] = set()
+    for name, patterns in ant_controller.KERNEL_SOURCES.items():
+        root = Path(importlib.util.find_spec(name).submodule_search_locations[0])
+        covered |= {p.resolve() for pattern in patterns for p in root.glob(pattern)}
+        for path in root.rglob("*.py"):
+            if "numba" in path.read_text(encoding="utf-8"):
+                assert path.resolve() in covered, f"{path} uses numba but is not hashed"
+    full = ant_controller.source_hash()
+    monkeypatch.setitem(ant_controller.KERNEL_SOURCES, "ant_evolution", ("*.py",))
+    assert ant_controller.source_hash() != full

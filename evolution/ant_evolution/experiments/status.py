@@ -41,7 +41,7 @@ class RunStatus:
         best_ever: Highest best-of-generation fitness in the history (``None``: no history).
         first_solved: First generation whose best reached :data:`SOLVED` (``None``: none).
         evaluations_solved: Scenario evaluations up to and including that generation.
-        seconds: Sum of the history's generation times (training wall time).
+        seconds: Sum of the history's generation times (each generation's evaluation).
     """
 
     method: str
@@ -111,6 +111,21 @@ def campaign(ctx: Context) -> dict[str, list[tuple[str, object, list[RunStatus]]
     return out
 
 
+def hours_left(runs: list[RunStatus]) -> float | None:
+    """One core's evaluation hours to finish a setting's runs, at its finished runs' pace.
+
+    The pace is the finished runs' evaluation seconds per generation; a run in progress
+    counts its missing generations, one without a checkpoint all of them (it starts
+    again). ``None`` when no run of the setting is finished (no pace to go by).
+    """
+    done = [r for r in runs if r.finished]
+    if not done:
+        return None
+    pace = sum(r.seconds for r in done) / sum(r.generations for r in done)
+    missing = sum(r.target - (r.generations if r.checkpoint else 0) for r in runs if not r.finished)
+    return missing * pace / 3600
+
+
 def _f(x: float | None) -> str:
     return "-" if x is None else f"{x:.3f}"
 
@@ -135,10 +150,12 @@ def report(ctx: Context) -> str:
         "generation (scenario evaluations in millions).",
         "",
         "| experiment | setting | finished | in progress | reaching 0.9 | best ever, mean +- std "
-        "(min-max) | first >= 0.9, median | training hours | to finish it |",
-        "|---|---|---:|---:|---:|---|---:|---:|---|",
+        "(min-max) | first >= 0.9, median | evaluation hours | evaluation hours left, one "
+        "core (estimate) | to finish it |",
+        "|---|---|---:|---:|---:|---|---:|---:|---:|---|",
     ]
     detail = ["", "| run | state | best ever | first >= 0.9 | hours |", "|---|---|---:|---:|---:|"]
+    timed, untimed = 0.0, 0
     for name, settings in found.items():
         for method, robots, runs in settings:
             done = [r for r in runs if r.finished]
@@ -153,12 +170,18 @@ def report(ctx: Context) -> str:
             )
             solved = [r.first_solved for r in done if r.first_solved is not None]
             todo = "" if len(done) == len(runs) else f"`{_command(ctx, name, method, robots)}`"
+            left = hours_left(runs)
+            if left is None:
+                untimed += len(runs) - len(done)
+            else:
+                timed += left
             lines.append(
                 f"| {name} | {METHOD_LABELS[method]} {setting_label(robots)} | "
                 f"{len(done)} of {len(runs)} | {len(going)} | "
                 f"{f'{len(solved)} of {len(done)}' if done else '-'} | {spread} | "
                 f"{statistics.median(solved) if solved else '-'} | "
-                f"{sum(r.seconds for r in runs) / 3600:.1f} | {todo} |"
+                f"{sum(r.seconds for r in runs) / 3600:.1f} | "
+                f"{'-' if left is None else f'{left:.1f}'} | {todo} |"
             )
             for r in runs:
                 if not (r.generations or r.checkpoint):
@@ -172,4 +195,12 @@ def report(ctx: Context) -> str:
                     f"| `{r.path.name}` | {r.state} | {_f(r.best_ever)} | {first} | "
                     f"{r.seconds / 3600:.2f} |"
                 )
+    lines += [
+        "",
+        f"Left: about {timed:.1f} h of one core's evaluation for the settings with a "
+        f"finished run (at their pace), and {untimed} runs of settings without one. Hours "
+        "are the histories' `seconds`: each generation's evaluation, with any time the run "
+        "was paused meanwhile; breeding and checkpoints come on top (little for the fixed "
+        "network, most for NEAT: docs/experiments.md).",
+    ]
     return "\n".join(lines + (detail if len(detail) > 3 else [])) + "\n"
