@@ -53,11 +53,11 @@ def training(ctx: Context) -> None:
     """Best fitness per generation for each training robot count (mean and spread)."""
     s = ctx.scale
     runs = train_all(ctx, training_jobs("training", s), "training")
+    if not any(runs.values()):
+        raise FileNotFoundError(f"training: no finished run in {ctx.out}")
     rows, table = [], []
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4), dpi=100)
-    if not any(runs.values()):
-        raise FileNotFoundError(f"training: no finished run in {ctx.out}")
     for n in s.train_robots:
         hs = runs[("ant", n)]
         if not hs:  # --finished: none of this setting's runs is finished yet
@@ -216,7 +216,6 @@ def coarse_coding(ctx: Context) -> None:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
     for m in ("ant", "ant-nocc"):
-        means, sds = [], []
         ns, means, sds = [], [], []
         for n in s.train_robots:
             if not runs[(m, n)]:  # --finished: none of this setting's runs is finished yet
@@ -231,6 +230,9 @@ def coarse_coding(ctx: Context) -> None:
                          "p_solution": float((ever >= SOLVED).mean())})  # fmt: skip
         if ns:
             ax.errorbar(ns, means, yerr=sds, marker="o", capsize=3, label=METHOD_LABELS[m])
+    if not rows:
+        plt.close(fig)
+        raise FileNotFoundError(f"coarse-coding: no finished run in {ctx.out}")
     cell = {(r["method"], r["robots"]): r for r in rows}
 
     def fmt_cell(r: dict | None) -> str:
@@ -242,8 +244,6 @@ def coarse_coding(ctx: Context) -> None:
         lines.append(
             f"| {n} | {fmt_cell(cell.get(('ant', n)))} | {fmt_cell(cell.get(('ant-nocc', n)))} |"
         )
-    if not rows:
-        raise FileNotFoundError(f"coarse-coding: no finished run in {ctx.out}")
     ax.set(xlabel="robots in training", ylabel="maximum fitness (mean over runs)", ylim=(0, 1))
     ax.set_xticks(list(s.train_robots))
     ax.grid(alpha=0.3)
