@@ -262,3 +262,19 @@ def test_finished_summarises_a_campaign_in_part(tmp_path, capsys, monkeypatch):
             cli.main(argv)
     err = capsys.readouterr().err
     assert "antagonism trains none" in err and "leave out --method, --run and --setting" in err
+
+
+def test_hours_left_goes_by_the_finished_runs_pace(tmp_path):
+    """status's estimate: missing generations at the finished runs' seconds per generation;
+    a run without a checkpoint counts in full (it starts again); no finished run, no pace."""
+    from ant_evolution.experiments.status import RunStatus, hours_left
+
+    def run(k, generations, seconds, checkpoint):
+        return RunStatus("ant", "n4", k, tmp_path / str(k), generations, 10, checkpoint, None,
+                         None, None, seconds)  # fmt: skip
+
+    done = run(0, 10, 7200.0, False)  # 720 s a generation
+    resumable, restarting = run(1, 4, 100.0, True), run(2, 4, 100.0, False)
+    assert hours_left([done, resumable, restarting]) == pytest.approx((6 + 10) * 720 / 3600)
+    assert hours_left([done]) == 0.0
+    assert hours_left([resumable, restarting]) is None
