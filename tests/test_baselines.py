@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 
 import numpy as np
@@ -207,6 +208,30 @@ def test_program_evaluator_is_the_same_for_any_worker_count(tmp_path):
     assert np.array_equal(a, b)
 
 
+def test_neat_genomes_compiled_here_score_alike_on_every_backend(tmp_path):
+    """NEAT genomes compile in the evaluating process, chunk by chunk as the workers start:
+    the same fitness in this process, in a pool and on Ray as their programs directly."""
+    from ant_evolution.backends import CompileHere
+    from ant_evolution.baselines.neat_baseline import compile_neat
+
+    cfg, genomes, progs = _neat_programs(tmp_path, 9)
+    here = CompileHere(functools.partial(compile_neat, config=cfg))
+    sets = [ScenarioSet.create(default_blueprint(1), 2, 2, 40, seed=5)]
+    with Evaluator(1) as one, Evaluator(2) as two:
+        direct = one.evaluate(progs, sets, compile_fn=None)
+        in_process = one.evaluate(genomes, sets, compile_fn=here)
+        pool = two.evaluate(genomes, sets, compile_fn=here)
+    ray = pytest.importorskip("ray", reason="ray is the optional cluster backend")
+    try:
+        with Evaluator(workers=2, ray_address="local") as ev:
+            on_ray = ev.evaluate(genomes, sets, compile_fn=here)
+    finally:
+        ray.shutdown()
+    assert len(set(direct.tolist())) > 1  # the genomes differ
+    for other in (in_process, pool, on_ray):
+        assert np.array_equal(direct, other)
+
+
 def test_ga_operators_keep_shapes_and_are_seeded():
     top = FixedTopology((30, 10))
     rng = np.random.default_rng(0)
@@ -234,6 +259,34 @@ def test_program_file_round_trip_and_errors(tmp_path):
     bad = program_to_dict(prog)
     bad["edge_src"][0] = 10_000
     with pytest.raises(ValueError, match="bad.json: .*node 0 reads a node that comes later"):
+        program_from_dict(bad, "bad.json")
+    bad = program_to_dict(prog)
+    bad["node_theta"] = [[0.1, 0.2, 0.3]]
+    with pytest.raises(ValueError, match="bad.json: node_theta: 3 values, not pairs"):
+        program_from_dict(bad, "bad.json")
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("node_agg", lambda v: v[:-1], "node_agg must have N"),
+        ("node_bias", lambda v: v + [0.0], "node_bias must have N"),
+        ("node_theta", lambda v: v[:-2], "node_theta must be N x 2"),
+        ("edge_w", lambda v: v[:-1], "edge_src and edge_w must be lists of one length"),
+        ("edge_start", lambda v: [v[0] + 1, *v[1:]], "edge_start must rise from 0"),
+        ("edge_start", lambda v: [0, v[2], v[1], *v[3:]], "edge_start must rise from 0"),
+        ("node_act", lambda v: [9, *v[1:]], "node_act must lie in 0..5"),
+        ("node_agg", lambda v: [2, *v[1:]], "node_agg must be 0"),
+        ("out_node", lambda v: [len(v) * 1000, *v[1:]], "out_node must lie in -1.."),
+        ("edge_src", lambda v: [-3, *v[1:]], "node 0 reads a node that comes later"),
+    ],
+)
+def test_hostile_program_files_are_refused_before_the_kernel(field, value, message):
+    """Every array the kernel indexes is checked (it runs without bounds checks)."""
+    _, prog = _fixed_program(1)
+    bad = program_to_dict(prog)
+    bad[field] = value(bad[field])
+    with pytest.raises(ValueError, match=f"bad.json: network program: {message}"):
         program_from_dict(bad, "bad.json")
 
 

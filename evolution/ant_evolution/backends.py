@@ -19,7 +19,8 @@ workers pickled and come back as floats.
 
 A ``compile_fn`` wrapped in :class:`CompileHere` runs in this process instead, and the
 programs travel: for NEAT, whose genomes (about 1,600 gene objects each) take longer to
-pickle and unpickle than to compile.
+pickle and unpickle than to compile. Each chunk is sent as soon as it is compiled, so the
+workers start on the first chunks while this process compiles the rest.
 """
 
 from __future__ import annotations
@@ -69,10 +70,6 @@ def _evaluate_parts(items: list, sets: Sequence[ScenarioSet], compile_fn) -> lis
     if compile_fn is None:
         return [program_fitness(p, sets) for p in items]
     return [program_fitness(compile_fn(x), sets) for x in items]
-
-
-def _evaluate_chunk(payload: tuple) -> list[float]:
-    return _evaluate_parts(*payload)
 
 
 def _chunks(items: list, n: int) -> list[list]:
@@ -151,15 +148,26 @@ class Evaluator:
         """
         if self._ray is None and self._pool is None:
             return np.array(_evaluate_parts(list(items), sets, compile_fn))
-        if isinstance(compile_fn, CompileHere):
-            items, compile_fn = [compile_fn(x) for x in items], None
         chunks = _chunks(list(items), self.workers * CHUNKS_PER_WORKER)
+        here = isinstance(compile_fn, CompileHere)
+
+        def payload(chunk: list) -> tuple[list, Callable | None]:
+            # compiled here chunk by chunk: the workers start on the first chunks meanwhile
+            return ([compile_fn(x) for x in chunk], None) if here else (chunk, compile_fn)
+
         if self._ray is not None:
             sets_ref = self._ray.put(list(sets))
-            results = self._ray.get([self._remote.remote(c, sets_ref, compile_fn) for c in chunks])
+            refs = []
+            for c in chunks:
+                part, fn = payload(c)
+                refs.append(self._remote.remote(part, sets_ref, fn))
+            results = self._ray.get(refs)
         else:
-            payloads = [(c, sets, compile_fn) for c in chunks]
-            results = list(self._pool.map(_evaluate_chunk, payloads))
+            futures = []
+            for c in chunks:
+                part, fn = payload(c)
+                futures.append(self._pool.submit(_evaluate_parts, part, sets, fn))
+            results = [f.result() for f in futures]
         return _unchunk(results)
 
     def close(self) -> None:

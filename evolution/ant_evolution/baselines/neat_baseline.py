@@ -40,6 +40,8 @@ from __future__ import annotations
 import random
 import warnings
 import weakref
+from itertools import chain
+from operator import attrgetter
 from pathlib import Path
 
 import neat
@@ -516,6 +518,12 @@ def neat_config(path: Path, population: int, hidden: int, overrides: dict[str, s
 _ACTIVATIONS = {"sigmoid": ACT_SIGMOID, "identity": ACT_IDENTITY}
 """neat-python activation names that compile to a sum node, and their network-program codes."""
 _MODULAR_CODES = {f.__name__: i for i, f in enumerate(MODULAR)}
+_ACTIVATION_CODES = {**_MODULAR_CODES, **_ACTIVATIONS}
+"""Every activation that compiles, and its network-program code."""
+_ENABLED = attrgetter("enabled")
+_BIAS = attrgetter("bias")
+_RESPONSE = attrgetter("response")
+_WEIGHT = attrgetter("weight")
 
 
 def compile_neat(genome, config) -> NetworkProgram:
@@ -533,16 +541,32 @@ def compile_neat(genome, config) -> NetworkProgram:
     gc = config.genome_config
     outputs = list(gc.output_keys)
     node_keys = list(genome.nodes)
-    index = {key: j for j, key in enumerate(node_keys)}
     n = len(node_keys)
-    links = [
-        (cg.key[0], index[cg.key[1]], cg.weight) for cg in genome.connections.values() if cg.enabled
-    ]
-    src_key = np.array([a for a, _, _ in links], dtype=np.int64)
-    dst = np.array([b for _, b, _ in links], dtype=np.int64)
-    weight = np.array([w for _, _, w in links], dtype=np.float64)
+    genes = genome.connections  # gene key (input, output) -> gene
+    links = len(genes)
+    pairs = np.fromiter(chain.from_iterable(genes), np.int64, 2 * links).reshape(links, 2)
+    enabled = np.fromiter(map(_ENABLED, genes.values()), bool, links)
+    src_key, dst_key = pairs[enabled, 0], pairs[enabled, 1]
+    weight = np.fromiter(map(_WEIGHT, genes.values()), np.float64, links)[enabled]
     from_node = src_key >= 0  # input keys are negative
-    src = np.array([index[a] if a >= 0 else -1 for a in src_key], dtype=np.int64)
+    # node key -> position in genome.nodes, for all links at once
+    keys = np.fromiter(node_keys, np.int64, n)
+    by_key = np.argsort(keys, kind="stable")
+    sorted_keys = keys[by_key]
+
+    def index_of(k: np.ndarray) -> np.ndarray:
+        if k.size and n == 0:
+            raise ValueError(f"NEAT genome: a connection names node {int(k[0])}, not in it")
+        at = np.minimum(np.searchsorted(sorted_keys, k), max(n - 1, 0))
+        missing = k[sorted_keys[at] != k] if k.size else k
+        if missing.size:
+            raise ValueError(f"NEAT genome: a connection names node {int(missing[0])}, not in it")
+        return by_key[at]
+
+    dst = index_of(dst_key)
+    src = np.full(src_key.size, -1, dtype=np.int64)
+    src[from_node] = index_of(src_key[from_node])
+    index = {key: j for j, key in enumerate(node_keys)}
     # required: the outputs and everything upstream of them
     required = np.zeros(n, dtype=bool)
     required[[index[q] for q in outputs if q in index]] = True
@@ -571,27 +595,24 @@ def compile_neat(genome, config) -> NetworkProgram:
     e = e[np.argsort(position[dst[e]], kind="stable")]  # by node, genome order within
     edge_src = np.where(from_node[e], N_SENSORS + position[np.maximum(src[e], 0)], -1 - src_key[e])
     counts = np.bincount(position[dst[e]], minlength=order.size)
-    act, agg, theta, bias, resp = [], [], [], [], []
-    for j in order:
-        key = node_keys[j]
-        ng = genome.nodes[key]
-        if ng.aggregation != "sum":
-            raise ValueError(f"NEAT node {key}: only the sum aggregation compiles")
-        modular = _MODULAR_CODES.get(ng.activation, -1)
-        if modular < 0 and ng.activation not in _ACTIVATIONS:
-            raise ValueError(f"NEAT node {key}: only sigmoid and identity activations compile")
-        act.append(modular if modular >= 0 else _ACTIVATIONS[ng.activation])
-        agg.append(AGG_MEAN if modular >= 0 else AGG_SUM)
-        theta.append((ng.bias, ng.response) if modular >= 0 else (0.0, 0.0))
-        bias.append(ng.bias)
-        resp.append(ng.response)
     m = order.size
+    nodes = [genome.nodes[node_keys[j]] for j in order]
+    for ng in nodes:  # only what the kernel computes
+        if ng.aggregation != "sum":
+            raise ValueError(f"NEAT node {ng.key}: only the sum aggregation compiles")
+        if ng.activation not in _ACTIVATION_CODES:
+            raise ValueError(f"NEAT node {ng.key}: only sigmoid and identity activations compile")
+    act = np.fromiter((_ACTIVATION_CODES[ng.activation] for ng in nodes), np.int64, m)
+    bias = np.fromiter(map(_BIAS, nodes), np.float64, m)
+    resp = np.fromiter(map(_RESPONSE, nodes), np.float64, m)
+    modular = act < ACT_SIGMOID
+    theta = np.where(modular[:, None], np.stack((bias, resp), axis=1), 0.0)
     return NetworkProgram(
-        node_act=np.asarray(act, dtype=np.int64).reshape(m),
-        node_agg=np.asarray(agg, dtype=np.int64).reshape(m),
-        node_bias=np.asarray(bias, dtype=np.float64).reshape(m),
-        node_resp=np.asarray(resp, dtype=np.float64).reshape(m),
-        node_theta=np.asarray(theta, dtype=np.float64).reshape(m, 2),
+        node_act=act,
+        node_agg=np.where(modular, AGG_MEAN, AGG_SUM).astype(np.int64),
+        node_bias=bias,
+        node_resp=resp,
+        node_theta=theta.reshape(m, 2),
         edge_start=np.concatenate(([0], np.cumsum(counts))).astype(np.int64),
         edge_src=edge_src.astype(np.int64),
         edge_w=weight[e],

@@ -90,12 +90,30 @@ class NetworkProgram:
 
     def __post_init__(self) -> None:
         n = self.node_act.shape[0]
+        e = self.edge_src.shape[0]
         if self.edge_start.shape != (n + 1,) or self.out_node.shape != (N_BEHAVIOURS,):
             raise ValueError("network program: edge_start must have N + 1 and out_node 12 entries")
-        for j in range(n):
-            src = self.edge_src[self.edge_start[j] : self.edge_start[j + 1]]
-            if src.size and (src.min() < 0 or src.max() >= N_SENSORS + j):
-                raise ValueError(f"network program: node {j} reads a node that comes later")
+        for name in ("node_agg", "node_bias", "node_resp"):
+            if getattr(self, name).shape != (n,):
+                raise ValueError(f"network program: {name} must have N = {n} entries")
+        if self.node_theta.shape != (n, 2):
+            raise ValueError(f"network program: node_theta must be N x 2 = {n} x 2")
+        if self.edge_src.ndim != 1 or self.edge_w.shape != (e,):
+            raise ValueError("network program: edge_src and edge_w must be lists of one length")
+        counts = np.diff(self.edge_start)
+        if self.edge_start[0] != 0 or self.edge_start[-1] != e or (counts < 0).any():
+            raise ValueError(f"network program: edge_start must rise from 0 to the {e} edges")
+        if ((self.node_act < 0) | (self.node_act > ACT_IDENTITY)).any():
+            raise ValueError(f"network program: node_act must lie in 0..{ACT_IDENTITY}")
+        if ((self.node_agg != AGG_MEAN) & (self.node_agg != AGG_SUM)).any():
+            raise ValueError("network program: node_agg must be 0 (mean) or 1 (sum)")
+        if ((self.out_node < -1) | (self.out_node >= n)).any():
+            raise ValueError(f"network program: out_node must lie in -1..{n - 1}")
+        reader = np.repeat(np.arange(n, dtype=np.int64), counts)  # the node each edge feeds
+        bad = (self.edge_src < 0) | (self.edge_src >= N_SENSORS + reader)
+        if bad.any():
+            j = int(reader[np.argmax(bad)])
+            raise ValueError(f"network program: node {j} reads a node that comes later")
 
     @property
     def n_nodes(self) -> int:

@@ -84,6 +84,8 @@ def program_from_dict(data: object, path: str = "<memory>") -> NetworkProgram:
             arrays[name] = np.asarray(data[name], dtype=dtype)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{path}: {name}: {exc}") from None
+    if arrays["node_theta"].size % 2:
+        raise ValueError(f"{path}: node_theta: {arrays['node_theta'].size} values, not pairs")
     arrays["node_theta"] = arrays["node_theta"].reshape(-1, 2)
     try:
         return NetworkProgram(**arrays)
