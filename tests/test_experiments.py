@@ -278,3 +278,15 @@ def test_hours_left_goes_by_the_finished_runs_pace(tmp_path):
     assert hours_left([done, resumable, restarting]) == pytest.approx((6 + 10) * 720 / 3600)
     assert hours_left([done]) == 0.0
     assert hours_left([resumable, restarting]) is None
+
+
+def test_compare_sentence_says_when_neat_solved_nothing():
+    from ant_evolution.experiments.suite import _compare_sentence
+
+    assert _compare_sentence(0.04, float("inf"), 0.8) == (
+        "ANT's mean maximum fitness is +4% against the best conventional network; "
+        "no NEAT run reached 0.9, against 0.80 of ANT's runs."
+    )
+    assert _compare_sentence(float("nan"), 2.0, 0.8) == (
+        "its probability of a solution is 2.00 times NEAT's."
+    )

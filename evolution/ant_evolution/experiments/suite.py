@@ -171,7 +171,8 @@ def compare(ctx: Context) -> None:
             {
                 "final": final,
                 "ant_gain_over_best_conventional": gain,
-                "p_solution_ratio_ant_neat": p_ratio,
+                # null where NEAT solved nothing (the ratio is unbounded) or has no run
+                "p_solution_ratio_ant_neat": p_ratio if np.isfinite(p_ratio) else None,
             },
             indent=1,
         )  # fmt: skip
@@ -187,20 +188,22 @@ def compare(ctx: Context) -> None:
 |---|---:|---:|---:|
 {table}
 
-{_compare_sentence(gain, p_ratio)}
+{_compare_sentence(gain, p_ratio, final.get("ant", (0, 0, 0.0))[2])}
 
 ![compare](figures/compare/compare.png)
 """,
     )
 
 
-def _compare_sentence(gain: float, p_ratio: float) -> str:
+def _compare_sentence(gain: float, p_ratio: float, p_ant: float) -> str:
     """The two headline ratios, each only where both of its methods have runs."""
     parts = []
     if not np.isnan(gain):
         parts.append(f"ANT's mean maximum fitness is {gain * 100:+.0f}% against the best "
                      "conventional network")  # fmt: skip
-    if not np.isnan(p_ratio):
+    if np.isinf(p_ratio):
+        parts.append(f"no NEAT run reached {SOLVED}, against {p_ant:.2f} of ANT's runs")
+    elif not np.isnan(p_ratio):
         parts.append(f"its probability of a solution is {p_ratio:.2f} times NEAT's")
     return ("; ".join(parts) + ".") if parts else "(ANT or both conventional networks: no run.)"
 
