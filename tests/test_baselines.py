@@ -141,15 +141,20 @@ def _deep_neat_programs(tmp_path, count: int):
 def test_lane_layout_keeps_every_nodes_inputs_in_order_and_groups_independent(tmp_path):
     programs = _neat_programs(tmp_path, 3)[2] + _deep_neat_programs(tmp_path, 3)
     programs += [_fixed_program(s)[1] for s in range(2)]
-    sizes = set()
+    sizes, paths = set(), set()
     for prog in programs:
-        groups, rows, src, w = lane_layout(prog.edge_start, prog.edge_src, prog.edge_w)
+        groups, shared, rows, src, w = lane_layout(prog.edge_start, prog.edge_src, prog.edge_w)
         pad = len(SENSOR_SCALE) + prog.n_nodes
         assert groups[0] == 0 and groups[-1] == prog.n_nodes and np.all(np.diff(groups) >= 1)
         assert src.shape == w.shape == (rows[-1], LANES)
+        assert shared.shape == (len(groups) - 1,)
         for g in range(len(groups) - 1):
             first, last = groups[g], groups[g + 1]
             sizes.add(last - first)
+            inputs = [tuple(prog.edge_src[prog.edge_start[j] : prog.edge_start[j + 1]])
+                      for j in range(first, last)]  # fmt: skip
+            assert shared[g] == (len(set(inputs)) == 1)  # every node reads the same inputs
+            paths.add(bool(shared[g]))
             for lane in range(LANES):
                 lane_src = src[rows[g] : rows[g + 1], lane]
                 lane_w = w[rows[g] : rows[g + 1], lane]
@@ -165,6 +170,7 @@ def test_lane_layout_keeps_every_nodes_inputs_in_order_and_groups_independent(tm
                     )  # no reads in its group
                 assert np.all(lane_src[n:] == pad) and np.all(lane_w[n:] == 0.0)
     assert 1 in sizes and LANES in sizes  # deep networks cut groups short, layers fill them
+    assert paths == {True, False}  # both of the kernel's paths are exercised
 
 
 def test_kernel_node_values_equal_the_sequential_reference_exactly(tmp_path):

@@ -53,6 +53,7 @@ class NetworkRecord(NamedTuple):
     edge_w: np.ndarray
     out_node: np.ndarray
     group_start: np.ndarray
+    group_shared: np.ndarray
     row_start: np.ndarray
     row_src: np.ndarray
     row_w: np.ndarray
@@ -132,7 +133,7 @@ class NetworkProgram:
 
     def record(self) -> NetworkRecord:
         """The arrays as a :class:`NetworkRecord`, the form the kernels take."""
-        group_start, row_start, row_src, row_w = lane_layout(
+        group_start, group_shared, row_start, row_src, row_w = lane_layout(
             self.edge_start, self.edge_src, self.edge_w
         )
         return NetworkRecord(
@@ -146,6 +147,7 @@ class NetworkProgram:
             edge_w=self.edge_w,
             out_node=self.out_node,
             group_start=group_start,
+            group_shared=group_shared,
             row_start=row_start,
             row_src=row_src,
             row_w=row_w,
@@ -163,10 +165,12 @@ def lane_layout(edge_start, edge_src, edge_w):
     group's l-th node. A lane shorter than its group's longest (or a lane with no node)
     is padded with weight 0 reading the scratch's last value, which stays 0: each node's
     sum adds its inputs in its own order, then only exact zeros, so every value and mask is
-    the sequential one's.
+    the sequential one's. ``group_shared[g]`` is 1 when every node of group g reads the
+    same inputs in the same order (a layer of a fixed network, a single node): the kernel
+    then loads each input once for all lanes and sums the inputs once.
 
     Returns:
-        ``(group_start, row_start, row_src, row_w)``.
+        ``(group_start, group_shared, row_start, row_src, row_w)``.
     """
     n = edge_start.shape[0] - 1
     pad = N_SENSORS + n  # the scratch's last slot: always 0.0
@@ -190,13 +194,18 @@ def lane_layout(edge_start, edge_src, edge_w):
     row_start = np.concatenate(([0], np.cumsum(rows))).astype(np.int64)
     row_src = np.full((int(row_start[-1]), LANES), pad, dtype=np.int64)
     row_w = np.zeros((int(row_start[-1]), LANES))
+    shared = np.zeros(len(starts) - 1, dtype=np.int64)
     for g in range(len(starts) - 1):
+        r = row_start[g]
+        first = edge_src[edge_start[starts[g]] : edge_start[starts[g] + 1]]
+        same = True
         for lane, node in enumerate(range(starts[g], starts[g + 1])):
             a, b = edge_start[node], edge_start[node + 1]
-            r = row_start[g]
             row_src[r : r + b - a, lane] = edge_src[a:b]
             row_w[r : r + b - a, lane] = edge_w[a:b]
-    return group_start, row_start, row_src, row_w
+            same = same and b - a == first.size and np.array_equal(edge_src[a:b], first)
+        shared[g] = same
+    return group_start, shared, row_start, row_src, row_w
 
 
 @nb.njit(cache=True, inline="always")
@@ -225,9 +234,12 @@ def program_decide_into(codes, program, values):
     """Behaviour mask of one sensor vector; ``values`` (length 14 + N + 1) is scratch.
 
     The nodes are summed four at a time along :func:`lane_layout`'s rows; each node's
-    sum is the sequential one's (its inputs in order, then exact zeros).
+    sum is the sequential one's (its inputs in order, then exact zeros). A group whose
+    nodes share their inputs loads each input once and sums the inputs once (the same
+    numbers added in the same order: the same values).
     """
     group_start = program.group_start
+    group_shared = program.group_shared
     row_start = program.row_start
     row_src = program.row_src
     row_w = program.row_w
@@ -239,19 +251,29 @@ def program_decide_into(codes, program, values):
     for g in range(group_start.shape[0] - 1):
         n0 = n1 = n2 = n3 = 0.0
         d0 = d1 = d2 = d3 = 0.0
-        for r in range(row_start[g], row_start[g + 1]):
-            v0 = values[row_src[r, 0]]
-            v1 = values[row_src[r, 1]]
-            v2 = values[row_src[r, 2]]
-            v3 = values[row_src[r, 3]]
-            n0 += row_w[r, 0] * v0
-            n1 += row_w[r, 1] * v1
-            n2 += row_w[r, 2] * v2
-            n3 += row_w[r, 3] * v3
-            d0 += v0
-            d1 += v1
-            d2 += v2
-            d3 += v3
+        if group_shared[g]:
+            for r in range(row_start[g], row_start[g + 1]):
+                v = values[row_src[r, 0]]
+                n0 += row_w[r, 0] * v
+                n1 += row_w[r, 1] * v
+                n2 += row_w[r, 2] * v
+                n3 += row_w[r, 3] * v
+                d0 += v
+            d1 = d2 = d3 = d0
+        else:
+            for r in range(row_start[g], row_start[g + 1]):
+                v0 = values[row_src[r, 0]]
+                v1 = values[row_src[r, 1]]
+                v2 = values[row_src[r, 2]]
+                v3 = values[row_src[r, 3]]
+                n0 += row_w[r, 0] * v0
+                n1 += row_w[r, 1] * v1
+                n2 += row_w[r, 2] * v2
+                n3 += row_w[r, 3] * v3
+                d0 += v0
+                d1 += v1
+                d2 += v2
+                d3 += v3
         j = group_start[g]
         m = group_start[g + 1] - j
         _finish_node(program, values, n_s, j, n0, d0)
