@@ -18,13 +18,25 @@ from ant_evolution.baselines.fixed import (
     mutate,
     random_network,
 )
+from ant_evolution.baselines.neat_baseline import config_overrides
 from ant_evolution.baselines.network import (
+    ACT_IDENTITY,
+    ACT_SIGMOID,
+    AGG_MEAN,
+    AGG_SUM,
+    GROUP_SEPARATE,
+    GROUP_SEPARATE_SUM,
+    GROUP_SHARED,
+    GROUP_UNION,
     LANES,
+    UNION_SLACK,
+    NetworkProgram,
     decide_program_reference,
     lane_layout,
     program_decide,
     program_decide_into,
     program_scratch,
+    union_rows,
 )
 from ant_evolution.baselines.runs import (
     load_program,
@@ -49,14 +61,16 @@ def _fixed_program(seed: int):
     return top, compile_fixed(top, random_network(rng, top))
 
 
-def _neat_programs(tmp_path, count: int, hidden: int = 30, seed: int = 7, deep: bool = False):
+def _neat_programs(
+    tmp_path, count: int, hidden: int = 30, seed: int = 7, deep: bool = False, overrides=None
+):
     """NEAT programs mutated 5 times; ``deep``: 12 times, each after adding a node on a
-    connection (hidden nodes that read hidden nodes)."""
+    connection (hidden nodes that read hidden nodes). ``overrides``: of the configuration."""
     import neat
 
     from ant_evolution.baselines.neat_baseline import compile_neat, neat_config
 
-    cfg = neat_config(tmp_path / f"neat-{seed}.ini", count, hidden=hidden)
+    cfg = neat_config(tmp_path / f"neat-{seed}.ini", count, hidden=hidden, overrides=overrides)
     pop = neat.Population(cfg, seed=seed)
     genomes = list(pop.population.values())[:count]
     # mutate a few times so that topologies differ from the initial full layer
@@ -138,46 +152,121 @@ def _deep_neat_programs(tmp_path, count: int):
     return _neat_programs(tmp_path, count, hidden=8, seed=11, deep=True)[2]
 
 
-def test_lane_layout_keeps_every_nodes_inputs_in_order_and_groups_independent(tmp_path):
+def _hand_program() -> NetworkProgram:
+    """A small program with one group of every kind :func:`lane_layout` makes.
+
+    Nodes 0-2 (sum, sigmoid / identity) read sensors, two of them the same inputs in
+    orders that disagree (their merge reads sensor 0 twice): a union group. Nodes 3-4
+    read node 2, whose identity activation is unbounded: separate sum nodes. Nodes 5-6
+    (mean, modular) read node 4 and different sensors: a separate group; node 7 alone.
+    """
+    nodes = [  # (aggregation, activation, sources, weights)
+        (AGG_SUM, ACT_SIGMOID, [0, 1, 2, 3, 4, 5, 6, 7], [0.5, -1, 2, 0.25, 1, -2, 0.0, 3]),
+        (AGG_SUM, ACT_SIGMOID, [1, 0, 2, 3, 4, 5, 6, 7], [1, 1, -1, 0.5, 2, 0.1, -3, 1]),
+        (AGG_SUM, ACT_IDENTITY, [2, 9, 5], [4.0, -2.0, 1.5]),
+        (AGG_SUM, ACT_SIGMOID, [16, 3], [0.7, -0.2]),
+        (AGG_SUM, ACT_SIGMOID, [4, 16, 8], [1.1, 0.3, -0.9]),
+        (AGG_MEAN, 2, [18, 10, 11], [0.2, 0.9, -0.4]),
+        (AGG_MEAN, 1, [12, 18], [0.6, 0.6]),
+        (AGG_MEAN, 3, [14, 19, 20, 13], [0.3, -0.8, 0.5, 1.0]),
+    ]
+    n = len(nodes)
+    counts = [len(src) for _, _, src, _ in nodes]
+    return NetworkProgram(
+        node_act=np.array([act for _, act, _, _ in nodes], dtype=np.int64),
+        node_agg=np.array([agg for agg, _, _, _ in nodes], dtype=np.int64),
+        node_bias=np.linspace(-0.5, 0.5, n),
+        node_resp=np.linspace(1.5, 0.5, n),
+        node_theta=np.stack([np.linspace(-0.2, 0.6, n), np.linspace(0.4, 0.1, n)], axis=1),
+        edge_start=np.concatenate(([0], np.cumsum(counts))).astype(np.int64),
+        edge_src=np.array([x for *_, src, _ in nodes for x in src], dtype=np.int64),
+        edge_w=np.array([x for *_, w in nodes for x in w], dtype=np.float64),
+        out_node=np.array([0, 1, 2, 3, 4, 5, 6, 7, -1, 7, 3, 0], dtype=np.int64),
+    )
+
+
+def _layout_programs(tmp_path) -> list[NetworkProgram]:
+    """Programs whose layouts between them hold every group kind and group size."""
     programs = _neat_programs(tmp_path, 3)[2] + _deep_neat_programs(tmp_path, 3)
-    programs += [_fixed_program(s)[1] for s in range(2)]
-    sizes, paths = set(), set()
-    for prog in programs:
-        groups, shared, rows, src, w = lane_layout(prog.edge_start, prog.edge_src, prog.edge_w)
-        pad = len(SENSOR_SCALE) + prog.n_nodes
+    programs += _neat_programs(tmp_path, 3, seed=5, overrides=config_overrides("modular"))[2]
+    return programs + [_fixed_program(s)[1] for s in range(2)] + [_hand_program()]
+
+
+def test_lane_layout_keeps_every_nodes_inputs_in_order_and_groups_independent(tmp_path):
+    n_s = len(SENSOR_SCALE)
+    sizes, seen = set(), set()
+    for prog in _layout_programs(tmp_path):
+        groups, kinds, rows, src, w = lane_layout(
+            prog.edge_start, prog.edge_src, prog.edge_w, prog.node_agg, prog.node_act
+        )
+        pad = n_s + prog.n_nodes
         assert groups[0] == 0 and groups[-1] == prog.n_nodes and np.all(np.diff(groups) >= 1)
         assert src.shape == w.shape == (rows[-1], LANES)
-        assert shared.shape == (len(groups) - 1,)
+        assert kinds.shape == (len(groups) - 1,)
         for g in range(len(groups) - 1):
             first, last = groups[g], groups[g + 1]
             sizes.add(last - first)
-            inputs = [tuple(prog.edge_src[prog.edge_start[j] : prog.edge_start[j + 1]])
-                      for j in range(first, last)]  # fmt: skip
-            assert shared[g] == (len(set(inputs)) == 1)  # every node reads the same inputs
-            paths.add(bool(shared[g]))
-            for lane in range(LANES):
-                lane_src = src[rows[g] : rows[g + 1], lane]
-                lane_w = w[rows[g] : rows[g + 1], lane]
-                node = first + lane
-                n = 0
-                if node < last:
-                    a, b = prog.edge_start[node], prog.edge_start[node + 1]
-                    n = b - a
-                    assert np.array_equal(lane_src[:n], prog.edge_src[a:b])
-                    assert np.array_equal(lane_w[:n], prog.edge_w[a:b])
-                    assert (
-                        n == 0 or lane_src[:n].max() < len(SENSOR_SCALE) + first
-                    )  # no reads in its group
-                assert np.all(lane_src[n:] == pad) and np.all(lane_w[n:] == 0.0)
+            seen.add(int(kinds[g]))
+            ins = [prog.edge_src[prog.edge_start[j] : prog.edge_start[j + 1]]
+                   for j in range(first, last)]  # fmt: skip
+            ws = [prog.edge_w[prog.edge_start[j] : prog.edge_start[j + 1]]
+                  for j in range(first, last)]  # fmt: skip
+            g_src, g_w = src[rows[g] : rows[g + 1]], w[rows[g] : rows[g + 1]]
+            assert all(x.size == 0 or x.max() < n_s + first for x in ins)  # none in its group
+            assert np.all(g_w[:, last - first :] == 0.0)  # lanes without a node add nothing
+            same = all(np.array_equal(x, ins[0]) for x in ins)
+            sums = bool((prog.node_agg[first:last] == AGG_SUM).all())
+            if kinds[g] in (GROUP_SEPARATE, GROUP_SEPARATE_SUM):
+                assert kinds[g] == (GROUP_SEPARATE_SUM if sums else GROUP_SEPARATE)
+                for lane, (x, wx) in enumerate(zip(ins, ws, strict=True)):
+                    assert np.array_equal(g_src[: x.size, lane], x)
+                    assert np.array_equal(g_w[: x.size, lane], wx)
+                    assert np.all(g_src[x.size :, lane] == pad) and np.all(g_w[x.size :, lane] == 0)
+                continue
+            assert np.all(g_src == g_src[:, :1])  # one input per row for every lane
+            if kinds[g] == GROUP_SHARED:
+                assert same and not sums
+                for lane, (x, wx) in enumerate(zip(ins, ws, strict=True)):
+                    assert np.array_equal(g_src[:, 0], x) and np.array_equal(g_w[:, lane], wx)
+                continue
+            assert kinds[g] == GROUP_UNION and sums
+            assert same or all(s < n_s or prog.node_act[s - n_s] != ACT_IDENTITY
+                               for x in ins for s in x)  # fmt: skip
+            assert len(g_src) <= UNION_SLACK * max(x.size for x in ins)
+            for lane, (x, wx) in enumerate(zip(ins, ws, strict=True)):
+                # the node's inputs are the merge's rows in order, its weight 0 elsewhere
+                at, k = [], 0
+                for r, v in enumerate(g_src[:, 0]):
+                    if k < x.size and v == x[k]:
+                        at.append(r)
+                        k += 1
+                assert k == x.size
+                assert np.array_equal(g_w[at, lane], wx)
+                assert np.all(np.delete(g_w[:, lane], at) == 0.0)
     assert 1 in sizes and LANES in sizes  # deep networks cut groups short, layers fill them
-    assert paths == {True, False}  # both of the kernel's paths are exercised
+    assert seen == {GROUP_SEPARATE, GROUP_SHARED, GROUP_UNION, GROUP_SEPARATE_SUM}
+
+
+def test_union_merge_keeps_each_lists_order_when_orders_disagree():
+    """Lists cut from one order merge without repeating an input; lists in other orders
+    repeat one."""
+    w = np.arange(1.0, 12.0)
+    merged, weights = union_rows(
+        np.array([0, 2, 3, 1, 3, 4, 0, 2, 4, 5, 6]), w, np.array([0, 3, 6, 11]), 20
+    )
+    assert merged.tolist() == [0, 2, 1, 3, 4, 5, 6]  # [0 2 3], [1 3 4], [0 2 4 5 6]
+    assert weights[:, 0].tolist() == [1, 2, 0, 3, 0, 0, 0]
+    assert weights[:, 1].tolist() == [0, 0, 4, 5, 6, 0, 0]
+    assert weights[:, 2].tolist() == [7, 8, 0, 0, 9, 10, 11] and not weights[:, 3].any()
+    merged, weights = union_rows(np.array([0, 1, 2, 1, 0, 2]), w, np.array([0, 3, 6]), 20)
+    assert merged.tolist() == [0, 1, 0, 2]
+    assert weights[:, 0].tolist() == [1, 2, 0, 3] and weights[:, 1].tolist() == [0, 4, 5, 6]
 
 
 def test_kernel_node_values_equal_the_sequential_reference_exactly(tmp_path):
     """Summing four nodes side by side changes no value: the kernel's scratch holds the
     reference's node values bit for bit (not only the same masks)."""
-    programs = _neat_programs(tmp_path, 3)[2] + _deep_neat_programs(tmp_path, 3)
-    programs += [_fixed_program(s)[1] for s in range(2)]
+    programs = _layout_programs(tmp_path)
     codes = _random_codes(np.random.default_rng(8), 200)
     n_s = len(SENSOR_SCALE)
     for prog in programs:
@@ -379,12 +468,17 @@ def test_neat_compile_gives_neat_pythons_network_exactly(tmp_path):
 
 @pytest.mark.parametrize(
     "overrides",
-    [{}, {"activation": "modular", "budget": "ant", "perturb": True}],
-    ids=["v1", "paper"],
+    [
+        {},
+        {"activation": "modular", "budget": "ant", "perturb": True},
+        {"activation": "modular", "budget": "ant", "perturb": False, "mutation_prob": 0.3},
+    ],
+    ids=["v1", "paper", "paper-redraw"],
 )
 def test_neat_genome_crossover_equals_neat_pythons(tmp_path, overrides):
     """NeatGenome's reproduction (crossover, mutation, distance) gives neat-python's
-    children: same genes, same draws, under both profiles' configurations."""
+    children: same genes, same draws, under both profiles' configurations (v1 redraws a
+    weight from a normal distribution, ``paper-redraw`` from a uniform one)."""
     import neat
 
     from ant_evolution.baselines.neat_baseline import NeatGenome
@@ -401,6 +495,25 @@ def test_neat_genome_crossover_equals_neat_pythons(tmp_path, overrides):
     _, ours = _evolved_neat_genomes(tmp_path / "a", NeatGenome, 4, overrides=overrides)
     _, theirs = _evolved_neat_genomes(tmp_path / "b", neat.DefaultGenome, 4, overrides=overrides)
     assert genes(ours) == genes(theirs)
+
+
+def test_compiled_random_draws_are_the_random_modules_own():
+    """pyrandom's random() and gauss() from the module's state: the module's values, and
+    the state it leaves (a cached gauss value included) is the module's own."""
+    import random
+
+    from ant_evolution.baselines.pyrandom import draws, put_state, take_state
+
+    random.seed(2024)
+    kinds = np.random.default_rng(4).integers(0, 2, 3001)  # odd: ends with gauss cached
+    for _ in range(2):  # 3,001 draws run the generator's 624-word refill several times
+        state = take_state()
+        ours = draws(*state, kinds)
+        theirs = [random.random() if k == 0 else random.gauss(0.5, 2.0) for k in kinds]
+        assert ours.tolist() == theirs
+        after = random.getstate()
+        put_state(*state)
+        assert random.getstate() == after
 
 
 def test_neat_config_reads_single_structural_mutation_as_false(tmp_path):

@@ -45,6 +45,7 @@ from operator import attrgetter
 from pathlib import Path
 
 import neat
+import numba as nb
 import numpy as np
 from neat.genes import DefaultConnectionGene
 
@@ -56,6 +57,7 @@ from ant_evolution.baselines.network import (
     AGG_SUM,
     NetworkProgram,
 )
+from ant_evolution.baselines.pyrandom import gauss, put_state, take_state, uniform01
 
 NEAT_CONFIG_TEMPLATE = """\
 [NEAT]
@@ -170,31 +172,80 @@ class NeatConnectionGene(DefaultConnectionGene):
 
 
 def mutate_connections(genes, config) -> None:
-    """:meth:`NeatConnectionGene.mutate` of every gene in turn, as one loop.
+    """:meth:`NeatConnectionGene.mutate` of every gene in turn, as one compiled loop.
 
     The library's draws in its order (``neat/attributes.py``: ``FloatAttribute.mutate_value``
-    of the weight, then ``BoolAttribute.mutate_value`` of ``enabled``), with the
-    configuration's values read once instead of once per gene.
+    of the weight, ``init_value`` when it is replaced, then ``BoolAttribute.mutate_value``
+    of ``enabled``), made by :mod:`.pyrandom` from the ``random`` module's state, which
+    is then left where the library's own draws would have left it. The genes' weights and
+    flags go to arrays and back: the same values as the library's loop, gene for gene.
+
+    Raises:
+        RuntimeError: For a weight ``init_type`` neat-python does not know (its message).
     """
-    rnd = random.random
-    gauss = random.gauss
-    weight_attr = NeatConnectionGene._gene_attributes[0]
-    mutate_rate = config.weight_mutate_rate
-    replace_below = config.weight_replace_rate + mutate_rate
-    power = config.weight_mutate_power
+    genes = genes if isinstance(genes, list | tuple) else list(genes)
+    n = len(genes)
+    if n == 0:
+        return
+    init_type = config.weight_init_type.lower()
+    mean, stdev = config.weight_init_mean, config.weight_init_stdev
     high, low = config.weight_max_value, config.weight_min_value
-    rate_enabled = config.enabled_mutate_rate + config.enabled_rate_to_false_add
-    rate_disabled = config.enabled_mutate_rate + config.enabled_rate_to_true_add
-    for gene in genes:
-        r = rnd()
+    if "gauss" in init_type or "normal" in init_type:
+        init_uniform, init_a, init_b = False, mean, stdev
+    elif "uniform" in init_type:  # FloatAttribute.init_value's bounds, as it computes them
+        init_uniform, init_a, init_b = True, max(low, mean - 2 * stdev), min(high, mean + 2 * stdev)
+    else:
+        raise RuntimeError(f"Unknown init_type {config.weight_init_type!r} for weight_init_type")
+    weight = np.fromiter(map(_WEIGHT, genes), np.float64, n)
+    enabled = np.fromiter(map(_ENABLED, genes), np.bool_, n)
+    state = take_state()
+    _mutate_genes(
+        weight,
+        enabled,
+        *state,
+        config.weight_mutate_rate,
+        config.weight_replace_rate + config.weight_mutate_rate,
+        config.weight_mutate_power,
+        float(high),
+        float(low),
+        init_uniform,
+        float(init_a),
+        float(init_b),
+        config.enabled_mutate_rate + config.enabled_rate_to_false_add,
+        config.enabled_mutate_rate + config.enabled_rate_to_true_add,
+    )
+    put_state(*state)
+    for gene, w, on in zip(genes, weight.tolist(), enabled.tolist(), strict=True):
+        gene.weight = w
+        gene.enabled = on
+
+
+@nb.njit(cache=True, inline="always")
+def _clamp(w, high, low):
+    """Python's ``max(min(w, high), low)``, comparisons in its order."""
+    w = high if high < w else w
+    return low if low > w else w
+
+
+@nb.njit(cache=True)
+def _mutate_genes(
+    weight, enabled, words, position, cached, mutate_rate, replace_below, power, high, low,
+    init_uniform, init_a, init_b, rate_enabled, rate_disabled,
+):  # fmt: skip
+    """The loop of :func:`mutate_connections`, on the genes' arrays and the state's."""
+    for i in range(weight.shape[0]):
+        r = uniform01(words, position)
         if r < mutate_rate:
-            w = gene.weight + gauss(0.0, power)
-            gene.weight = max(min(w, high), low)
+            w = weight[i] + gauss(words, position, cached, 0.0, power)
+            weight[i] = _clamp(w, high, low)
         elif r < replace_below:
-            gene.weight = weight_attr.init_value(config)
-        rate = rate_enabled if gene.enabled else rate_disabled
-        if rate > 0 and rnd() < rate:
-            gene.enabled = rnd() < 0.5
+            if init_uniform:  # random.uniform(a, b): within the bounds already
+                weight[i] = init_a + (init_b - init_a) * uniform01(words, position)
+            else:
+                weight[i] = _clamp(gauss(words, position, cached, init_a, init_b), high, low)
+        rate = rate_enabled if enabled[i] else rate_disabled
+        if rate > 0 and uniform01(words, position) < rate:
+            enabled[i] = uniform01(words, position) < 0.5
 
 
 class NeatGenome(neat.DefaultGenome):
