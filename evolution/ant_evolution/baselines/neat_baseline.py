@@ -346,8 +346,8 @@ class NeatGenome(neat.DefaultGenome):
             parent1, parent2 = genome1, genome2
         else:
             parent1, parent2 = genome2, genome1
-        parent1_innovations = {cg.innovation: cg for cg in parent1.connections.values()}
-        parent2_innovations = {cg.innovation: cg for cg in parent2.connections.values()}
+        parent1_innovations = _innovations(parent1)
+        parent2_innovations = _innovations(parent2)
         all_innovations = set(parent1_innovations.keys()) | set(parent2_innovations.keys())
         # Every gene added below has a key of parent1's. When the child starts empty and
         # parent1's connections form no cycle, no subset of them does: no check can fail.
@@ -399,6 +399,18 @@ class NeatGenome(neat.DefaultGenome):
 _CYCLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 """``_has_cycle`` of each parent genome (a parent has many children; its genes do not change
 once it is a parent)."""
+
+
+_INNOVATIONS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""Each parent genome's connection genes by innovation number (built once per parent)."""
+
+
+def _innovations(genome) -> dict:
+    """``{gene.innovation: gene}`` of the genome's connections, in the genome's order."""
+    found = _INNOVATIONS.get(genome)
+    if found is None:
+        found = _INNOVATIONS[genome] = {cg.innovation: cg for cg in genome.connections.values()}
+    return found
 
 
 def _has_cycle_cached(genome) -> bool:
