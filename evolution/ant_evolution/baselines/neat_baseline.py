@@ -30,9 +30,10 @@ for like:
 result as it was: crossover's check that an inherited connection closes no cycle, which
 the library does by rescanning every connection of the child (quadratic: about 0.1 s per
 child of 1,600 connections, most of a generation), is answered once per child from the
-fitter parent's graph instead, with the same answers; and the connection genes' copy,
-crossover and mutation are written out with the library's random draws. Children, random
-draws and runs are unchanged.
+fitter parent's graph instead, with the same answers; the connection genes' copy and
+crossover are written out with the library's random draws, and their mutation runs as one
+compiled loop that draws from the ``random`` module's own generator state
+(:mod:`.pyrandom`). Children, random draws and runs are unchanged.
 """
 
 from __future__ import annotations
