@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
+from pathlib import Path
 
 KINDS = ("network", "ant", "hand-coded")
 """The decision programs the kernels are compiled for, the slowest first."""
@@ -29,13 +31,14 @@ def compile_kind(kind: str) -> float:
     Entry points: scoring a scenario set (``run_scenarios``), stepping one world
     (``run_episode``), one world's sensing and step (the lockstep simulator's), one
     decision (the controller node's) and, for tissues and the hand-coded rules, the
-    per-phase timing of ``ant-bench`` (:func:`ant_evolution.breakdown.phase_times`).
+    per-phase timing of ``ant-bench`` (:func:`ant_evolution.breakdown.phase_times`); for
+    networks, a NEAT genome's layout and one NEAT generation's compiled mutation too.
     """
     import numpy as np
 
     from ant_controller.controller import Controller
     from ant_evolution.baselines.network import program_decide
-    from ant_evolution.baselines.runs import FixedStrategy
+    from ant_evolution.baselines.runs import FixedStrategy, NeatStrategy
     from ant_evolution.breakdown import phase_times
     from ant_evolution.evaluate import advance, program_fitness
     from ant_evolution.evolve import AntStrategy, EvolveConfig, blueprints_of, scenario_sets
@@ -54,6 +57,11 @@ def compile_kind(kind: str) -> float:
         program = strategy.compiler(state)(population[0])
     if kind == "network":
         program_decide(codes, program.record())
+        with tempfile.TemporaryDirectory() as tmp:  # NEAT's layout and its compiled mutation
+            neat = NeatStrategy(config, Path(tmp))
+            genomes, neat_state = neat.ask(neat.init())
+            program_decide(codes, neat.compiler(neat_state)(genomes[0]).record())
+            neat.tell(neat_state, np.zeros(len(genomes)))
     else:
         program.decide(codes)
         phase_times(program, sets[0], repeats=1)
