@@ -352,7 +352,7 @@ class NeatGenome(neat.DefaultGenome):
         all_innovations = set(parent1_innovations.keys()) | set(parent2_innovations.keys())
         # Every gene added below has a key of parent1's. When the child starts empty and
         # parent1's connections form no cycle, no subset of them does: no check can fail.
-        check = config.feed_forward and (bool(self.connections) or _has_cycle_cached(parent1))
+        check = config.feed_forward and (bool(self.connections) or _has_cycle(parent1))
         successors: dict[int, list[int]] = {}
         if check:
             for a, b in self.connections:
@@ -397,31 +397,31 @@ class NeatGenome(neat.DefaultGenome):
             self.nodes[key] = ng1.copy() if ng2 is None else ng1.crossover(ng2)
 
 
-_CYCLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-"""``_has_cycle`` of each parent genome (a parent has many children; its genes do not change
-once it is a parent)."""
+def _per_parent(compute):
+    """``compute(genome)`` worked out once per genome object and kept while it lives.
+
+    For what crossover reads from a parent: a parent has many children, and its genes do
+    not change once it is a parent (elites are carried over unmutated).
+    """
+    found: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+    def cached(genome):
+        value = found.get(genome)
+        if value is None:
+            value = found[genome] = compute(genome)
+        return value
+
+    cached.__doc__ = compute.__doc__
+    return cached
 
 
-_INNOVATIONS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-"""Each parent genome's connection genes by innovation number (built once per parent)."""
-
-
+@_per_parent
 def _innovations(genome) -> dict:
     """``{gene.innovation: gene}`` of the genome's connections, in the genome's order."""
-    found = _INNOVATIONS.get(genome)
-    if found is None:
-        found = _INNOVATIONS[genome] = {cg.innovation: cg for cg in genome.connections.values()}
-    return found
+    return {cg.innovation: cg for cg in genome.connections.values()}
 
 
-def _has_cycle_cached(genome) -> bool:
-    """:func:`_has_cycle`, once per genome object."""
-    found = _CYCLES.get(genome)
-    if found is None:
-        found = _CYCLES[genome] = _has_cycle(genome)
-    return found
-
-
+@_per_parent
 def _has_cycle(genome) -> bool:
     """True when the genome's connection keys (enabled or not) contain a directed cycle."""
     indegree: dict[int, int] = {}

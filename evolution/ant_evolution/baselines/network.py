@@ -179,8 +179,9 @@ def lane_layout(edge_start, edge_src, edge_w, node_agg, node_act):
       no sum of inputs is kept): row r, lane l is the r-th input of the group's l-th node.
       A lane shorter than its group's longest (or a lane with no node) is padded with
       weight 0 reading the scratch's last value, which stays 0.
-    * :data:`GROUP_SHARED`: every node reads the same inputs in the same order (a layer of
-      a fixed network, a single node); ``row_src[:, 0]`` lists them and the kernel loads
+    * :data:`GROUP_SHARED`: every node reads the same inputs in the same order and not
+      every node is a sum node (a layer of a fixed network, a single mean node; sum nodes
+      reading one list make a union group); ``row_src[:, 0]`` lists them and the kernel loads
       each once for all lanes and sums the inputs once.
     * :data:`GROUP_UNION`: every node is ``AGG_SUM`` and ``row_src[:, 0]`` is a merge of
       the nodes' input lists that keeps each node's own order (for a NEAT layer whose
