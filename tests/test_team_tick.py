@@ -131,10 +131,52 @@ def test_no_tick_starts_while_the_team_is_not_armed_and_the_snapshot_is_taken_ag
     assert tt.step(0.6, 0.0) == []
     tt.armed = True
     # Held: the snapshot taken before (blades homed meanwhile) does not count; a new one.
-    assert tt.step(0.7, 0.1) == [("request", "tick 0", 0.7 + 0.1)]
+    actions = tt.step(0.7, 0.1)
+    assert actions[1:] == [("request", "tick 0", 0.7 + 0.1)]
+    assert actions[0][0] == "report" and "held" in actions[0][1]
     assert tt.step(0.75, 0.2) == []
     feed_snapshot(tt, 0.8, [(2, 2, 0)])
     assert "publish" in kinds(tt.step(0.85, 0.3))
+
+
+def held(tt: TeamTick, hold: str, now: float, wall: float, seconds: float) -> list[tuple]:
+    """Hold the team for ``seconds`` of wall time from ``wall``; the step that re-arms it."""
+    tt.armed, tt.hold = False, hold
+    assert tt.step(now, wall) == [] and tt.step(now + seconds / 2, wall + seconds / 2) == []
+    tt.armed, tt.hold = True, None
+    return tt.step(now + seconds, wall + seconds)
+
+
+def test_a_short_heartbeat_gap_delays_the_snapshot_but_asks_for_no_other():
+    # A loaded machine's hiccup: nothing moved, so the snapshot asked for still holds (a new
+    # one would render another frame and sweep and move the sensors' noise stream on).
+    tt = make(robots=1, snapshot_retry=2.0)
+    tt.start(0.0, 0.0)
+    feed_snapshot(tt, 0.5, [(2, 2, 0)])
+    assert held(tt, "heartbeat lost", 0.6, 0.1, 1.5)[0][:2] == ("publish", 0)
+    assert tt.records[0].started_wall == 1.6
+
+
+def test_a_long_heartbeat_gap_or_any_pause_asks_for_a_new_snapshot():
+    for hold, seconds in [("heartbeat lost", 2.0), ("team paused", 0.2), ("e-stop latched", 0.2)]:
+        tt = make(robots=1, snapshot_retry=2.0)
+        tt.start(0.0, 0.0)
+        feed_snapshot(tt, 0.5, [(2, 2, 0)])
+        actions = held(tt, hold, 0.6, 0.1, seconds)
+        assert kinds(actions) == ["report", "request"], hold
+        assert actions[1][2] == 0.6 + seconds + 0.1  # taken after the hold ended (+ settle)
+        feed_snapshot(tt, 0.6 + seconds + 0.1, [(2, 2, 0)])
+        assert kinds(tt.step(0.6 + seconds + 0.2, 0.1 + seconds + 0.1)) == ["publish"]
+    # a heartbeat gap that turns into a pause is a pause, however short
+    tt = make(robots=1, snapshot_retry=2.0)
+    tt.start(0.0, 0.0)
+    feed_snapshot(tt, 0.5, [(2, 2, 0)])
+    tt.armed, tt.hold = False, "heartbeat lost"
+    tt.step(0.6, 0.1)
+    tt.hold = "team paused"
+    tt.step(0.7, 0.2)
+    tt.armed, tt.hold = True, None
+    assert kinds(tt.step(0.8, 0.3)) == ["report", "request"]
 
 
 def test_held_team_grants_no_goal_and_held_time_is_not_motion_time():

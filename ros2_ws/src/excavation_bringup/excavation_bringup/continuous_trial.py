@@ -176,6 +176,7 @@ def continuous_result(
         {int(k): n for k, n in ticks["missed"].items()},
         seconds,
         ticks["commands"],
+        holds=ticks.get("holds", 0),
         tick_wall=ticks["tick_wall"],
         primitives_aborted=primitives_aborted,
         stuck_events=ticks["stuck_events"],

@@ -31,7 +31,12 @@ deadman, and the e-stop). Not armed, no snapshot is taken, no word is turned int
 no further goal is granted; a pause while robots drive leaves their goals to their
 executors (which stop and carry on after the resume), and time not armed does not count
 toward ``motion_limit``. A snapshot the team was held for is asked for again once it is
-armed, so that it shows the site as the armed team left it. Robots in :attr:`TeamTick.absent`
+armed, so that it shows the site as the armed team left it: after a pause, a disarm or an
+e-stop (:attr:`TeamTick.hold` says why the team is held), or a heartbeat gap of at least
+``snapshot_retry`` wall seconds. A shorter heartbeat gap (a loaded machine's hiccup: the
+gates closed, nothing was driven and no one was let in) only delays the tick; asking again
+would render another frame and sweep and move the simulated sensors' noise stream on.
+Robots in :attr:`TeamTick.absent`
 (disabled or lost: ``/robot_k/enabled`` false) are not waited for: the snapshot needs no
 pose of theirs, their word is 0 and their motion counts as done at once.
 
@@ -59,6 +64,9 @@ from excavation_sim.world import next_random
 
 MOTION_BITS = sum(1 << b for b in (MOVE_FORWARD, MOVE_BACKWARD, RANDOM_TURN, TURN_RIGHT, TURN_LEFT))
 RIGHT, LEFT = 1, -1
+HEARTBEAT_GAP = "heartbeat lost"
+""":attr:`TeamTick.hold` of a team held only because heartbeats stopped coming
+(:meth:`excavation_common.safety.MotionGate.kind` of the gate's reason)."""
 STAMP_SLACK = 1e-6
 """Seconds: stamps are integer nanoseconds, times here floats (0.1 + 3.65 > 3.75)."""
 
@@ -71,7 +79,9 @@ class TeamTickParams:
     steps: int = param(300, "ticks to run (0: run until stopped)", low=0)
     tick_period: float = param(1.0, "stamp spacing of the republished ticks, s", low=0.001)
     settle: float = param(0.1, "snapshot taken at least this long after motion ended, s", low=0.0)
-    snapshot_retry: float = param(2.0, "wall s after which a new snapshot is asked for", low=0.01)
+    snapshot_retry: float = param(
+        2.0, "wall s after which a new snapshot is asked for (or after a heartbeat gap)", low=0.01
+    )
     snapshot_limit: float = param(
         30.0, "wall s after which an incomplete snapshot is taken as it is", low=0.01
     )
@@ -163,6 +173,10 @@ class TeamTick:
     ``{"poses": [...], "heights": ..., "blades": [...], "stuck": [...]}``, the payloads
     the node stored); ``("goal", robot, tick, stamp, word,
     turn)``; ``("report", message)``; ``("finished",)``.
+
+    The node sets :attr:`armed` (the team may move) and :attr:`hold` (while not armed, why:
+    :meth:`~excavation_common.safety.MotionGate.kind` of the gate's reason; ``None`` counts
+    as a hold that may have changed the site) before every :meth:`step`.
     """
 
     params: TeamTickParams
@@ -174,6 +188,7 @@ class TeamTick:
     blades: dict[int, Latest] = field(default_factory=dict)
     words: dict[int, int] = field(default_factory=dict)
     armed: bool = True
+    hold: str | None = None
     absent: set[int] = field(default_factory=set)
     records: list[TickRecord] = field(default_factory=list)
     stuck: list[bool] = field(default_factory=list)
@@ -190,7 +205,11 @@ class TeamTick:
     _done: set[int] = field(default_factory=set)
     _turns: list[int] = field(default_factory=list)
     _final: bool = False
+    holds: int = 0
+    _was_armed: bool = True
     _held: bool = False
+    _held_wall: float = 0.0
+    _held_site: bool = False
     _last_now: float | None = None
 
     def __post_init__(self) -> None:
@@ -232,7 +251,9 @@ class TeamTick:
         ``commands``: every tick's words; ``tick_wall``: wall seconds of every tick (from
         its snapshot to the next tick's, the last to the end of its motion);
         ``stuck_events``: robot-ticks with U1 set; ``missed``: per robot, ticks it idled
-        for want of a word; ``robots_late``: robot-ticks left out for not finishing.
+        for want of a word; ``robots_late``: robot-ticks left out for not finishing;
+        ``holds``: times the team was held (paused, e-stopped, disarmed or its heartbeat
+        lost) while the ticks ran.
         """
         records = self.records
         return {
@@ -245,6 +266,7 @@ class TeamTick:
             "stuck_events": sum(sum(r.stuck) for r in records),
             "missed": {str(k): n for k, n in enumerate(self.missed)},
             "robots_late": sum(self.late),
+            "holds": self.holds,
         }
 
     def start(self, now: float, wall: float = 0.0) -> list[tuple]:
@@ -258,6 +280,9 @@ class TeamTick:
     def step(self, now: float, wall: float) -> list[tuple]:
         """Advance as far as the inputs allow."""
         last, self._last_now = self._last_now, now
+        if self.armed != self._was_armed:
+            self._was_armed = self.armed
+            self.holds += not self.armed
         if not self.armed and self.phase is Phase.MOTION and last is not None:
             for k in self._granted:  # time not armed does not count toward motion_limit
                 self._granted[k] += max(0.0, now - last)
@@ -293,12 +318,20 @@ class TeamTick:
 
     def _step_snapshot(self, now: float, wall: float) -> list[tuple]:
         if not self.armed:
-            self._held = True
+            if not self._held:
+                self._held, self._held_wall, self._held_site = True, wall, False
+            self._held_site |= self.hold != HEARTBEAT_GAP
             return []
-        if self._held:  # the team was held: a snapshot of the site as it stands now
+        if self._held:
             self._held = False
-            self._after, self._after_wall = now, wall
-            return self._request(wall)
+            held = wall - self._held_wall
+            if self._held_site or held >= self.params.snapshot_retry:
+                # a snapshot of the site as it stands now
+                self._after, self._after_wall = now, wall
+                return [
+                    ("report", f"tick {self.tick}: team held {held:.1f} s; new snapshot"),
+                    *self._request(wall),
+                ]
         missing = self.snapshot_ready(now)
         out: list[tuple] = []
         if missing is not None:

@@ -191,7 +191,7 @@ class TeamTickNode(Node):
     def on_heartbeat(self, msg: Header) -> None:
         """The team state: the tick runs only while armed."""
         self.team.on_heartbeat(msg.frame_id, self._now())
-        self.core.armed = self.team.allowed(self._now())
+        self._gate(self._now())
 
     def on_enabled(self, k: int, msg: Bool) -> None:
         """Robot k enabled (waited for) or disabled or lost (absent)."""
@@ -201,6 +201,12 @@ class TeamTickNode(Node):
             self.core.absent.add(k)
 
     # --- the tick ---------------------------------------------------------------------------
+
+    def _gate(self, now: float) -> None:
+        """The team's gate into the tick: armed, and if not, why (a pause, a lost heartbeat)."""
+        reason = self.team.reason(now)
+        self.core.armed = reason is None
+        self.core.hold = MotionGate.kind(reason)
 
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -233,7 +239,7 @@ class TeamTickNode(Node):
     def poll(self) -> None:
         """Start the ticks once the team is present; then run the state machine."""
         now, wall = self._now(), time.monotonic()
-        self.core.armed = self.team.allowed(now)
+        self._gate(now)
         if self.core.phase is Phase.WAITING:
             if not self.team_present():
                 self.ready_since = None
