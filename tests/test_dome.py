@@ -158,6 +158,7 @@ def test_dome_up_sim_runs_20_ticks_with_the_fitness_of_ant_trial(tmp_path, compo
 
 @pytest.mark.system
 @pytest.mark.serial
+@pytest.mark.pending  # docs/reliability.md, "Pending"
 def test_a_supervisor_that_stalls_every_second_leaves_the_run_unchanged(tmp_path, composed):
     """A loaded machine's hiccups: the supervisor stopped for 0.3 s of every second.
 
