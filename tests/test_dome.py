@@ -194,7 +194,6 @@ def test_a_supervisor_that_stalls_every_second_leaves_the_run_unchanged(tmp_path
     summary = json.loads(out.strip().splitlines()[-1])
     result = sim_result(tmp_path / "run")
     assert summary["ticks"] == 20 and summary["ok"] and not summary["restarts"]
-    print(f"stalls {stalls}, holds {result['holds']}")
     assert stalls >= 10 and result["holds"] >= 5, (stalls, result["holds"])
     assert not any("new snapshot" in r for r in result["reports"]), result["reports"]
     assert_same_run(tmp_path, result, summary, composed)
