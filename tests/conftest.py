@@ -12,12 +12,17 @@ from excavation_common.middleware import use_profiles
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 use_profiles()  # what every node of the suite runs with (the tests' own nodes too)
-# Under pytest-xdist (`make test` runs `-n 2`) each worker takes its own block of domains,
-# handed out in order from a place its process id picks, so no two workers share one.
+# ROS domains 1-100 only: from domain 102 up the RTPS ports (7400 + 250 d + offsets) fall in
+# Linux's ephemeral port range (32768-60999), where any outgoing socket may take one first.
+# Under pytest-xdist (`make test` runs `-n 2`) each worker takes its own block of them
+# (gw0 1-50, gw1 51-100), handed out in turn from a place its process id picks, so that two
+# test sessions on one machine start apart (and `domain_in_use` skips what another holds).
+DOMAIN_RANGE = range(1, 101)
 _WORKERS = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
 _WORKER = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw") or 0)
-_SPAN = 200 // _WORKERS
-_DOMAINS = itertools.count(os.getpid() % _SPAN)
+_SPAN = len(DOMAIN_RANGE) // _WORKERS
+_BLOCK = range(DOMAIN_RANGE.start + _WORKER * _SPAN, DOMAIN_RANGE.start + (_WORKER + 1) * _SPAN)
+_TURN = itertools.count(os.getpid() % _SPAN)
 
 
 def _udp_ports() -> set[int]:
@@ -44,15 +49,31 @@ def domain_in_use(domain: int, ports: set[int] | None = None) -> bool:
     return any(base + 2 * p in ports for p in range(64))
 
 
-def next_domain() -> int:
-    """A ROS domain id no other test of this session (or other xdist worker) uses, skipping
-    domains a participant on this machine already uses (engineers share the machine)."""
+def next_domains(count: int) -> int:
+    """The first of ``count`` consecutive ROS domains of this worker's block, all free.
+
+    Takes them all: no later call of this session (or another xdist worker) hands them out
+    again before the block comes round. Raises ``RuntimeError`` when the block has no such run.
+    """
+    if not 1 <= count <= _SPAN:
+        raise ValueError(f"{count} domains asked, a worker's block holds {_SPAN}")
     ports = _udp_ports()
     for _ in range(_SPAN):
-        domain = 20 + _WORKER * _SPAN + next(_DOMAINS) % _SPAN
-        if not domain_in_use(domain, ports):
-            return domain
-    return domain
+        first = next(_TURN) % _SPAN
+        if first + count > _SPAN:
+            continue
+        domains = [_BLOCK[first + i] for i in range(count)]
+        if not any(domain_in_use(d, ports) for d in domains):
+            for _ in range(count - 1):
+                next(_TURN)
+            return domains[0]
+    raise RuntimeError(f"no {count} free consecutive ROS domains in {_BLOCK}")
+
+
+def next_domain() -> int:
+    """A ROS domain id (1-100) no other test of this session or xdist worker uses, skipping
+    domains a participant on this machine already uses (engineers share the machine)."""
+    return next_domains(1)
 
 
 @pytest.fixture

@@ -6,6 +6,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import next_domain
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.serialization import serialize_message
@@ -150,7 +151,8 @@ def test_loop_and_topic_selection(ros, tmp_path):
 
 def test_cli_play_errors(tmp_path, capsys):
     small_bag(tmp_path / "b")
-    assert ant_bag(["play", str(tmp_path / "b"), "--topics", "/nope", "--domain", "199"]) == 2
+    args = ["play", str(tmp_path / "b"), "--topics", "/nope", "--domain", str(next_domain())]
+    assert ant_bag(args) == 2
     assert "no playable topic" in capsys.readouterr().err
 
 

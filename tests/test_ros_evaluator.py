@@ -6,7 +6,7 @@ import csv
 
 import numpy as np
 import pytest
-from conftest import next_domain
+from conftest import next_domains
 
 from ant_controller.genome_io import load_genome
 from ant_evolution.backends import Evaluator
@@ -15,13 +15,6 @@ from ant_evolution.evaluate import ScenarioSet
 from ant_evolution.ga import GAParams, mutate
 from ant_evolution.ros_evaluator import RosEvaluator, TrialError
 from blueprint_server.blueprint import default_blueprint
-
-
-def _domains(n: int) -> int:
-    base = next_domain()
-    for _ in range(n - 1):
-        next_domain()
-    return base
 
 
 def test_trials_through_the_topics_equal_the_batched_evaluator():
@@ -33,7 +26,7 @@ def test_trials_through_the_topics_equal_the_batched_evaluator():
         ScenarioSet.create(default_blueprint(2), 2, 1, 25, seed=12),
     ]
     expected = Evaluator(workers=1).evaluate(genomes, sets)
-    with RosEvaluator(workers=2, domain_base=_domains(2)) as ros:
+    with RosEvaluator(workers=2, domain_base=next_domains(2)) as ros:
         got = ros.evaluate(genomes, sets)
     assert expected.max() > 0  # the comparison means something
     assert np.array_equal(got, expected)
@@ -42,7 +35,7 @@ def test_trials_through_the_topics_equal_the_batched_evaluator():
 def test_what_trials_cannot_stand_for_is_refused():
     best = load_genome("genomes/best.json")
     mixed = ScenarioSet.create(default_blueprint(1), [1, 4], 2, 10, seed=0)
-    with RosEvaluator(workers=1, domain_base=_domains(1)) as ros:
+    with RosEvaluator(workers=1, domain_base=next_domains(1)) as ros:
         with pytest.raises(TrialError, match="one robot count per scenario set"):
             ros.evaluate([best], [mixed])
 
@@ -50,10 +43,12 @@ def test_what_trials_cannot_stand_for_is_refused():
 def test_a_failing_trial_command_is_a_clear_error():
     best = load_genome("genomes/best.json")
     sets = [ScenarioSet.create(default_blueprint(1), 1, 1, 5, seed=0)]
-    with RosEvaluator(workers=1, domain_base=_domains(1), trial_command="false {genome}") as ros:
+    with RosEvaluator(
+        workers=1, domain_base=next_domains(1), trial_command="false {genome}"
+    ) as ros:
         with pytest.raises(TrialError, match="exited with 1"):
             ros.evaluate([best], sets)
-    with RosEvaluator(workers=1, domain_base=_domains(1), trial_command="echo {genome}") as ros:
+    with RosEvaluator(workers=1, domain_base=next_domains(1), trial_command="echo {genome}") as ros:
         with pytest.raises(TrialError, match="no JSON with 'fitness'"):
             ros.evaluate([best], sets)
 
@@ -63,7 +58,7 @@ def test_ant_evolve_with_the_ros_evaluator_matches_a_batched_run(tmp_path):
     args += " --seed 4 --quiet --workers 2"
     assert evolve_main([*args.split(), "--out", str(tmp_path / "batched")]) == 0
     ros_args = [*args.split(), "--out", str(tmp_path / "ros"), "--evaluator", "ros"]
-    ros_args += ["--domain-base", str(_domains(2))]
+    ros_args += ["--domain-base", str(next_domains(2))]
     assert evolve_main(ros_args) == 0
 
     def rows(run):

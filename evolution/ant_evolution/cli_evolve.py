@@ -109,8 +109,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--domain-base",
         type=int_in(0, MAX_DOMAIN),
-        default=100,
-        help="with --evaluator ros: trials use ROS domains from this one on (default 100)",
+        default=50,
+        help="with --evaluator ros: trials use ROS domains from this one on (default 50; keep "
+        "the last at most 101, above it the RTPS ports fall in Linux's ephemeral range)",
     )
     p.add_argument("--seed", type=option("seed"), help="run seed (default 0)")
     p.add_argument(

@@ -455,7 +455,7 @@ def run_evolution(
     stop_after: int | None = None,
     evaluator: str = "batched",
     trial_command: str | None = None,
-    domain_base: int = 100,
+    domain_base: int = 50,
 ) -> RunState:
     """Run (or resume) an ANT evolution, writing outputs into ``out``.
 

@@ -64,7 +64,7 @@ class RosEvaluator:
     def __init__(
         self,
         workers: int | None = None,
-        domain_base: int = 100,
+        domain_base: int = 50,
         trial_command: str = DEFAULT_TRIAL,
         timeout: float = 900.0,
     ) -> None:

@@ -529,8 +529,8 @@ class TrialProcesses:
         self.commands = commands if commands is not None else process_commands(spec, self.workdir)
         self.final = final
         self.env = dict(env if env is not None else os.environ, ROS_DOMAIN_ID=str(spec.domain))
-        use_profiles(self.env)  # the nodes' middleware settings (excavation_common.middleware)
         self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        use_profiles(self.env)  # the nodes' middleware settings (excavation_common.middleware)
         self.procs: dict[str, subprocess.Popen] = {}
         self.result_file = self.workdir / "result.json"
 
