@@ -31,19 +31,23 @@ lint: setup
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports
 
-# make test: the suite without the whole-system runs (marker `system`: make test-system).
-# Each part runs on TEST_WORKERS workers, then its `serial` tests alone; pytest exits 5 when
-# a marker selects no test. $(1) is the part's marker expression.
+# make test: the suite without the whole-system runs (marker `system`: make test-system), on
+# TEST_WORKERS workers (every `serial` test is a system test, so it has no serial pass).
+# make test-system runs its parallel part, then its `serial` tests alone. pytest exits 5
+# when a marker selects no test. $(1) is the part's marker expression.
 FAST := not pending and not system
 SYSTEM := system and not pending
-tests_of = { $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "$(1) and not serial" tests ros2_ws/src || [ $$? -eq 5 ]; } && { $(BIN)/python -m pytest -q -m "$(1) and serial" tests || [ $$? -eq 5 ]; }
+# --durations=25: the slowest tests, so that everyone sees where the time goes.
+PYTEST := $(BIN)/python -m pytest -q --durations=25
+parallel_of = { $(PYTEST) -n $(TEST_WORKERS) --dist worksteal -m "$(1) and not serial" tests ros2_ws/src || [ $$? -eq 5 ]; }
+tests_of = $(call parallel_of,$(1)) && { $(PYTEST) -m "$(1) and serial" tests || [ $$? -eq 5 ]; }
 
 test: setup lint
 	$(BIN)/python -m ant_evolution.warmup  # compile once, before the workers
 ifeq ($(NETNS),)
-	$(call tests_of,$(FAST))
+	$(call parallel_of,$(FAST))
 else
-	unshare -n sh -c 'ip link set lo up 2>/dev/null; $(call tests_of,$(FAST))'
+	unshare -n sh -c 'ip link set lo up 2>/dev/null; $(call parallel_of,$(FAST))'
 endif
 
 # The dome bring-up, the fault matrix and the short soak: long wall-clock runs of the whole
