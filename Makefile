@@ -39,11 +39,16 @@ FAST := not pending and not system
 SYSTEM := system and not pending
 # --durations=25: the slowest tests, so that everyone sees where the time goes.
 PYTEST := $(BIN)/python -m pytest -q --durations=25
-parallel_of = { $(PYTEST) -n $(TEST_WORKERS) --dist worksteal -m "$(1) and not serial" tests ros2_ws/src || [ $$? -eq 5 ]; }
+# --dist loadgroup: tests that must not overlap (two local Ray instances) share an xdist_group.
+parallel_of = { $(PYTEST) -n $(TEST_WORKERS) --dist loadgroup -m "$(1) and not serial" tests ros2_ws/src || [ $$? -eq 5 ]; }
 tests_of = $(call parallel_of,$(1)) && { $(PYTEST) -m "$(1) and serial" tests || [ $$? -eq 5 ]; }
 
-test: setup lint
-	$(BIN)/python -m ant_evolution.warmup  # compile once, before the workers
+# The kernels compile (numba's cache, kept in ~/.cache between runs and between make test
+# and make test-system) while lint runs.
+WARMUP_BESIDE_LINT := $(BIN)/python -m ant_evolution.warmup & warm=$$!; $(MAKE) --no-print-directory lint; lint=$$?; wait $$warm && exit $$lint
+
+test: setup
+	$(WARMUP_BESIDE_LINT)
 ifeq ($(NETNS),)
 	$(call parallel_of,$(FAST))
 else

@@ -81,6 +81,7 @@ def _run_with_a_late_recorder(trial: TrialProcesses) -> dict:
     return trial.wait(300.0)
 
 
+@pytest.mark.system  # every node its own process
 def test_process_trial_waits_for_a_late_recorder(tmp_path):
     """Tick 0 waits for the recorder process, even one that starts after every other node."""
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -97,6 +98,7 @@ def test_process_trial_waits_for_a_late_recorder(tmp_path):
     assert ticks == list(range(steps + 1))
 
 
+@pytest.mark.system  # every node its own process
 def test_continuous_process_trial_waits_for_a_late_recorder(tmp_path):
     """The continuous trial's tick 0 waits for the recorder too (the team tick's
     ``wait_for_recorder``): the bag has every tick although the recorder starts last."""

@@ -7,6 +7,12 @@ tick, the heartbeat and the supervisor's diagnostics, and calls the supervisor's
 (or ``ant-operator`` as a separate process). Every assertion is on sim time (message stamps)
 or message content; wall-time latencies are printed, never asserted (docs/benchmarks.md,
 "Oversight").
+
+Each test runs the trial in a process of its own (and some start the supervisor or
+``ant-operator`` as processes too), so the module is part of ``make test-system``; the safety
+rules each of these exercises have their node-level tests in ``make test``
+(tests/test_executor_node.py, tests/test_blade_safety.py, tests/test_supervisor_node.py) and
+the lockstep flow its composed one (tests/test_trial_oversight.py).
 """
 
 from __future__ import annotations
@@ -30,6 +36,8 @@ from excavation_common.safety import ESTOPPED, HELD
 GENOME = "genomes/best.json"
 ROBOTS = 4
 SEED = 3
+pytestmark = pytest.mark.system
+
 STOP_LIMIT = 0.1 + 1e-9
 """Sim seconds from an e-stop or pause to zero ``cmd_vel`` from every executor: 100 ms, two
 steps (stamps are float seconds here: a stop two steps after a pause at 39.25 s measured

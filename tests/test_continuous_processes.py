@@ -8,6 +8,7 @@ recorder's bag must hold the continuous trial's topics and read back with ``ant-
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from conftest import next_domain
 
 from excavation_bags.cli import main as bag_main
@@ -46,6 +47,7 @@ def trial(**kw):
     )
 
 
+@pytest.mark.system  # every node its own process
 def test_processes_equal_the_composed_and_grid_trials_and_record_a_bag(tmp_path, capfd):
     bag = tmp_path / "bag"
     procs = trial(drive="continuous", exact=True, processes=True, record=str(bag))

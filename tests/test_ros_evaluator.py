@@ -17,6 +17,7 @@ from ant_evolution.ros_evaluator import RosEvaluator, TrialError
 from blueprint_server.blueprint import default_blueprint
 
 
+@pytest.mark.system  # a trial process per genome and scenario set
 def test_trials_through_the_topics_equal_the_batched_evaluator():
     best = load_genome("genomes/best.json")
     other = mutate(np.random.default_rng(3), best, GAParams())
@@ -53,6 +54,7 @@ def test_a_failing_trial_command_is_a_clear_error():
             ros.evaluate([best], sets)
 
 
+@pytest.mark.system  # a trial process per genome and scenario set
 def test_ant_evolve_with_the_ros_evaluator_matches_a_batched_run(tmp_path):
     args = "--population 2 --generations 2 --scenarios 1 --steps 12 --robots 2 --depths 1"
     args += " --seed 4 --quiet --workers 2"

@@ -4,6 +4,10 @@ The trial runs in a thread (composed nodes, its own rclpy context); the test is 
 operator: a node of its own on the trial's domain that watches the tick (``/clock``) and the
 blade drivers' set-points and calls the supervisor's services, and ``ant-operator`` as a
 separate process. Latencies are printed (never asserted on wall time).
+
+The e-stop / pause flow runs in ``make test``; the tests that start processes of their own
+(``ant-operator``, a supervisor to SIGKILL) or run full perception are ``system`` tests
+(``make test-system``).
 """
 
 from __future__ import annotations
@@ -216,6 +220,7 @@ def test_estop_at_tick_10_then_pause_resume_ends_as_an_uninterrupted_trial():
     assert result.holds >= 3  # e-stop, reset (disarmed), pause
 
 
+@pytest.mark.system
 def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial():
     """``ant-operator`` disables robot 1, enables it again and overrides robot 0's blade.
 
@@ -272,6 +277,7 @@ def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial(
     assert overridden, "the operator's blade set-point never reached the simulator"
 
 
+@pytest.mark.system
 def test_supervisor_sigkilled_every_blade_homes_by_deadman_then_a_new_one_resumes():
     # 200 ticks: a trial of 25 could end between the tick the test sees and the deadman.
     domain, steps = next_domain(), 200
@@ -325,6 +331,7 @@ def test_supervisor_sigkilled_every_blade_homes_by_deadman_then_a_new_one_resume
     assert np.array_equal(result.heights, heights) and result.fitness == fitness
 
 
+@pytest.mark.system
 def test_robot_hidden_from_the_camera_stops_is_disabled_and_the_others_finish():
     from rcl_interfaces.msg import Parameter as ParameterMsg
     from rcl_interfaces.msg import ParameterType, ParameterValue

@@ -119,7 +119,11 @@ class Operator:
         if last is not None:
             pub.publish(last())
             sent += 1
-        time.sleep(0.1)  # let the last messages leave before the node goes
+        # Every subscriber has the stream (reliable QoS) before the node goes: a fixed pause
+        # here lost the last (zero) twist when this process was descheduled.
+        from rclpy.duration import Duration
+
+        pub.wait_for_all_acked(Duration(seconds=self.timeout))
         return sent
 
     def drive(self, robot: int, vx: float, wz: float, seconds: float) -> int:
