@@ -37,6 +37,7 @@ class Watcher:
 
     def __init__(self, domain: int, robots: int = ROBOTS):
         import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
         from rosgraph_msgs.msg import Clock
@@ -60,6 +61,14 @@ class Watcher:
             self.tick_wall.append((self.tick, time.monotonic()))
 
         self.node.create_subscription(Clock, "/clock", on_clock, 10)
+        self.sim_reports: list[tuple[float, str]] = []  # (wall, message) of /sim's statuses
+
+        def on_diagnostics(msg):
+            self.sim_reports += [
+                (time.monotonic(), s.message) for s in msg.status if s.name == "/sim"
+            ]
+
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
         for k in range(robots):
             self.node.create_subscription(
                 JointState,
@@ -176,10 +185,19 @@ def finish(watch, thread, out):
     return out["result"]
 
 
-def stays_still(watch, seconds=1.0) -> bool:
-    """No tick is published for ``seconds`` of wall time."""
-    tick = watch.tick
-    watch.spin_until(lambda: False, timeout=seconds)
+def stays_still(watch, reports: int = 2) -> bool:
+    """No tick is applied while the simulator is live and held.
+
+    Not a fixed wait (which a slow machine passes trivially): the simulator must say
+    ``tick T held`` in ``reports`` of its periodic statuses (one a second) sent after the
+    call, so it ran its loop meanwhile; then the tick must still be T.
+    """
+    since, tick = time.monotonic(), watch.tick
+
+    def held() -> list[str]:
+        return [m for w, m in watch.sim_reports if w >= since and m.startswith(f"tick {tick} held")]
+
+    assert watch.spin_until(lambda: len(held()) >= reports, timeout=60), watch.sim_reports[-5:]
     return watch.tick == tick
 
 
@@ -205,7 +223,7 @@ def test_estop_at_tick_10_then_pause_resume_ends_as_an_uninterrupted_trial():
         assert set(stamps.values()) <= {at}  # no tick went by: 0 s of sim time
         assert stays_still(watch)  # no behaviour applied while e-stopped
         assert watch.call("/supervisor/reset")[0].success
-        assert stays_still(watch, 0.5)  # reset alone: disarmed, still held
+        assert stays_still(watch)  # reset alone: disarmed, still held
         assert watch.call("/supervisor/arm")[0].success
         assert watch.spin_until(lambda: watch.tick >= 20)
         assert watch.call("/supervisor/pause")[0].success
@@ -299,7 +317,7 @@ def test_supervisor_sigkilled_every_blade_homes_by_deadman_then_a_new_one_resume
     try:
         thread, out = start_trial(domain, steps, supervisor="external")
         assert watch.spin_until(lambda: watch.tick == 0)  # tick 0 goes out unarmed...
-        assert stays_still(watch, 2.0) and watch.tick == 0  # ...but is not applied
+        assert stays_still(watch) and watch.tick == 0  # ...but is not applied
         assert watch.call("/supervisor/arm")[0].success
         assert watch.spin_until(lambda: watch.tick >= 8)
         sup.send_signal(signal.SIGKILL)
