@@ -94,7 +94,6 @@ def test_client_decodes_robots_and_height_map_of_a_running_trial(ros):
     from ant_controller.controller_node import ControllerNode
     from blueprint_server.server_node import BlueprintServer
     from excavation_sim.sim_node import SimNode
-    from excavation_sim.world import COL, ROW
 
     server = foxglove.start_server(host="127.0.0.1", port=0)
     try:
@@ -132,29 +131,47 @@ def test_client_decodes_robots_and_height_map_of_a_running_trial(ros):
         client.start()
         assert ros.spin_until(lambda: sim.tick >= 2 and set(topics) <= set(client.last), timeout=60)
         assert ros.spin_until(lambda: sim.finished, timeout=60)
-        ros.spin_until(lambda: False, 1.0)  # the final state reaches the client
+        # The final state reaches the client (the view publishes every 0.2 s): wait for it.
+        ros.spin_until(lambda: not _view_differs(client.last, sim), timeout=60)
         client.stop.set()
         client.join(5)
         assert client.error is None, client.error
     finally:
         server.stop()
-    scene = client.last["/view/robots"]
+    assert _view_differs(client.last, sim) == []
+
+
+def _view_differs(last: dict, sim) -> list[str]:
+    """What the client's newest messages show differently from the simulator's state."""
+    from excavation_sim.world import COL, ROW
+
+    wrong = []
+    scene = last["/view/robots"]
     positions = {
         e.id: (e.cubes[0].pose.position.x, e.cubes[0].pose.position.y) for e in scene.entities
     }
     for k in range(2):
         r = sim.world.robots[k]
-        assert positions[f"robot_{k}"] == pytest.approx(
+        if positions.get(f"robot_{k}") != pytest.approx(
             robot_center(int(r[ROW]), int(r[COL]), 0.25)
-        )
-    g = client.last["/view/height_map"]
-    assert g.frame_id == "map" and g.column_count == 16 and g.fields[0].name == "height"
-    heights = np.frombuffer(g.data, dtype="<f4").reshape(-1, g.column_count)
-    assert np.array_equal(heights, (sim.world.heights * 0.05).astype(np.float32))
-    tf = {t.child_frame_id: t for t in client.last["/tf"].transforms}
-    assert {"overhead_laser", "robot_0/base_link", "robot_1/base_link"} <= set(tf)
-    assert client.last["/view/fitness"]["fitness"] == pytest.approx(sim.world.fitness())
-    assert client.last["/view/fitness"]["mapped"] == pytest.approx(sim.world.fitness(), abs=1e-6)
+        ):
+            wrong.append(f"robot_{k} at {positions.get(f'robot_{k}')}")
+    g = last["/view/height_map"]
+    if not (g.frame_id == "map" and g.column_count == 16 and g.fields[0].name == "height"):
+        wrong.append(f"height map frame {g.frame_id}, {g.column_count} columns")
+    else:
+        heights = np.frombuffer(g.data, dtype="<f4").reshape(-1, g.column_count)
+        if not np.array_equal(heights, (sim.world.heights * 0.05).astype(np.float32)):
+            wrong.append("height map differs")
+    tf = {t.child_frame_id for t in last["/tf"].transforms}
+    if not {"overhead_laser", "robot_0/base_link", "robot_1/base_link"} <= tf:
+        wrong.append(f"tf frames {sorted(tf)}")
+    fitness = last["/view/fitness"]
+    if fitness["fitness"] != pytest.approx(sim.world.fitness()):
+        wrong.append(f"fitness {fitness['fitness']}")
+    if fitness["mapped"] != pytest.approx(sim.world.fitness(), abs=1e-6):
+        wrong.append(f"mapped fitness {fitness['mapped']}")
+    return wrong
 
 
 def test_layout_names_the_view_channels():
