@@ -9,6 +9,8 @@ middleware has not made yet.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PoseWithCovarianceStamped
@@ -25,9 +27,28 @@ ROWS = COLS = 16
 CELL = 0.25
 
 
-def spin_for(ros, seconds: float) -> None:
-    """Spin ``seconds`` of wall time (a condition that never holds)."""
-    ros.spin_until(lambda: False, timeout=seconds)
+def reports_from(ros, node: Node, count: int = 2) -> None:
+    """Spin until ``node`` has published ``count`` more ``/diagnostics`` statuses.
+
+    The proof that a negative check ("nothing happened") was made while the node was live:
+    every node here shares one executor, so by the time a node's periodic status (once a
+    second or more often) came twice, its fast timers ran many times too. A fixed wait
+    would pass trivially on a machine too slow to run the node at all.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    name = node.get_fully_qualified_name()
+    heard: list[str] = []
+    probe = ros.add(Node(f"probe_{time.monotonic_ns()}", context=ros.context))
+    probe.create_subscription(
+        DiagnosticArray,
+        "/diagnostics",
+        lambda m: heard.extend(s.name for s in m.status if s.name == name),
+        50,
+    )
+    assert ros.spin_until(lambda: len(heard) >= count, timeout=60), f"{name} reported {heard}"
+    ros.executor.remove_node(probe)
+    probe.destroy_node()
 
 
 def test_sensors_hold_a_frame_until_someone_listens(ros):
@@ -51,7 +72,7 @@ def test_sensors_hold_a_frame_until_someone_listens(ros):
     assert ros.spin_until(lambda: sensors.heights is not None)
     pose_pub.publish(pose_message(5, 5, 0, CELL, 1e-4, 1e-3, stamp=stamp))
     assert ros.spin_until(lambda: sensors.ready is not None)  # the instant is rendered ...
-    spin_for(ros, 1.0)
+    reports_from(ros, sensors)
     assert sensors.frames == 0 and sensors.ready is not None  # ... and held: nobody listens
 
     heard: dict[str, list] = {"image": [], "scan": []}
@@ -96,7 +117,8 @@ def test_controller_is_ready_once_every_input_is_connected(ros):
     inputs = ros.add(Node("inputs", context=ros.context))
     inputs.create_subscription(Bool, "/robot_0/ready", lambda m: said.append(m.data), LATCHED)
     pubs = controller_inputs(inputs)  # all but the stuck flag
-    spin_for(ros, 1.5)
+    assert ros.spin_until(lambda: all(p.get_subscription_count() > 0 for p in pubs))
+    reports_from(ros, controller)  # it checked its inputs since (its timer reports each time)
     assert not controller.ready and True not in said
     pubs.append(inputs.create_publisher(Bool, "/robot_0/stuck", 10))
     assert ros.spin_until(lambda: said and said[-1])  # latched: a late listener hears it too
@@ -145,7 +167,7 @@ def test_simulator_waits_for_every_controller_to_be_ready(ros):
             (JointState, "/robot_0/blade/joint_states"),
         ],
     )
-    spin_for(ros, 2.0)
+    reports_from(ros, sim)
     assert not sim.clock.started  # present and connected, but not ready: tick 0 waits
     ready.publish(Bool(data=True))
     assert ros.spin_until(lambda: sim.clock.started)
@@ -181,7 +203,7 @@ def test_team_tick_waits_for_every_controller_to_be_ready(ros):
             (JointState, "/robot_0/blade/servo_state"),
         ],
     )
-    spin_for(ros, 2.0)
+    reports_from(ros, tick)
     assert tick.core.phase is Phase.WAITING  # present and connected, but not ready
     ready.publish(Bool(data=True))
     assert ros.spin_until(lambda: tick.core.phase is not Phase.WAITING)
