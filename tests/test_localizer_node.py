@@ -57,6 +57,29 @@ class Probe:
         self.pub.publish(image_msg)
 
 
+class Counted:
+    """A publisher that also keeps what the node published (read in the node's own thread:
+    a negative check on it is exact once the node has processed the frame)."""
+
+    def __init__(self, publisher):
+        self.publisher, self.sent = publisher, []
+
+    def publish(self, msg) -> None:
+        self.sent.append(msg)
+        self.publisher.publish(msg)
+
+    def __getattr__(self, name):
+        return getattr(self.publisher, name)
+
+
+def counted(node) -> tuple[list[Counted], Counted]:
+    """Count ``node``'s pose publications per robot and its retake requests."""
+    node.pose_pubs = [Counted(p) for p in node.pose_pubs]
+    if node.retake_pub is not None:
+        node.retake_pub = Counted(node.retake_pub)
+    return node.pose_pubs, node.retake_pub
+
+
 def localizer(ros, **params):
     overrides = [
         Parameter("calibration", value=str(CONFIG_DIR / "camera_sim.yaml")),
@@ -148,7 +171,8 @@ def test_two_robots_with_the_same_colours(ros, frame, tmp_path):
         " yellow: [0, 230, 255]}\n"
         "robots:\n  - {front: red, rear: green}\n  - {front: red, rear: green}\n"
     )
-    localizer(ros, beacons=str(table))
+    node = localizer(ros, beacons=str(table))
+    poses, _ = counted(node)
     probe = Probe(ros)
     probe.send(frame_to_message(frame, Image()), 2)
 
@@ -158,8 +182,8 @@ def test_two_robots_with_the_same_colours(ros, frame, tmp_path):
 
     assert ros.spin_until(reported)
     assert "shares LED colours" in probe.status["/localizer: robot_0"].message
-    ros.spin_until(lambda: False, 0.3)
-    assert not any(probe.poses.values())
+    assert ros.spin_until(lambda: node.frames == 1)  # the frame was processed ...
+    assert not any(p.sent for p in poses)  # ... and gave no pose
 
 
 def test_a_tracked_robot_unseen_asks_for_a_retake_and_holds_the_frame(ros):
@@ -174,17 +198,17 @@ def test_a_tracked_robot_unseen_asks_for_a_retake_and_holds_the_frame(ros):
     def render(hidden=frozenset()):
         return frame_to_message(camera.render(VIEWS, np.zeros((16, 16)), rng, hidden)[0], Image())
 
-    localizer(ros, retakes=1)
+    node = localizer(ros, retakes=1)
+    poses, retakes = counted(node)
     probe = Probe(ros)
     asked = []
     probe.node.create_subscription(Header, "/overhead/retake", asked.append, 10)
     probe.send(render(), 7)
     assert ros.spin_until(lambda: all(probe.poses.values()))
     probe.send(render({(1, "front")}), 8)
-    assert ros.spin_until(lambda: asked)
-    ros.spin_until(lambda: False, 0.5)
+    assert ros.spin_until(lambda: asked and node.frames == 2)
     assert asked[0].stamp.sec == 8 and "robots [1] not seen" in asked[0].frame_id
-    assert [len(p) for p in probe.poses.values()] == [1, 1]  # frame 2 held back whole
+    assert [len(p.sent) for p in poses] == [1, 1]  # frame 2 held back whole
     probe.send(render(), 8)  # the retake: same instant, its own noise
     assert ros.spin_until(lambda: all(len(p) == 2 for p in probe.poses.values()))
     assert [p[-1].header.stamp.sec for p in probe.poses.values()] == [8, 8]
@@ -192,16 +216,18 @@ def test_a_tracked_robot_unseen_asks_for_a_retake_and_holds_the_frame(ros):
     probe.send(render({(1, "front")}), 9)
     assert ros.spin_until(lambda: len(asked) == 2)
     probe.send(render({(1, "front")}), 9)
-    assert ros.spin_until(lambda: len(probe.poses[0]) == 3)
-    ros.spin_until(lambda: False, 0.5)
-    assert len(asked) == 2 and len(probe.poses[1]) == 2  # no third ask; robot 1 not sent
+    assert ros.spin_until(lambda: len(probe.poses[0]) == 3 and node.frames == 5)
+    assert len(retakes.sent) == 2 and len(poses[1].sent) == 2  # no third ask; robot 1 not sent
+    assert len(asked) == 2 and len(probe.poses[1]) == 2
     assert probe.poses[0][-1].header.stamp.sec == 9
 
 
 def test_retakes_off_never_ask(ros, frame):
     from std_msgs.msg import Header
 
-    localizer(ros)
+    node = localizer(ros)
+    poses, retakes = counted(node)
+    assert retakes is None  # retakes off: the node has no retake publisher at all
     probe = Probe(ros)
     asked = []
     probe.node.create_subscription(Header, "/overhead/retake", asked.append, 10)
@@ -210,6 +236,6 @@ def test_retakes_off_never_ask(ros, frame):
     assert ros.spin_until(lambda: all(probe.poses.values()))
     hidden = camera.render(VIEWS, np.zeros((16, 16)), np.random.default_rng(2), {(1, "front")})
     probe.send(frame_to_message(hidden[0], Image()), 8)
-    assert ros.spin_until(lambda: len(probe.poses[0]) == 2)
-    ros.spin_until(lambda: False, 0.3)
-    assert not asked and len(probe.poses[1]) == 1
+    assert ros.spin_until(lambda: len(probe.poses[0]) == 2 and node.frames == 2)
+    assert [len(p.sent) for p in poses] == [2, 1]  # the frame went out without robot 1
+    assert not asked
