@@ -40,7 +40,11 @@ def test_trial_through_nodes_equals_offline(spec, robots):
 
 
 @pytest.mark.parametrize(
-    ("blade_driver", "processes"), [(False, False), (True, True)], ids=["no-driver", "processes"]
+    ("blade_driver", "processes"),
+    [
+        pytest.param(False, False, id="no-driver"),
+        pytest.param(True, True, id="processes", marks=pytest.mark.system),  # make test-system
+    ],
 )
 def test_trial_modes_equal_offline(blade_driver, processes):
     """Without blade drivers (the simulator reports the blade), and one process per node."""
