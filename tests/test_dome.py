@@ -158,24 +158,22 @@ def test_dome_up_sim_runs_20_ticks_with_the_fitness_of_ant_trial(tmp_path, compo
 
 @pytest.mark.system
 @pytest.mark.serial
-@pytest.mark.pending  # docs/reliability.md, "Pending"
 def test_a_supervisor_that_stalls_every_second_leaves_the_run_unchanged(tmp_path, composed):
     """A loaded machine's hiccups: the supervisor stopped for 0.3 s of every second.
 
     Each stall is a heartbeat gap (the simulator's clock runs on at up to 20 x): blades go
-    home, executors stop, the team tick holds. None is long enough to ask for a new snapshot
-    (``snapshot_retry``), so the run ends as the undisturbed one. Before the team tick told
-    a heartbeat gap from a pause, such a gap in a snapshot asked for another frame and sweep
-    and the words diverged (as in CI: "a sweep ended after 17 of 32 scans").
+    home, executors stop, the team tick holds. A gap changes nothing on the site, so it asks
+    for no new snapshot, however long, and the run ends as the undisturbed one. Before the
+    team tick told a heartbeat gap from a pause, such a gap in a snapshot asked for another
+    frame and sweep and the words diverged (as in CI: "a sweep ended after 17 of 32 scans");
+    later a stall while tick 0 waited for the supervisor's first heartbeat ("no heartbeat
+    yet") still did ("tick 0: team held 0.1 s; new snapshot"), so the stalls begin as soon
+    as every node is up.
     """
     proc = dome(tmp_path, ticks=20)
     stalls = 0
     try:
         assert wait_for(lambda: "all 13 nodes are up" in events(tmp_path), 600)
-        # Stall only once tick 0 is done: until then the team is still arming, and a stall
-        # there holds the gate for an arming reason ("no heartbeat yet", "team disarmed",
-        # "no enable state yet"), which is rightly a pause (a new snapshot), not a gap.
-        assert wait_for(lambda: snapshots(tmp_path) >= 2, 600)
         while proc.poll() is None:
             pid = state(tmp_path).get("supervisor", {}).get("pid")
             try:

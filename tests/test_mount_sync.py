@@ -52,7 +52,7 @@ def tilt_at(t_ns: int) -> float:
 class Rig:
     """A mapper node and a probe publishing scans and mount states."""
 
-    def __init__(self, ros):
+    def __init__(self, ros, mount_wait=0.5):
         from rclpy.node import Node
 
         self.mapper = ros.add(
@@ -63,7 +63,7 @@ class Rig:
                     Parameter("sweep_scans", value=LASER.sweep_scans),
                     Parameter("reliable", value=True),
                     Parameter("diagnostics_period", value=0.1),
-                    Parameter("mount_wait", value=0.5),
+                    Parameter("mount_wait", value=mount_wait),
                 ],
             )
         )
@@ -159,6 +159,58 @@ def test_unbracketed_scans_are_counted_and_warned(ros):
     assert rig.mapper.unbracketed == LASER.sweep_scans - 1
     assert {kv.key: kv.value for kv in rig.status.values}["unbracketed_scans"] == "15"
     assert not rig.maps
+
+
+def queued(ros, sub, timeout=10.0) -> bool:
+    """Whether a message waits in ``sub``'s queue, not yet taken (a wait set, no executor)."""
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+    wait_set = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, ros.context.handle)
+    wait_set.clear_entities()
+    wait_set.add_subscription(sub.handle)
+    wait_set.wait(int(timeout * 1e9))
+    return sub.handle.pointer in wait_set.get_ready_entities("subscription")
+
+
+def test_a_mount_state_queued_while_the_mapper_was_held_up_is_used_not_dropped(ros):
+    # A loaded machine: the last scan of a sweep is in, its mount state comes while the
+    # mapper gets no CPU for longer than mount_wait; when it runs again, its executor runs
+    # the due timer before the subscriptions. The old mapper judged the scan's wait there
+    # and dropped it (the sweep was fused only when the next began: a tick late).
+    rig = Rig(ros, mount_wait=1.0)
+    mapper = rig.mapper
+    clock = [100.0]
+    mapper.wall = lambda: clock[0]  # the mapper's wall clock, moved by hand
+    scans = sweep_ranges(np.zeros((16, 16)))
+    last = LASER.sweep_scans - 1
+    for i, ranges in enumerate(scans):
+        if i < last:
+            rig.mount(i * PERIOD_NS, tilt_at(i * PERIOD_NS))
+        rig.scan(i * PERIOD_NS, ranges)
+    assert ros.spin_until(lambda: mapper.in_sweep == last and len(mapper.scans) == 1)
+    rig.mount(last * PERIOD_NS, tilt_at(last * PERIOD_NS))
+    assert queued(ros, mapper.mount_sub)  # in the queue, not taken: the mapper is held up
+    clock[0] += 5.0  # longer than mount_wait
+    mapper.on_timer()  # what the executor runs first when the mapper gets the CPU again
+    assert mapper.unbracketed == 0 and mapper.published == 1  # the whole sweep, fused
+
+
+def test_a_scan_the_laser_has_gone_past_is_dropped_by_stamps_not_wall_time(ros):
+    # The mount's stream stopped while the laser's went on: scans more than mount_wait of
+    # stamps older than the newest scan are given up, however little wall time passed.
+    rig = Rig(ros, mount_wait=0.035)
+    mapper = rig.mapper
+    mapper.wall = lambda: 100.0  # no wall time passes
+    scans = sweep_ranges(np.zeros((16, 16)))
+    for i in range(10):
+        rig.mount(i * PERIOD_NS, tilt_at(i * PERIOD_NS))
+    for i, ranges in enumerate(scans):
+        rig.scan(i * PERIOD_NS, ranges)
+    # scans 10..15 have no mount state; 10..11 are more than 35 ms older than scan 15
+    assert ros.spin_until(lambda: mapper.unbracketed == 2 and len(mapper.scans) == 4)
+    assert mapper.in_sweep == 10
+    mapper.on_timer()  # nothing queued, no wall time: the others still wait
+    assert mapper.unbracketed == 2 and len(mapper.scans) == 4
 
 
 # --- mount offsets ------------------------------------------------------------------------

@@ -157,16 +157,61 @@ def test_a_short_heartbeat_gap_delays_the_snapshot_but_asks_for_no_other():
     assert tt.records[0].started_wall == 1.6
 
 
-def test_a_long_heartbeat_gap_or_any_pause_asks_for_a_new_snapshot():
-    for hold, seconds in [("heartbeat lost", 2.0), ("team paused", 0.2), ("e-stop latched", 0.2)]:
+def test_a_heartbeat_gap_of_any_length_asks_for_no_other_snapshot():
+    # Nothing could move while heartbeats were missing (every gate closed), however long:
+    # the snapshot asked for stands. Nor before the first heartbeat (the CI rehearsal's
+    # "tick 0: team held 0.1 s; new snapshot": a supervisor not heard yet at tick 0).
+    for hold, seconds in [
+        ("heartbeat lost", 2.0),
+        ("heartbeat lost", 60.0),
+        ("no heartbeat yet", 0.1),
+    ]:
         tt = make(robots=1, snapshot_retry=2.0)
         tt.start(0.0, 0.0)
+        tt.on_ack("tick 0", 0.1)
         feed_snapshot(tt, 0.5, [(2, 2, 0)])
-        actions = held(tt, hold, 0.6, 0.1, seconds)
+        assert kinds(held(tt, hold, 0.6, 0.1, seconds)) == ["publish"], (hold, seconds)
+    # a gap, then an unacknowledged request: sent again, unchanged (the simulator takes it once)
+    tt = make(robots=1, snapshot_retry=2.0)
+    tt.start(0.0, 0.0)
+    actions = held(tt, "heartbeat lost", 0.6, 0.1, 3.0)
+    assert actions[1:] == [("request", "tick 0", 0.1)] and "not acknowledged" in actions[0][1]
+
+
+def test_after_a_heartbeat_gap_the_blades_get_blade_wait_again():
+    # A blade driver homes its blade when heartbeats stop; the snapshot waits for it again.
+    tt = make(robots=1, settle=0.1, blade_wait=2.0, snapshot_retry=30.0)
+    tt.start(0.0, 0.0)
+    feed_snapshot(tt, 0.2, [(2, 2, 0)])
+    tt.step(0.3, 0.1)
+    tt.on_word(0, 1 << BLADE_BELOW_CMD)
+    tt.step(0.4, 0.2)
+    tt.on_status(0, 0, terminal=True, aborted=False, now=1.0)
+    assert kinds(tt.step(1.0, 0.3)) == ["request"]
+    tt.on_ack("tick 1", 1.1)
+    feed_snapshot(tt, 1.1, [(2, 2, 0)], [BLADE_BELOW])  # lowered, as the word asked
+    tt.armed, tt.hold = False, "heartbeat lost"
+    assert tt.step(1.2, 0.4) == []
+    tt.on_blade(0, BLADE_HOME, 5.0, "homed")  # the driver's deadman, during the gap
+    tt.armed, tt.hold = True, None
+    assert tt.step(6.0, 5.0) == []  # past blade_wait since the motion, not since the gap
+    tt.on_blade(0, BLADE_BELOW, 6.1, "lowered")
+    publish = [a for a in tt.step(6.2, 5.1) if a[0] == "publish"]
+    assert publish and publish[0][3]["blades"] == ["lowered"]
+
+
+def test_an_operator_hold_asks_for_a_new_snapshot_and_says_why():
+    for hold in ["team paused", "e-stop latched", "team disarmed"]:
+        tt = make(robots=1, snapshot_retry=2.0)
+        tt.start(0.0, 0.0)
+        tt.on_ack("tick 0", 0.1)
+        feed_snapshot(tt, 0.5, [(2, 2, 0)])
+        actions = held(tt, hold, 0.6, 0.1, 0.2)
         assert kinds(actions) == ["report", "request"], hold
-        assert actions[1][2] == 0.6 + seconds + 0.1  # taken after the hold ended (+ settle)
-        feed_snapshot(tt, 0.6 + seconds + 0.1, [(2, 2, 0)])
-        assert kinds(tt.step(0.6 + seconds + 0.2, 0.1 + seconds + 0.1)) == ["publish"]
+        assert f"({hold}); new snapshot" in actions[0][1]
+        assert actions[1][2] == 0.6 + 0.2 + 0.1  # taken after the hold ended (+ settle)
+        feed_snapshot(tt, 0.6 + 0.2 + 0.1, [(2, 2, 0)])
+        assert kinds(tt.step(0.6 + 0.2 + 0.2, 0.1 + 0.2 + 0.1)) == ["publish"]
     # a heartbeat gap that turns into a pause is a pause, however short
     tt = make(robots=1, snapshot_retry=2.0)
     tt.start(0.0, 0.0)
@@ -176,7 +221,56 @@ def test_a_long_heartbeat_gap_or_any_pause_asks_for_a_new_snapshot():
     tt.hold = "team paused"
     tt.step(0.7, 0.2)
     tt.armed, tt.hold = True, None
-    assert kinds(tt.step(0.8, 0.3)) == ["report", "request"]
+    actions = tt.step(0.8, 0.3)
+    assert kinds(actions) == ["report", "request"]
+    assert "(heartbeat lost, team paused); new snapshot" in actions[0][1]
+
+
+def test_a_request_is_sent_again_only_while_not_acknowledged():
+    tt = make(robots=1, settle=0.1, snapshot_retry=2.0)
+    assert tt.start(0.0, 0.0) == [("request", "tick 0", 0.1)]
+    assert tt.step(0.5, 1.9) == []
+    # lost (no acknowledgement): the same request again, every snapshot_retry
+    actions = tt.step(0.6, 2.0)
+    assert kinds(actions) == ["report", "request"] and "not acknowledged" in actions[0][1]
+    assert actions[1] == ("request", "tick 0", 0.1)
+    assert tt.step(0.7, 3.9) == []
+    tt.on_ack("tick 1", 0.2)  # another tick's (a restarted team tick's latched one): not ours
+    tt.on_ack("tick 0", 0.05)  # taken before the instant asked for: not ours
+    assert kinds(tt.step(0.8, 4.0)) == ["report", "request"]
+    tt.on_ack("tick 0", 0.15)  # taken: perception is slow, nothing is asked again
+    assert tt.step(0.9, 5.9) == []
+    feed_snapshot(tt, 0.15, [(2, 2, 0)])
+    assert kinds(tt.step(1.0, 6.0)) == ["publish"]
+
+
+def test_a_snapshot_taken_without_a_robot_asks_for_another_instant():
+    # A robot hidden from the camera: further frames let the lost-robot policy judge it.
+    tt = make(robots=2, settle=0.1, snapshot_retry=2.0)
+    tt.start(0.0, 0.0)
+    tt.on_ack("tick 0", 0.1)
+    tt.on_pose(0, (2, 2, 0), 0.1, "p0")
+    for k in range(2):
+        tt.on_blade(k, BLADE_HOME, 0.1, f"blade{k}")
+    tt.on_heights(0.1, "heights")
+    assert tt.step(0.5, 1.0) == []
+    actions = tt.step(3.0, 2.0)
+    assert actions[1:] == [("request", "tick 0", 3.0)]  # a new instant: rendered anew
+    assert "no pose of robot 1 yet" in actions[0][1]
+    tt.on_ack("tick 0", 0.1)  # the first request's again: not the new one's
+    assert kinds(tt.step(3.1, 4.0)) == ["report", "request"]
+    assert tt.step(3.2, 4.1) == []  # sent again (not acknowledged), unchanged
+
+
+def test_without_acknowledgements_a_request_is_never_sent_again_for_want_of_one():
+    # The dome: no node acknowledges; the camera and laser run anyway.
+    tt = make(robots=1, settle=0.1, snapshot_retry=2.0, snapshot_ack=False)
+    tt.start(0.0, 0.0)
+    feed_snapshot(tt, 0.05, [(2, 2, 0)])  # before the motion ended: not the snapshot
+    actions = tt.step(1.0, 2.0)  # incomplete: another instant, as a taken request
+    assert actions[1:] == [("request", "tick 0", 1.0)] and "no pose of robot 0" in actions[0][1]
+    feed_snapshot(tt, 0.2, [(2, 2, 0)])  # any instant after the motion still counts
+    assert kinds(tt.step(1.1, 2.1)) == ["publish"]
 
 
 def test_held_team_grants_no_goal_and_held_time_is_not_motion_time():

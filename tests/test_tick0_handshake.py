@@ -75,12 +75,17 @@ def test_sensors_hold_a_frame_until_someone_listens(ros):
     reports_from(ros, sensors)
     assert sensors.frames == 0 and sensors.ready is not None  # ... and held: nobody listens
 
-    heard: dict[str, list] = {"image": [], "scan": []}
+    heard: dict[str, list] = {"image": [], "scan": [], "mount": []}
     listener = ros.add(Node("listener", context=ros.context))
     listener.create_subscription(Image, "/overhead/image_raw", heard["image"].append, 10)
     listener.create_subscription(LaserScan, "/worksite/scan", heard["scan"].append, 200)
+    # a sweep also waits for the mount's listener: a scan without its mount state is lost
+    mount = "/worksite/laser_mount/joint_states"
+    listener.create_subscription(JointState, mount, heard["mount"].append, 200)
     scans = sensors.laser_params.sweep_scans
-    assert ros.spin_until(lambda: heard["image"] and len(heard["scan"]) == scans)
+    assert ros.spin_until(
+        lambda: heard["image"] and len(heard["scan"]) == len(heard["mount"]) == scans
+    )
     assert sensors.frames == 1 and sensors.ready is None
     assert heard["image"][0].header.stamp.sec == 0
 

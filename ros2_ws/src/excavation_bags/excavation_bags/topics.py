@@ -47,8 +47,8 @@ SUITE_TOPICS: tuple[str, ...] = (
     "/diagnostics",
 )
 """The node suite's topics (DESIGN.md, docs/interfaces.md); ``*`` matches a robot index
-(``/team/*``: e-stop, heartbeat, tick and snapshot requests; ``/tick/*``: the snapshot the
-team tick republishes per tick in a continuous trial).
+(``/team/*``: e-stop, heartbeat, tick, snapshot requests and their acknowledgements;
+``/tick/*``: the snapshot the team tick republishes per tick in a continuous trial).
 
 ``/overhead/image_raw`` is recorded as ``/overhead/image_raw/compressed`` (see
 :mod:`excavation_bags.recorder_node`)."""

@@ -79,12 +79,15 @@ its setting changes what the controllers decide next. A fallback only: a blade t
 arrives ends the wait."""
 SIM_SNAPSHOT_RETRY = 20.0
 """Wall seconds the team tick waits for a snapshot's poses, height map and blades before it
-asks the simulator for another, when the nodes are processes (composed: 2 s). Each request
-renders a new camera frame and laser sweep: a second one moves the sensors' noise stream
-on by a frame and gives the mapper a sweep the composed trial never fuses, so asking
-again only because the localizer and mapper processes are slow on a loaded machine (seen:
-``ant-dome up --sim`` asked again at ticks 0 and 20 of 40 on an idle 2-core machine) makes
-the run differ from the composed one. A fallback only, for a snapshot that was lost."""
+asks the simulator for another instant, when the nodes are processes (composed: 2 s). A
+request the simulator has not acknowledged is sent again unchanged, which renders nothing
+twice (the simulator takes a request once); but a snapshot taken and still incomplete asks
+for a new instant, a new camera frame and laser sweep: that moves the sensors' noise
+stream on by a frame and gives the mapper a sweep the composed trial never fuses, so
+asking only because the localizer and mapper processes are slow on a loaded machine
+(seen: ``ant-dome up --sim`` asked again at ticks 0 and 20 of 40 on an idle 2-core
+machine, with 2 s) makes the run differ from the composed one. A fallback only, for a
+snapshot that lacks a robot (hidden from the camera) or was lost after it was taken."""
 EXECUTOR_STATUS = re.compile(r"/robot_(\d+)/executor")
 
 

@@ -51,11 +51,14 @@ glare (about 1 robot-frame in 2,000, docs/perception.md) would hold a lockstep t
 whole tick timeout; a second frame of the same instant has its own glare."""
 
 RELIABLE_MOUNT_WAIT = 10.0
-"""Wall seconds a laser scan waits for the mount state of its stamp before the mapper drops
-it (the mapper's default: 1 s). The trial's laser is reliable, so the state comes; a mapper
-held up for more than 1 s (seen at tick 0 of a process trial, every node starting on the 2
-cores) found the wait over before it had taken the queued state, dropped the sweep's last
-scan and fused that sweep only when the next one began: the whole team lost tick 0. The
+"""Seconds a laser scan waits for the mount state of its stamp before the mapper drops it
+(the mapper's default: 1 s): of the laser's stamps, or of wall time once nothing is queued.
+The trial's laser is reliable, so the state comes; the wait only bounds a mount that went
+silent. It was raised from 1 s when a mapper held up for more than 1 s (seen at tick 0 of a
+process trial, every node starting on the 2 cores) found the wait over before it had taken
+the queued state, dropped the sweep's last scan and fused that sweep only when the next one
+began: the whole team lost tick 0. The mapper now takes every queued message before it
+gives a scan up (``terrain_mapper.mapper_node``), so this value no longer decides that. The
 dome's ``--sim`` uses the same value (``excavation_bringup.site.mapper_params``)."""
 
 

@@ -854,7 +854,9 @@ def team_tick_params(
 
     With ``--sim`` it reads the simulator's blades (``blade/plant_state``) and waits sim
     seconds for them; in the dome it reads each blade driver's ``blade/joint_states``, the
-    localiser's poses and the mapper's height map, on the wall clock.
+    localiser's poses and the mapper's height map, on the wall clock, and no node
+    acknowledges its snapshot requests (``snapshot_ack`` off: the camera and the laser run
+    anyway, so a request is never sent again for want of an acknowledgement).
     """
     from excavation_bringup.continuous_processes import SIM_BLADE_WAIT, SIM_SNAPSHOT_RETRY
     from excavation_bringup.continuous_trial import tick_parameters
@@ -865,7 +867,12 @@ def team_tick_params(
         "wait_for_recorder": bool(record),
     }
     if not sim:
-        return {**params, "blade_in": DOME_BLADE_IN, "blade_out": DOME_BLADE_OUT}
+        return {
+            **params,
+            "blade_in": DOME_BLADE_IN,
+            "blade_out": DOME_BLADE_OUT,
+            "snapshot_ack": False,
+        }
     return {
         **params,
         "blade_wait": SIM_BLADE_WAIT,

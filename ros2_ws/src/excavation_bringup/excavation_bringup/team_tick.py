@@ -8,10 +8,16 @@ turns that back into ticks the controllers can run on unchanged, in their lockst
    t - 1 ended is in: every robot's pose, the height map and every blade state stamped at
    or after the moment the last robot finished (``settle`` later), each blade at the
    setting its word asked for (or ``blade_wait`` has passed). It asks for one on
-   ``/team/snapshot`` (the simulator answers; a dome's camera and laser run anyway) and asks
-   again every ``snapshot_retry`` wall seconds (wall time: rendering a frame takes wall
-   time while a simulator's clock runs on). The snapshot is republished stamped
-   ``t * tick_period`` with every robot's U1 (its executor aborted: stuck).
+   ``/team/snapshot`` (the simulator answers; a dome's camera and laser run anyway). With
+   ``snapshot_ack`` the simulator acknowledges the request once it has taken the snapshot
+   (:meth:`TeamTick.on_ack`), and a request not acknowledged within ``snapshot_retry``
+   wall seconds (it was lost: sent before the simulator's subscription was matched, say)
+   is sent again, unchanged; the simulator takes a request only once, so a late
+   acknowledgement never makes a second frame and sweep. A snapshot taken but still
+   incomplete ``snapshot_retry`` after the request (a robot the camera does not see) asks
+   for another instant, so that the lost-robot policy sees further frames. The snapshot is
+   republished stamped ``t * tick_period`` with every robot's U1 (its executor aborted:
+   stuck).
 2. **Words.** Every controller answers with one word (the first word after the snapshot
    counts; ``word_timeout`` / ``first_word_timeout`` wall seconds, then a silent robot
    idles with word 0, as in the lockstep simulator).
@@ -30,12 +36,16 @@ Oversight (DESIGN.md, "Operator oversight and safety"): the tick runs only while
 deadman, and the e-stop). Not armed, no snapshot is taken, no word is turned into goals and
 no further goal is granted; a pause while robots drive leaves their goals to their
 executors (which stop and carry on after the resume), and time not armed does not count
-toward ``motion_limit``. A snapshot the team was held for is asked for again once it is
-armed, so that it shows the site as the armed team left it: after a pause, a disarm or an
-e-stop (:attr:`TeamTick.hold` says why the team is held), or a heartbeat gap of at least
-``snapshot_retry`` wall seconds. A shorter heartbeat gap (a loaded machine's hiccup: the
-gates closed, nothing was driven and no one was let in) only delays the tick; asking again
-would render another frame and sweep and move the simulated sensors' noise stream on.
+toward ``motion_limit``. A snapshot the team was held for by the operator (a pause, a
+disarm or an e-stop: :attr:`TeamTick.hold` says why the team is held) is asked for again
+once it is armed, so that it shows the site as it is then: the operator may have moved
+something by hand. A hold for want of heartbeats (:data:`GAPS`: a loaded machine's hiccup,
+a supervisor not heard yet; the gates closed, nothing was driven and no one was let in)
+only delays the tick, however long it lasts: the request stands, and asking again would
+render another frame and sweep and move the simulated sensors' noise stream on; only the
+blades get ``blade_wait`` again to reach their settings (a blade driver homes its blade
+when heartbeats stop). (A supervisor that restarts in the dome starts disarmed, which is
+the operator's hold.)
 Robots in :attr:`TeamTick.absent`
 (disabled or lost: ``/robot_k/enabled`` false) are not waited for: the snapshot needs no
 pose of theirs, their word is 0 and their motion counts as done at once.
@@ -67,6 +77,10 @@ RIGHT, LEFT = 1, -1
 HEARTBEAT_GAP = "heartbeat lost"
 """:attr:`TeamTick.hold` of a team held only because heartbeats stopped coming
 (:meth:`excavation_common.safety.MotionGate.kind` of the gate's reason)."""
+NO_HEARTBEAT = "no heartbeat yet"
+""":attr:`TeamTick.hold` before the supervisor's first heartbeat (nothing has moved yet)."""
+GAPS = (HEARTBEAT_GAP, NO_HEARTBEAT)
+"""Holds that cannot have changed the site: no new snapshot after them."""
 STAMP_SLACK = 1e-6
 """Seconds: stamps are integer nanoseconds, times here floats (0.1 + 3.65 > 3.75)."""
 
@@ -80,7 +94,10 @@ class TeamTickParams:
     tick_period: float = param(1.0, "stamp spacing of the republished ticks, s", low=0.001)
     settle: float = param(0.1, "snapshot taken at least this long after motion ended, s", low=0.0)
     snapshot_retry: float = param(
-        2.0, "wall s after which a new snapshot is asked for (or after a heartbeat gap)", low=0.01
+        2.0, "wall s before an unacknowledged or incomplete snapshot is asked for again", low=0.01
+    )
+    snapshot_ack: bool = param(
+        True, "requests are acknowledged on /team/snapshot_ack (false: none is; a dome)"
     )
     snapshot_limit: float = param(
         30.0, "wall s after which an incomplete snapshot is taken as it is", low=0.01
@@ -168,7 +185,8 @@ class TeamTick:
     """The barrier between perception, controllers and executors (pure, no ``rclpy``).
 
     Feed it inputs (``on_*``), call :meth:`step` often; it returns actions:
-    ``("request", label, not_before)`` ask for a snapshot taken at ``not_before`` or later;
+    ``("request", label, not_before)`` ask for a snapshot taken at ``not_before`` or later
+    (sent again unchanged while not acknowledged);
     ``("publish", tick, stamp, snapshot)`` the snapshot of a tick (``snapshot``:
     ``{"poses": [...], "heights": ..., "blades": [...], "stuck": [...]}``, the payloads
     the node stored); ``("goal", robot, tick, stamp, word,
@@ -209,7 +227,10 @@ class TeamTick:
     _was_armed: bool = True
     _held: bool = False
     _held_wall: float = 0.0
-    _held_site: bool = False
+    _held_kinds: list[str] = field(default_factory=list)
+    _not_before: float = 0.0
+    _acked: bool = False
+    _rearmed: float = 0.0
     _last_now: float | None = None
 
     def __post_init__(self) -> None:
@@ -232,6 +253,19 @@ class TeamTick:
     def on_blade(self, k: int, setting: int, stamp: float, payload) -> None:
         """Robot k's measured blade setting at ``stamp``."""
         self.blades[k] = Latest(stamp, setting, payload)
+
+    def on_ack(self, label: str, stamp: float) -> None:
+        """The simulator took the snapshot ``label`` at ``stamp`` (``/team/snapshot_ack``).
+
+        It acknowledges the request sent last only if it is that request's label, taken at
+        or after its ``not_before`` (an older acknowledgement, latched, is another's).
+        """
+        if (
+            self.phase is Phase.SNAPSHOT
+            and label == f"tick {self.tick}"
+            and stamp >= self._not_before - STAMP_SLACK
+        ):
+            self._acked = True
 
     def on_word(self, k: int, word: int) -> None:
         """Robot k's controller answered (the first word of a tick counts)."""
@@ -294,9 +328,17 @@ class TeamTick:
             return self._step_motion(now, wall)
         return []
 
-    def _request(self, wall: float) -> list[tuple]:
+    def _request(self, wall: float, not_before: float | None = None) -> list[tuple]:
+        """Ask for the snapshot (``not_before``: a later instant than the tick's own)."""
         self._asked = wall
-        return [("request", f"tick {self.tick}", self._after + self.params.settle)]
+        self._not_before = self._after + self.params.settle if not_before is None else not_before
+        self._acked = not self.params.snapshot_ack  # none will come: taken as it is sent
+        return [("request", f"tick {self.tick}", self._not_before)]
+
+    def _resend(self, wall: float) -> list[tuple]:
+        """The request not acknowledged, unchanged (the simulator takes it once)."""
+        self._asked = wall
+        return [("request", f"tick {self.tick}", self._not_before)]
 
     def snapshot_ready(self, now: float) -> str | None:
         """What the snapshot still lacks (``None``: complete)."""
@@ -310,7 +352,7 @@ class TeamTick:
                 return f"blade of robot {k}"
         if self.heights is None or self.heights.stamp < after:
             return "height map"
-        if now - self._after < self.params.blade_wait:
+        if now - max(self._after, self._rearmed) < self.params.blade_wait:
             for k in present:
                 if self._expected[k] is not None and self.blades[k].value != self._expected[k]:
                     return f"blade of robot {k} at its setting"
@@ -319,17 +361,23 @@ class TeamTick:
     def _step_snapshot(self, now: float, wall: float) -> list[tuple]:
         if not self.armed:
             if not self._held:
-                self._held, self._held_wall, self._held_site = True, wall, False
-            self._held_site |= self.hold != HEARTBEAT_GAP
+                self._held, self._held_wall, self._held_kinds = True, wall, []
+            kind = self.hold or "not armed"
+            if kind not in self._held_kinds:
+                self._held_kinds.append(kind)
             return []
         if self._held:
             self._held = False
-            held = wall - self._held_wall
-            if self._held_site or held >= self.params.snapshot_retry:
-                # a snapshot of the site as it stands now
+            # A blade driver homes its blade when heartbeats stop (its deadman): the blades
+            # get blade_wait again to reach their settings.
+            self._rearmed = now
+            if any(kind not in GAPS for kind in self._held_kinds):
+                # the operator held the team: a snapshot of the site as it stands now
+                held = wall - self._held_wall
                 self._after, self._after_wall = now, wall
+                why = ", ".join(self._held_kinds)
                 return [
-                    ("report", f"tick {self.tick}: team held {held:.1f} s; new snapshot"),
+                    ("report", f"tick {self.tick}: team held {held:.1f} s ({why}); new snapshot"),
                     *self._request(wall),
                 ]
         missing = self.snapshot_ready(now)
@@ -340,8 +388,14 @@ class TeamTick:
                 out.append(("report", f"tick {self.tick}: snapshot without a fresh {missing}"))
             else:
                 if wall - self._asked >= self.params.snapshot_retry:
-                    out.append(("report", f"tick {self.tick}: no {missing} yet; asking again"))
-                    out += self._request(wall)
+                    if not self._acked:
+                        out.append(
+                            ("report", f"tick {self.tick}: request not acknowledged; asking again")
+                        )
+                        out += self._resend(wall)
+                    else:  # taken, and still without it: another instant
+                        out.append(("report", f"tick {self.tick}: no {missing} yet; asking again"))
+                        out += self._request(wall, max(now, self._not_before))
                 return out
         if self._final:
             self.phase = Phase.FINISHED

@@ -20,7 +20,10 @@ that a controller run with ``lockstep: true`` and remapped onto ``{output_prefix
 once per tick, unchanged; ``/team/tick`` (Header: the tick's stamp, ``frame_id`` = t);
 ``/robot_k/drive/goal`` (action_msgs/GoalInfo, :mod:`drive_executor.goals`) when robot k may
 move; ``/team/snapshot`` (Header: ``stamp`` = the earliest time the snapshot may be taken,
-``settle`` after the motion ended) to ask for a snapshot; ``/diagnostics``.
+``settle`` after the motion ended, ``frame_id`` = ``tick t``) to ask for a snapshot;
+``/diagnostics``. With ``snapshot_ack`` it reads ``/team/snapshot_ack`` (Header, latched:
+the simulator's ``dynamics`` took the snapshot ``frame_id`` at ``stamp``) and sends a
+request again only while it is not acknowledged.
 
 With ``result_file`` set, the node writes :meth:`TeamTick.summary` (and its reports) there
 when the last tick ends, then exits (``ant-trial --drive continuous --processes``, ``ant-dome
@@ -60,6 +63,10 @@ from excavation_common.ros import (
 )
 from excavation_common.safety import ENABLED_TOPIC, ESTOP_TOPIC, HEARTBEAT_TOPIC, MotionGate
 from excavation_sim.world import scenario_start
+
+SNAPSHOT_TOPIC = "/team/snapshot"
+SNAPSHOT_ACK_TOPIC = "/team/snapshot_ack"
+"""Latched: the simulator acknowledges the snapshot request it took (``dynamics``)."""
 
 
 @dataclass(frozen=True)
@@ -135,7 +142,14 @@ class TeamTickNode(Node):
         self.core.armed = False
         self.heights_pub = self.create_publisher(Image, f"{out}/worksite/height_map", LATCHED)
         self.tick_pub = self.create_publisher(Header, "/team/tick", 10)
-        self.request_pub = self.create_publisher(Header, "/team/snapshot", 10)
+        self.request_pub = self.create_publisher(Header, SNAPSHOT_TOPIC, 10)
+        if p.snapshot_ack:
+            sub(
+                Header,
+                SNAPSHOT_ACK_TOPIC,
+                lambda m: self.core.on_ack(m.frame_id, _seconds(m.stamp)),
+                LATCHED,
+            )
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.ready: set[int] = set()  # robots whose controller said ready (wait_for_ready)
         if t.wait_for_ready:

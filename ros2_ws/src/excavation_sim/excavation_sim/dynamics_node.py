@@ -25,7 +25,10 @@ set-point stamped with its tick, from the ``blade_driver`` sim backend) and
 ``/robot_k/drive/status`` (GoalStatus): with ``blade_after_motion`` a set-point takes effect
 once the robot's drive goal of the same tick has ended (Table 2 order: blade behaviours run
 after the moves). ``/team/snapshot`` (Header): the team tick asks for a perception
-snapshot taken at ``stamp`` or later (published with the first step that reaches it).
+snapshot taken at ``stamp`` or later (published with the first step that reaches it). Each
+request (``frame_id`` and ``stamp``) is taken once: the same request again (the team tick
+sends it again while it has no acknowledgement) is only acknowledged again, so that a late
+acknowledgement never renders a second frame and sweep of the tick.
 
 Publishes: ``/clock``; ``{pose_prefix}/robot_k/pose`` every step (PoseWithCovarianceStamped,
 with ``pose_noise``); every ``imu_period`` ``/robot_k/imu`` (sensor_msgs/Imu: yaw, and the
@@ -34,8 +37,9 @@ by the world model's R1 rule) and ``/robot_k/blade/plant_state`` (JointState: th
 simulated servo's position and push force); on each snapshot request every robot's IMU,
 then ``{snapshot_prefix}/worksite/height_map`` (latched, 32FC1 metres), the poses again under
 ``snapshot_prefix`` when it differs from ``pose_prefix`` (the ``sensors`` node renders
-exactly those), the blade plant states, ``/worksite/fitness`` and ``/worksite/markers``;
-``/diagnostics``.
+exactly those), the blade plant states, ``/worksite/fitness``, ``/worksite/markers`` and
+``/team/snapshot_ack`` (Header, latched: the request's ``frame_id``, stamped with the
+snapshot's instant); ``/diagnostics``.
 
 With ``result_file`` set, every snapshot also rewrites that JSON file (atomically) with the
 world as the snapshot shows it: ``fitness``, ``heights`` (soil units), ``snapshots`` (the
@@ -157,6 +161,8 @@ class DynamicsNode(Node):
         self.done_tick: list[int] = [-1] * self.n
         self.snapshot_request: str | None = None
         self.snapshot_due: int | None = None
+        self.taken: tuple[str, int] | None = None  # (label, due) of the last request taken
+        self.ack: Header | None = None
         self.snapshots: dict[str, float] = {}
         self.wall_started = time.monotonic()
 
@@ -187,6 +193,7 @@ class DynamicsNode(Node):
             sub(JointState, f"{ns}/blade/servo_command", lambda m, k=k: self.on_blade(k, m), 10)
             sub(GoalStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
         self.create_subscription(Header, "/team/snapshot", self.on_snapshot_request, 10)
+        self.ack_pub = self.create_publisher(Header, "/team/snapshot_ack", LATCHED)
         self.heights_pub = self.create_publisher(
             Image, f"{p.snapshot_prefix.rstrip('/')}/worksite/height_map", LATCHED
         )
@@ -243,6 +250,9 @@ class DynamicsNode(Node):
 
     def on_snapshot_request(self, msg: Header) -> None:
         """The team tick wants a perception snapshot taken at ``msg.stamp`` or later."""
+        if (msg.frame_id, _key(msg.stamp)) == self.taken:
+            self.ack_pub.publish(self.ack)  # taken already: its acknowledgement came late
+            return
         self.snapshot_request = msg.frame_id
         self.snapshot_due = _key(msg.stamp)
         if self.started and self.now_ns >= self.snapshot_due:
@@ -384,11 +394,15 @@ class DynamicsNode(Node):
         fitness = w.fitness()
         if self.snapshot_request is not None:
             self.snapshots[self.snapshot_request] = fitness
+            self.taken = (self.snapshot_request, self.snapshot_due)
+            self.ack = Header(stamp=stamp, frame_id=self.snapshot_request)
         self.snapshot_due = None
         self.fitness_pub.publish(Float32(data=float(fitness)))
         self.markers_pub.publish(self.markers(stamp))
         if self.params.result_file:
             write_text_atomic(self.params.result_file, json.dumps(self.result()))
+        if self.ack is not None:
+            self.ack_pub.publish(self.ack)
 
     def result(self) -> dict:
         """The world now: fitness, heights, the fitness of every snapshot, sim time, steps."""

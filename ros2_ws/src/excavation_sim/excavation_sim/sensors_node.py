@@ -31,7 +31,8 @@ true), ``laser_paused`` (no laser sweeps while true), ``frame_period`` (at least
 wall-clock seconds between frames: 0.2 is a 5 Hz camera), ``dropout`` and ``occlude``. A
 frame or sweep held back goes out when the fault ends, showing the latest truth. Frames
 (sweeps) also wait, rendered, until some node subscribes to ``/overhead/image_raw``
-(``/worksite/scan``): a lockstep tick's only frame is not lost to a localizer whose
+(``/worksite/scan`` and ``/worksite/laser_mount/joint_states``: a scan without its mount
+state cannot be placed): a lockstep tick's only frame is not lost to a localizer whose
 subscription the middleware has not matched yet, and the noise drawn does not depend on
 when the listeners came.
 
@@ -322,7 +323,10 @@ class SensorsNode(Node):
         if self.laser_done != key and not p.laser_paused:
             if self.sweep_msgs is None or self.sweep_msgs[0] != key:
                 self.sweep_msgs = (key, self.sweep(stamp, heights, anchors))
-            if self.scan_pub.get_subscription_count() > 0:
+            if (
+                self.scan_pub.get_subscription_count() > 0
+                and self.mount_pub.get_subscription_count() > 0
+            ):
                 for mount, scan in self.sweep_msgs[1]:
                     self.mount_pub.publish(mount)
                     self.scan_pub.publish(scan)

@@ -6,9 +6,14 @@ Subscribes ``scan_topic`` (``/worksite/scan``, sensor_msgs/LaserScan), ``mount_t
 footprints are masked). Each scan is projected with the mount's angles at the scan's own
 stamp, interpolated between the mount states that bracket it
 (:class:`terrain_mapper.mount_sync.MountSync`): the laser and the mount are separate
-drivers and never stamp alike. A scan waits up to ``mount_wait`` for a later mount state; a
-scan no pair of states brackets (or across a gap wider than ``mount_max_gap``) is dropped,
-counted (``unbracketed_scans``) and reported as a WARN on ``/diagnostics``. The mount's
+drivers and never stamp alike. A scan waits for a later mount state; a scan no pair of
+states brackets (or across a gap wider than ``mount_max_gap``) is dropped, counted
+(``unbracketed_scans``) and reported as a WARN on ``/diagnostics``. A scan still waiting is
+given up for want of a mount state only once the node has taken every scan and mount state
+already queued for it, and then only when the laser's own stream has gone on more than
+``mount_wait`` seconds of stamps past it, or when it has waited ``mount_wait`` wall seconds
+with both streams quiet: a mapper held up by a loaded machine takes the mount state that
+came meanwhile instead of dropping the scan it describes. The mount's
 orientation errors (``pan_offset``, ``tilt_offset``, ``roll_offset``; fitted by
 ``calibrate_mount``) are applied to every beam.
 
@@ -55,7 +60,7 @@ from excavation_common.safety import ENABLED_TOPIC
 from terrain_mapper.errors import MapperError
 from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, yaw_of
 from terrain_mapper.mapper import MapperParams, TerrainMapper, scan_ranges_check
-from terrain_mapper.mount_sync import MISS, WAIT, MountSync
+from terrain_mapper.mount_sync import MISS, WAIT, Lookup, MountSync
 from terrain_mapper.params import MapperNodeParams
 
 SCAN_TOPIC = MapperNodeParams().scan_topic
@@ -108,6 +113,8 @@ class MapperNode(Node):
         self.core = TerrainMapper(self.params)
         self.sync = MountSync(int(c.mount_max_gap * 1e9), keep=max(8 * c.sweep_scans, 64))
         self.scans: list[tuple[int, float, LaserScan]] = []  # (stamp ns, arrival, scan)
+        self.newest_scan: int | None = None  # stamp (ns) of the newest scan taken
+        self.mount_wait_ns = int(round(c.mount_wait * 1e9))
         self.unbracketed = 0
         self.unbracketed_seen = 0
         self.poses: dict[int, tuple[tuple[int, int], tuple[float, float, float]]] = {}
@@ -133,8 +140,8 @@ class MapperNode(Node):
             if c.reliable
             else SENSOR_DATA
         )
-        self.create_subscription(LaserScan, c.scan_topic, self.on_scan, qos)
-        self.create_subscription(JointState, c.mount_topic, self.on_mount, qos)
+        self.scan_sub = self.create_subscription(LaserScan, c.scan_topic, self.on_scan, qos)
+        self.mount_sub = self.create_subscription(JointState, c.mount_topic, self.on_mount, qos)
         self.disabled: set[int] = set()
         for k in range(self.n):
             self.create_subscription(
@@ -150,7 +157,7 @@ class MapperNode(Node):
             self.info_pub.publish(
                 map_info(self.params.rows, self.params.cols, self.params.cell_size)
             )
-        self.create_timer(0.05, self.check_pending)
+        self.create_timer(0.05, self.on_timer)
         self.create_timer(c.diagnostics_period, self.publish_diagnostics)
 
     # --- inputs -----------------------------------------------------------------------------
@@ -162,6 +169,11 @@ class MapperNode(Node):
 
     def on_mount(self, msg: JointState) -> None:
         """The mount's pan and tilt at a stamp."""
+        self.add_mount(msg)
+        self.match()
+
+    def add_mount(self, msg: JointState) -> None:
+        """Keep a mount state for interpolation."""
         try:
             pan, tilt = mount_angles(msg, self.config.mount_topic)
         except MapperError as exc:
@@ -169,14 +181,22 @@ class MapperNode(Node):
             return
         self.problems.pop("mount", None)
         self.sync.add(_ns(msg.header.stamp), pan, tilt)
-        self.match()
 
     def on_scan(self, msg: LaserScan) -> None:
         """A scan, kept until the mount states around its stamp have arrived."""
-        bisect.insort(
-            self.scans, (_ns(msg.header.stamp), time.monotonic(), msg), key=lambda e: e[0]
-        )
+        self.add_scan(msg)
         self.match()
+
+    def add_scan(self, msg: LaserScan) -> None:
+        """Keep a scan, in stamp order, with the wall time it came."""
+        stamp = _ns(msg.header.stamp)
+        bisect.insort(self.scans, (stamp, self.wall(), msg), key=lambda e: e[0])
+        if self.newest_scan is None or stamp > self.newest_scan:
+            self.newest_scan = stamp
+
+    def wall(self) -> float:
+        """Wall-clock seconds (monotonic): how long a scan has waited."""
+        return time.monotonic()
 
     def on_enabled(self, k: int, msg: Bool) -> None:
         """Robot k enabled (waited for) or disabled or lost (not waited for)."""
@@ -196,21 +216,55 @@ class MapperNode(Node):
 
     # --- scans and sweeps -------------------------------------------------------------------
 
-    def match(self) -> None:
+    def on_timer(self) -> None:
+        """Give up on scans whose mount state never came; fuse a sweep whose poses are in."""
+        if self.scans:
+            self.match(quiet=True)
+        self.check_pending()
+
+    def take_queued(self) -> bool:
+        """Take every mount state and scan already queued for this node; True if any.
+
+        The executor runs a due timer before the subscriptions of the same round, and one
+        message per subscription per round, so after the node was held up (a loaded
+        machine) the mount state of a waiting scan may sit in the queue while the scan's
+        wait is judged: taken here first, it is used, not missed. (rclpy's own
+        ``wait_for_message`` takes messages the same way.)
+        """
+        taken_any = False
+        for sub, add in ((self.mount_sub, self.add_mount), (self.scan_sub, self.add_scan)):
+            while True:
+                with sub.handle:
+                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                if taken is None:
+                    break
+                add(taken[0])
+                taken_any = True
+        return taken_any
+
+    def match(self, quiet: bool = False) -> None:
         """Integrate, in stamp order, every scan whose mount angles are known now.
 
-        A scan still waiting for a later mount state holds back the scans after it, unless
-        it has waited ``mount_wait``; a scan no states bracket is dropped and counted.
+        A scan still waiting for a later mount state holds back the scans after it. It is
+        given up only once nothing is queued any more (:meth:`take_queued`) and either the
+        laser has sent a scan stamped more than ``mount_wait`` after it (stamps: the mount's
+        stream has fallen that far behind, however loaded the machine is) or, with
+        ``quiet`` (the timer), it has waited ``mount_wait`` wall seconds (both streams have
+        stopped). A scan no states bracket is dropped and counted.
         """
-        now = time.monotonic()
+        now = self.wall()
         while self.scans:
             stamp, arrived, msg = self.scans[0]
             found = self.sync.lookup(stamp)
-            if found.status == WAIT and now - arrived < self.config.mount_wait:
-                break
-            self.scans.pop(0)
             if found.status == WAIT:
-                found = found.__class__(MISS, reason="no mount state after it arrived")
+                behind = self.newest_scan - stamp > self.mount_wait_ns
+                if not behind and not (quiet and now - arrived >= self.config.mount_wait):
+                    break
+                if self.take_queued():
+                    continue  # what came meanwhile first
+                reason = "the laser went on" if behind else "it waited mount_wait"
+                found = Lookup(MISS, reason=f"no mount state after it ({reason})")
+            self.scans.pop(0)
             if found.status == MISS:
                 self.unbracketed += 1
                 self.problem(
@@ -288,8 +342,6 @@ class MapperNode(Node):
 
     def check_pending(self) -> None:
         """Fuse the finished sweep once the poses are current (or ``pose_wait`` passed)."""
-        if self.scans:
-            self.match()  # scans whose mount state never came are dropped after mount_wait
         if self.pending is None:
             return
         stamp, finished = self.pending

@@ -25,7 +25,9 @@ class MapperNodeParams:
         mount_topic: ``sensor_msgs/JointState`` of its pan/tilt mount.
         mount_max_gap: Seconds between two mount states across which the angles are still
             interpolated (a longer gap: the scans in it are dropped and counted).
-        mount_wait: Seconds a scan waits for a mount state after its stamp.
+        mount_wait: Seconds a scan waits for a mount state after its stamp: it is given up
+            once the laser has sent a scan stamped that much later, or has waited that
+            long in wall time with nothing queued (both streams stopped).
         publish_map_info: Also publish ``/worksite/map_info`` (off: the blueprint server
             owns it; on only for a mapper used without one).
         reliable: Reliable QoS with ``queue`` depth for scans and mount states.
@@ -39,7 +41,9 @@ class MapperNodeParams:
     scan_topic: str = param("/worksite/scan", "LaserScan topic")
     mount_topic: str = param("/worksite/laser_mount/joint_states", "mount JointState topic")
     mount_max_gap: float = param(0.2, "s: widest gap between mount states interpolated", low=0.0)
-    mount_wait: float = param(1.0, "s a scan waits for a later mount state", low=0.0)
+    mount_wait: float = param(
+        1.0, "s a scan waits for a later mount state (stamps; wall if nothing queued)", low=0.0
+    )
     publish_map_info: bool = param(False, "publish /worksite/map_info (the server owns it)")
     reliable: bool = param(False, "reliable QoS with queue depth (else sensor data)")
     queue: int = param(200, "queue depth with reliable", low=1, high=100000)
