@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ant_controller.controller import Controller, ControllerCore
-from ant_controller.layout import BLADE_BELOW, MOVE_FORWARD, THROTTLE_UP
+from ant_controller.layout import BLADE_BELOW, MOVE_FORWARD, THROTTLE_UP, TURN_RIGHT
 from blade_driver.core import blade_setting
 from blueprint_server.blueprint import default_blueprint
 from drive_executor.core import DriveExecutorCore
@@ -136,15 +136,26 @@ def test_default_slip_and_noise_still_reach_the_cells():
 
 
 def test_same_seed_same_run():
-    def run(seed):
+    word = 1 << MOVE_FORWARD | 1 << TURN_RIGHT
+
+    def start():
         world = random_world(np.random.default_rng(2), 0)
         world.heights[:] = 0
         world.robots[0, :3] = (6, 6, 1)
-        dyn = Dynamics(world, DynamicsParams(), CELL, np.random.default_rng(seed))
-        drive(dyn, 0, 1 << MOVE_FORWARD | 1 << 4)
-        return dyn.bodies.copy(), int(world.robots[0, COL]), int(world.robots[0, HEADING])
+        return world
 
-    a, b = run(4), run(4)
+    def run(seed):
+        world = start()
+        dyn = Dynamics(world, DynamicsParams(), CELL, np.random.default_rng(seed))
+        drive(dyn, 0, word)
+        return dyn.bodies.copy(), tuple(int(v) for v in world.robots[0, [ROW, COL, HEADING]])
+
+    a, b, c = run(4), run(4), run(5)
     assert np.array_equal(a[0], b[0]) and a[1:] == b[1:]
-    assert not np.array_equal(a[0], run(5)[0])
-    assert ROW == 0
+    assert not np.array_equal(a[0], c[0])
+    # Another seed's noise moves the body elsewhere, not the robot off its cells: both end
+    # where the world model's step puts it (one cell east, turned to face south).
+    model = start()
+    model.step(np.array([word]))
+    assert a[1] == c[1] == tuple(int(v) for v in model.robots[0, [ROW, COL, HEADING]])
+    assert a[1] == (6, 7, 2)

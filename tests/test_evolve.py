@@ -112,6 +112,7 @@ def test_kill_9_and_resume_equals_a_straight_run(straight, tmp_path):
     assert deterministic(tmp_path) == deterministic(straight)
 
 
+@pytest.mark.xdist_group("ray")  # one local Ray instance at a time (--dist loadgroup)
 def test_backends_give_identical_fitness():
     rng = np.random.default_rng(0)
     genomes = [random_genome(rng) for _ in range(6)]
@@ -121,6 +122,7 @@ def test_backends_give_identical_fitness():
     with Evaluator(workers=2) as ev:
         assert ev.backend == "process-pool"
         two = ev.evaluate(genomes, sets)
+    assert np.array_equal(one, two)
     ray = pytest.importorskip("ray", reason="ray is the optional cluster backend")
     try:
         with Evaluator(workers=2, ray_address="local") as ev:
@@ -128,7 +130,6 @@ def test_backends_give_identical_fitness():
             on_ray = ev.evaluate(genomes, sets)
     finally:
         ray.shutdown()
-    assert np.array_equal(one, two)
     assert np.array_equal(one, on_ray)
 
 

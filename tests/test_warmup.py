@@ -1,5 +1,6 @@
 """``python -m ant_evolution.warmup``: every kind compiles and runs; bad options are refused."""
 
+import json
 import subprocess
 import sys
 
@@ -7,10 +8,98 @@ import pytest
 
 from ant_evolution import warmup
 
+# Runs ``compile_kind(argv[1])`` in a fresh process and reports, per kernel entry point, the
+# decision-program records its compiled signatures take and numba's cache hits and misses.
+PROBE = """
+import json, sys
+
+import numba
+
+from ant_controller import hand_coded, tissue
+from ant_evolution import breakdown, kernel, warmup
+from ant_evolution.baselines import neat_baseline, network
+from excavation_sim import world
+
+RECORDS = (hand_coded.HandCodedRules, tissue.TissueRecord, network.NetworkRecord)
+ENTRIES = {
+    "run_scenarios": kernel.run_scenarios,
+    "run_episode": kernel.run_episode,
+    "sense_all": world.sense_all,
+    "apply_all": world.apply_all,
+    "hand_coded_program": hand_coded.hand_coded_program,
+    "tissue.decide": tissue.decide,
+    "program_decide": network.program_decide,
+    "_lay_out": network._lay_out,
+    "_mutate_genes": neat_baseline._mutate_genes,
+    "record_scenario": breakdown.record_scenario,
+    "replay_sense": breakdown.replay_sense,
+    "replay_decide": breakdown.replay_decide,
+    "replay_apply": breakdown.replay_apply,
+}
+
+
+def programs(sig):
+    return [t.instance_class.__name__ for t in sig if getattr(t, "instance_class", None) in RECORDS]
+
+
+seconds = warmup.compile_kind(sys.argv[1])
+report = {
+    name: {
+        "programs": [programs(sig) for sig in d.signatures],
+        "hits": sum(d.stats.cache_hits.values()),
+        "misses": sum(d.stats.cache_misses.values()),
+    }
+    for name, d in ENTRIES.items()
+}
+print(json.dumps({"seconds": seconds, "cache": numba.config.CACHE_DIR, "entries": report}))
+"""
+
+RECORD = {"hand-coded": "HandCodedRules", "ant": "TissueRecord", "network": "NetworkRecord"}
+STEP = ("run_scenarios", "run_episode", "sense_all", "apply_all")
+PHASES = ("record_scenario", "replay_sense", "replay_decide", "replay_apply")  # ant-bench
+# The entry points compile_kind must compile for each kind (its docstring).
+ENTRY_POINTS = {
+    "hand-coded": (*STEP, "hand_coded_program", *PHASES),
+    "ant": (*STEP, "tissue.decide", *PHASES),
+    "network": (*STEP, "program_decide", "_lay_out", "_mutate_genes"),
+}
+# Entry points with a decision program among their arguments.
+TAKE_A_PROGRAM = {
+    "run_scenarios",
+    "run_episode",
+    "hand_coded_program",
+    "tissue.decide",
+    "program_decide",
+    "record_scenario",
+    "replay_decide",
+}
+
+
+def probe(kind: str) -> dict:
+    """``compile_kind(kind)`` in a fresh process: what it compiled (see ``PROBE``)."""
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE, kind], capture_output=True, text=True, timeout=900
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
 
 @pytest.mark.parametrize("kind", warmup.KINDS)
-def test_every_kind_compiles_and_runs(kind):
-    assert warmup.compile_kind(kind) >= 0.0
+def test_every_kind_compiles_into_the_cache(kind):
+    """compile_kind compiles every entry point of its kind, for that kind's program, into
+    numba's on-disk cache: a second fresh process loads each of them and compiles none."""
+    first = probe(kind)
+    for name in ENTRY_POINTS[kind]:
+        programs = first["entries"][name]["programs"]
+        assert programs, f"{name}: not compiled by compile_kind({kind!r})"
+        if name in TAKE_A_PROGRAM:  # only this kind's program ran in the process
+            assert all(p == [RECORD[kind]] for p in programs), (name, programs)
+    again = probe(kind)
+    assert again["cache"] == first["cache"], "kernel sources changed while the test ran"
+    for name in ENTRY_POINTS[kind]:
+        entry = again["entries"][name]
+        assert entry["misses"] == 0 and entry["hits"] >= 1, (name, entry)
+        assert entry["programs"] == first["entries"][name]["programs"], name
 
 
 def test_main_reports_every_kind(capsys):

@@ -14,6 +14,7 @@ and ``make demo`` run it first. Running it again on a warm cache takes seconds.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import tempfile
 import time
@@ -58,7 +59,8 @@ def compile_kind(kind: str) -> float:
     if kind == "network":
         program_decide(codes, program.record())
         with tempfile.TemporaryDirectory() as tmp:  # NEAT's layout and its compiled mutation
-            neat = NeatStrategy(config, Path(tmp))
+            # 4 genomes: NEAT's elitism keeps 2, so a population of 2 breeds (and mutates) none
+            neat = NeatStrategy(dataclasses.replace(config, population=4), Path(tmp))
             genomes, neat_state = neat.ask(neat.init())
             program_decide(codes, neat.compiler(neat_state)(genomes[0]).record())
             neat.tell(neat_state, np.zeros(len(genomes)))
