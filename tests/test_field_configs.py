@@ -19,7 +19,7 @@ def _make(kind, context, args):
         from excavation_sim.dynamics_node import DynamicsNode
 
         return DynamicsNode(context=context, cli_args=args)
-    from excavation_bringup.team_tick_node import TeamTickNode
+    from team_tick.node import TeamTickNode
 
     return TeamTickNode(context=context, cli_args=args)
 
@@ -29,7 +29,7 @@ def _make(kind, context, args):
     [
         ("executor", "drive_executor/config/executor.yaml"),
         ("dynamics", "excavation_sim/config/dynamics.yaml"),
-        ("team_tick", "excavation_bringup/config/team_tick.yaml"),
+        ("team_tick", "team_tick/config/team_tick.yaml"),
     ],
 )
 def test_config_file_sets_every_parameter(ros, kind, path, tmp_path):

@@ -12,15 +12,15 @@ import csv
 import numpy as np
 import pytest
 from conftest import next_domain
-
-from ant_controller.controller import Controller
-from excavation_bringup.field_experiment import (
+from excavation_field.field_experiment import (
     PLANS,
     grid_heights_at,
     grid_trial,
     landing_pad_site,
     main,
 )
+
+from ant_controller.controller import Controller
 
 GENOME = "genomes/best.json"
 

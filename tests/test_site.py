@@ -90,9 +90,10 @@ def test_sim_checks_what_the_simulator_renders(tmp_path):
 
 def test_the_dome_template_lacks_only_its_calibration_and_drives_every_base(tmp_path, capsys):
     """``ant-dome check site_dome.yaml``: the template's one gap is the camera file it names."""
+    from team_tick.core import TeamTickParams
+    from team_tick.node import TeamTickNodeParams
+
     from drive_executor.params import ExecutorParams
-    from excavation_bringup.team_tick import TeamTickParams
-    from excavation_bringup.team_tick_node import TeamTickNodeParams
 
     template = CONFIG / "site_dome.yaml"
     site, errors = sitefile.check_site(template)
@@ -200,7 +201,7 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
             assert "deadman" not in executor.params
             assert executor.remaps == (f"{ns}/cmd_vel:={site.robots[k].drive_topic}",)
     tick = by_name["team_tick"]
-    assert set(tick.params) <= _config_keys("excavation_bringup", "team_tick.yaml")
+    assert set(tick.params) <= _config_keys("team_tick", "team_tick.yaml")
     assert tick.params["robots"] == site.n_robots and not tick.restart
     assert tick.params.get("blade_in", "blade/plant_state") == (
         "blade/plant_state" if sim else "blade/joint_states"

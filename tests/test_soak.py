@@ -8,8 +8,7 @@ import os
 
 import pytest
 from conftest import next_domain
-
-from excavation_bringup.soak import main, memory_growth, rss_mb, violations
+from excavation_field.soak import main, memory_growth, rss_mb, violations
 
 
 def samples(per_tick: float, ticks: int = 1000, every: int = 50) -> list[dict]:

@@ -3,6 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
+from team_tick.core import (
+    LEFT,
+    RIGHT,
+    Phase,
+    TeamTick,
+    TeamTickParams,
+    draw_turns,
+    schedule,
+)
 
 from ant_controller.layout import (
     BLADE_BELOW,
@@ -13,15 +22,6 @@ from ant_controller.layout import (
     TURN_RIGHT,
 )
 from blueprint_server.blueprint import default_blueprint
-from excavation_bringup.team_tick import (
-    LEFT,
-    RIGHT,
-    Phase,
-    TeamTick,
-    TeamTickParams,
-    draw_turns,
-    schedule,
-)
 from excavation_sim.world import HEADING, World, seed_state
 
 FWD = 1 << MOVE_FORWARD

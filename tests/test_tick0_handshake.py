@@ -183,9 +183,8 @@ def test_team_tick_waits_for_every_controller_to_be_ready(ros):
     node) subscribed to the tick topics must not stand in for a controller that is not yet
     connected (seen: robot 1 missed tick 0 of a recorded process trial)."""
     from action_msgs.msg import GoalInfo, GoalStatus
-
-    from excavation_bringup.team_tick import Phase
-    from excavation_bringup.team_tick_node import TeamTickNode
+    from team_tick.core import Phase
+    from team_tick.node import TeamTickNode
 
     tick = ros.add(
         TeamTickNode(

@@ -21,14 +21,9 @@ PACKAGES = {
     "team_supervisor": ["supervisor", "ant-operator"],
     "excavation_bags": ["ant-bag"],
     "drive_executor": ["executor"],
-    "excavation_bringup": [
-        "ant-trial",
-        "ant-dome",
-        "ant-view",
-        "ant-soak",
-        "ant-field-experiment",
-        "team_tick",
-    ],
+    "team_tick": ["team_tick"],
+    "excavation_bringup": ["ant-trial", "ant-dome", "ant-view"],
+    "excavation_field": ["ant-soak", "ant-field-experiment"],
 }
 
 

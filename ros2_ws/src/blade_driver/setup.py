@@ -15,7 +15,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*")),
     ],
-    install_requires=["pyserial", "pyyaml", "ant_controller", "excavation_common", "numpy"],
+    install_requires=["pyserial", "pyyaml", "excavation_common", "numpy"],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
     maintainer_email="maintainers@ant-excavation.org",

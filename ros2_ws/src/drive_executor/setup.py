@@ -15,7 +15,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*")),
     ],
-    install_requires=["excavation_common", "ant_controller", "numpy"],
+    install_requires=["excavation_common", "numpy"],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
     maintainer_email="maintainers@ant-excavation.org",

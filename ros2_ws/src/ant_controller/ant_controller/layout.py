@@ -18,6 +18,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from excavation_common.behaviour import (  # noqa: F401 (the behaviour word of Table 2)
+    BEHAVIOURS,
+    BIT_CLEAR,
+    BIT_SET,
+    BLADE_ABOVE_CMD,
+    BLADE_BELOW_CMD,
+    BLADE_HOME_CMD,
+    BLADE_LEVEL_CMD,
+    MOVE_BACKWARD,
+    MOVE_FORWARD,
+    N_BEHAVIOURS,
+    RANDOM_TURN,
+    THROTTLE_UP,
+    TURN_LEFT,
+    TURN_RIGHT,
+    behaviour_names,
+    mask_of,
+)
 from excavation_common.constants import (  # noqa: F401 (sensor codes of Table 1)
     BLADE_ABOVE,
     BLADE_BELOW,
@@ -42,23 +60,6 @@ E_ABOVE, E_BELOW, E_LEVEL = 0, 1, 2
 # here because they are also sensor codes).
 # H1 (bearing of the nearest robot, relative to the robot's own heading).
 AHEAD, RIGHT, BEHIND, LEFT = 0, 1, 2, 3
-
-# --- Behaviour bits (Table 2 order) ------------------------------------------------------
-(
-    THROTTLE_UP,
-    MOVE_FORWARD,
-    MOVE_BACKWARD,
-    RANDOM_TURN,
-    TURN_RIGHT,
-    TURN_LEFT,
-    BLADE_ABOVE_CMD,
-    BLADE_BELOW_CMD,
-    BLADE_LEVEL_CMD,
-    BLADE_HOME_CMD,
-    BIT_SET,
-    BIT_CLEAR,
-) = range(12)
-N_BEHAVIOURS = 12
 
 
 @dataclass(frozen=True)
@@ -93,21 +94,6 @@ SENSORS: tuple[SensorSpec, ...] = (
     SensorSpec("M1", 2, ("0", "1")),
 )
 
-BEHAVIOURS: tuple[str, ...] = (
-    "throttle_up",
-    "move_forward",
-    "move_backward",
-    "random_turn",
-    "turn_right",
-    "turn_left",
-    "blade_above",
-    "blade_below",
-    "blade_level",
-    "blade_home",
-    "bit_set",
-    "bit_clear",
-)
-
 SENSOR_STATES = np.array([s.states for s in SENSORS], dtype=np.int64)
 """Number of states of each sensor, in sensor-vector order."""
 
@@ -125,18 +111,3 @@ def layout_dict() -> dict:
         "behaviours": list(BEHAVIOURS),
         "encoding": INPUT_ENCODING,
     }
-
-
-def behaviour_names(mask: int) -> list[str]:
-    """Names of the behaviours set in a command bit mask, in execution order."""
-    return [BEHAVIOURS[i] for i in range(N_BEHAVIOURS) if mask >> i & 1]
-
-
-def mask_of(*behaviour_numbers: int) -> int:
-    """Bit mask from 1-based behaviour numbers of Table 2 (``mask_of(2, 4)``)."""
-    mask = 0
-    for b in behaviour_numbers:
-        if not 1 <= b <= N_BEHAVIOURS:
-            raise ValueError(f"behaviour number {b} is not in 1..{N_BEHAVIOURS}")
-        mask |= 1 << (b - 1)
-    return mask

@@ -38,19 +38,21 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields
 
-from ant_controller.layout import (
-    BLADE_ABOVE,
+from blade_driver.errors import DriverConfigError
+from excavation_common.behaviour import (
     BLADE_ABOVE_CMD,
-    BLADE_BELOW,
     BLADE_BELOW_CMD,
-    BLADE_HOME,
     BLADE_HOME_CMD,
-    BLADE_LEVEL,
     BLADE_LEVEL_CMD,
     MOVE_FORWARD,
 )
-from blade_driver.errors import DriverConfigError
-from excavation_common.constants import BladeGeometry
+from excavation_common.constants import (
+    BLADE_ABOVE,
+    BLADE_BELOW,
+    BLADE_HOME,
+    BLADE_LEVEL,
+    BladeGeometry,
+)
 
 BLADE_NAMES = {BLADE_BELOW: "below", BLADE_LEVEL: "level", BLADE_ABOVE: "above", BLADE_HOME: "home"}
 

@@ -38,14 +38,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ant_controller.layout import (
-    MOVE_BACKWARD,
-    MOVE_FORWARD,
-    RANDOM_TURN,
-    THROTTLE_UP,
-    TURN_LEFT,
-    TURN_RIGHT,
-)
 from drive_executor.errors import GoalError
 from drive_executor.goals import ABORTED, EXECUTING, LEFT, RIGHT, SUCCEEDED, DriveGoal
 from drive_executor.params import ExecutorParams
@@ -58,6 +50,14 @@ from drive_executor.primitives import (
     Status,
     Turn,
     Twist2D,
+)
+from excavation_common.behaviour import (
+    MOVE_BACKWARD,
+    MOVE_FORWARD,
+    RANDOM_TURN,
+    THROTTLE_UP,
+    TURN_LEFT,
+    TURN_RIGHT,
 )
 from excavation_common.safety import MotionGate
 

@@ -18,9 +18,9 @@ import math
 from dataclasses import dataclass
 from enum import Enum
 
-from ant_controller.sensing import FORWARD
 from drive_executor.errors import GoalError
 from drive_executor.params import ExecutorParams
+from excavation_common.constants import HEADING_STEPS
 from excavation_common.frames import heading_to_yaw, robot_anchor, robot_center, yaw_to_heading
 
 
@@ -215,7 +215,7 @@ class DriveCells(Primitive):
         cell = self.params.cell_size
         row, col = robot_anchor(pose.x, pose.y, cell)
         heading = yaw_to_heading(pose.yaw)
-        dr, dc = int(FORWARD[heading, 0]), int(FORWARD[heading, 1])
+        dr, dc = HEADING_STEPS[heading]
         self.target = robot_center(row + self.cells * dr, col + self.cells * dc, cell)
         self.yaw = heading_to_yaw(heading)
         self.axis = (math.cos(self.yaw), math.sin(self.yaw))

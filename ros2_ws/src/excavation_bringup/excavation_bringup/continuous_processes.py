@@ -162,7 +162,7 @@ def continuous_commands(spec: TrialSpec, workdir: Path, exact: bool) -> dict[str
         )
     commands[FINAL] = node_command(
         FINAL,
-        "excavation_bringup.team_tick_node",
+        "team_tick.node",
         **tick_parameters(spec),
         blade_wait=SIM_BLADE_WAIT,
         snapshot_retry=SIM_SNAPSHOT_RETRY,

@@ -163,7 +163,7 @@ def continuous_result(
     """The trial's result from the team tick's summary and the ``dynamics`` world.
 
     Args:
-        ticks: :meth:`excavation_bringup.team_tick.TeamTick.summary`.
+        ticks: :meth:`team_tick.core.TeamTick.summary`.
         world: :meth:`excavation_sim.dynamics_node.DynamicsNode.result`.
         primitives_aborted: Summed over the executors.
         seconds: Wall time of the trial.
@@ -215,13 +215,13 @@ def run_continuous(
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
+    from team_tick.core import Phase
+    from team_tick.node import TeamTickNode
 
     from ant_controller.controller_node import ControllerNode
     from blade_driver.driver_node import BladeDriverNode
     from blueprint_server.server_node import BlueprintServer
     from drive_executor.executor_node import ExecutorNode
-    from excavation_bringup.team_tick import Phase
-    from excavation_bringup.team_tick_node import TeamTickNode
     from excavation_bringup.trial import trial_recorder
     from excavation_sim.dynamics_node import DynamicsNode
     from team_supervisor.supervisor_node import SupervisorNode

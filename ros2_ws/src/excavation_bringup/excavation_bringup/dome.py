@@ -166,7 +166,7 @@ def team_tick(
     """
     return NodeSpec(
         "team_tick",
-        "excavation_bringup.team_tick_node",
+        "team_tick.node",
         {
             **sitefile.team_tick_params(site, ticks, str(run_dir / RESULT_FILE), sim, record),
             **(sitefile.SIM_CLOCK if sim else {}),

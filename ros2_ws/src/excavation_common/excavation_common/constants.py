@@ -15,6 +15,9 @@ ZONE_NAMES = {ZONE_DONT_CARE: "dont_care", ZONE_DIG: "dig", ZONE_DUMP: "dump"}
 # Grid headings of a robot (yaw pi/2, 0, -pi/2, pi in the map frame).
 NORTH, EAST, SOUTH, WEST = 0, 1, 2, 3
 
+HEADING_STEPS = ((1, 0), (0, 1), (-1, 0), (0, -1))
+"""``HEADING_STEPS[h]``: the (d_row, d_col) of one grid step ahead at heading ``h``."""
+
 # Blade settings: the B1 sensor code and the blade state of a robot (paper, Table 1).
 BLADE_BELOW, BLADE_LEVEL, BLADE_ABOVE, BLADE_HOME = 0, 1, 2, 3
 BLADE_NAMES = ("below", "level", "above", "home")

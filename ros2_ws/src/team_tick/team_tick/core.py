@@ -61,18 +61,11 @@ from enum import Enum
 
 import numpy as np
 
-from ant_controller.layout import (
-    MOVE_BACKWARD,
-    MOVE_FORWARD,
-    RANDOM_TURN,
-    TURN_LEFT,
-    TURN_RIGHT,
-)
 from blade_driver.core import blade_setting
+from excavation_common.behaviour import MOTION_BITS, RANDOM_TURN
 from excavation_common.params import param
 from excavation_sim.world import next_random
 
-MOTION_BITS = sum(1 << b for b in (MOVE_FORWARD, MOVE_BACKWARD, RANDOM_TURN, TURN_RIGHT, TURN_LEFT))
 RIGHT, LEFT = 1, -1
 HEARTBEAT_GAP = "heartbeat lost"
 """:attr:`TeamTick.hold` of a team held only because heartbeats stopped coming

@@ -1,12 +1,12 @@
 """Field-execution figures for docs/benchmarks.md and docs/results.md (prints Markdown).
 
-``python -m excavation_bringup.field_bench bench``: the executor's control-loop rate (pure
+``python -m excavation_field.field_bench bench``: the executor's control-loop rate (pure
 core and through the node), the sim-time / wall-time ratio and the wall time per tick of a
 4-robot 300-tick continuous trial, with and without full perception.
-``python -m excavation_bringup.field_bench results``: fitness of the continuous trial with
+``python -m excavation_field.field_bench results``: fitness of the continuous trial with
 the default slip and noise and full perception over 5 seeds, next to the grid's (ant-eval,
 which equals the lockstep grid trial), with primitives aborted and stuck events.
-``python -m excavation_bringup.field_bench processes [--steps N]``: wall time per tick of
+``python -m excavation_field.field_bench processes [--steps N]``: wall time per tick of
 the 4-robot continuous trial composed and with every node its own process.
 Times are wall-clock figures of this machine, printed, never asserted.
 """
@@ -138,7 +138,7 @@ def write_section(path: str, rows: list[str]) -> None:
     section = "\n".join(
         [
             MARK,
-            "## Field execution (`python -m excavation_bringup.field_bench bench`)",
+            "## Field execution (`python -m excavation_field.field_bench bench`)",
             "",
             f"Machine: {platform.machine()}, {os.cpu_count()} cores (shared), Python "
             f"{platform.python_version()}. Trials are composed in one process on rclpy's "
@@ -200,7 +200,7 @@ def results(seeds: int = 5, specs: tuple[str, ...] = ("hand-coded", GENOME)) -> 
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point (``python -m excavation_bringup.field_bench bench|results``)."""
+    """Entry point (``python -m excavation_field.field_bench bench|results``)."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("what", choices=("bench", "results", "processes"))
     p.add_argument("--steps", type=int, default=100, help="processes: ticks")

@@ -1,4 +1,4 @@
-"""``team_tick``: the team tick as a ROS node (pure logic: :mod:`excavation_bringup.team_tick`).
+"""``team_tick``: the team tick as a ROS node (pure logic: :mod:`team_tick.core`).
 
 Reads, per robot k: ``/robot_k/pose`` (the localiser's, or the simulator's truth),
 ``/robot_k/{blade_in}`` (JointState: the measured blade; ``blade/plant_state`` from
@@ -6,7 +6,7 @@ Reads, per robot k: ``/robot_k/pose`` (the localiser's, or the simulator's truth
 ``/worksite/height_map`` (the mapper's, or the simulator's); the supervisor's
 ``/team/heartbeat``, ``/team/estop`` and ``/robot_k/enabled``: the tick runs only while the
 team is armed (a heartbeat saying ``armed`` younger than the 0.5 s deadman, no e-stop), and a
-robot disabled or lost is absent (:class:`~excavation_bringup.team_tick.TeamTick`).
+robot disabled or lost is absent (:class:`~team_tick.core.TeamTick`).
 
 With ``wait_for_ready`` (set by every trial and dome table) tick 0 also waits for every
 controller's latched ``/robot_k/ready`` (std_msgs/Bool: its inputs are connected); with
@@ -49,7 +49,6 @@ from std_msgs.msg import Bool, Header, UInt16
 from blueprint_server.blueprint import resolve_blueprint
 from drive_executor.errors import GoalError
 from drive_executor.goals import ABORTED, TERMINAL, DriveGoal, goal_from_message, goal_message
-from excavation_bringup.team_tick import Phase, TeamTick, TeamTickParams
 from excavation_common.constants import BladeGeometry
 from excavation_common.files import write_text_atomic
 from excavation_common.messages import MessageError, blade_from_joint, pose_to_grid
@@ -63,6 +62,7 @@ from excavation_common.ros import (
 )
 from excavation_common.safety import ENABLED_TOPIC, ESTOP_TOPIC, HEARTBEAT_TOPIC, MotionGate
 from excavation_sim.world import scenario_start
+from team_tick.core import Phase, TeamTick, TeamTickParams
 
 SNAPSHOT_TOPIC = "/team/snapshot"
 SNAPSHOT_ACK_TOPIC = "/team/snapshot_ack"
