@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import typing
 
 import numpy as np
 import pytest
@@ -16,7 +18,15 @@ from ant_controller.layout import (
     TURN_RIGHT,
 )
 from blueprint_server.blueprint import default_blueprint
-from drive_executor.core import DriveExecutorCore, plan
+from drive_executor.core import (
+    DriveExecutorCore,
+    DriveStep,
+    ExecutorEvent,
+    ReportStatus,
+    SetThrottle,
+    TurnStep,
+    plan,
+)
 from drive_executor.errors import GoalError
 from drive_executor.goals import (
     ABORTED,
@@ -60,6 +70,14 @@ class Plant:
         self.yaw += twist.angular * dt
 
 
+def statuses(events) -> list[ReportStatus]:
+    return [e for e in events if isinstance(e, ReportStatus)]
+
+
+def codes(events) -> list[int]:
+    return [e.code for e in statuses(events)]
+
+
 def run_goal(core, gate, plant, goal, t=0.0, limit=2000, move=True):
     """Drive a goal to its end; returns (final status event, time, twists)."""
     core.submit(goal, t)
@@ -68,7 +86,7 @@ def run_goal(core, gate, plant, goal, t=0.0, limit=2000, move=True):
         gate.on_heartbeat(ARMED, t)
         twist = core.on_pose(plant.pose(), t, t)
         twists.append(twist)
-        ends = [e for e in core.drain() if e[0] == "status" and e[2] in (SUCCEEDED, ABORTED)]
+        ends = [e for e in statuses(core.drain()) if e.code in (SUCCEEDED, ABORTED)]
         if ends:
             return ends[0], t, twists
         if move:
@@ -100,8 +118,8 @@ def test_every_word_ends_where_the_world_model_puts_the_robot():
         world.step(np.array([word]))
         gate = armed_gate()
         core = DriveExecutorCore(params, gate)
-        (_, _, code, stuck), _, _ = run_goal(core, gate, plant, DriveGoal(word, word, turn))
-        assert code == SUCCEEDED and not stuck, word
+        end, _, _ = run_goal(core, gate, plant, DriveGoal(word, word, turn))
+        assert end.code == SUCCEEDED and not end.stuck, word
         row, col = robot_anchor(plant.x, plant.y, CELL)
         assert (row, col, yaw_to_heading(plant.yaw)) == (
             int(world.robots[0, ROW]),
@@ -112,11 +130,11 @@ def test_every_word_ends_where_the_world_model_puts_the_robot():
 
 def test_plan_follows_table_2_order_and_nets_the_turns():
     fwd, back = 1 << MOVE_FORWARD, 1 << MOVE_BACKWARD
-    assert plan(fwd | back, 0) == [("drive", 1), ("drive", -1)]
+    assert plan(fwd | back, 0) == [DriveStep(1), DriveStep(-1)]
     assert plan(1 << TURN_RIGHT | 1 << TURN_LEFT, 0) == []
-    assert plan(1 << RANDOM_TURN | 1 << TURN_RIGHT, RIGHT) == [("turn", 1), ("turn", 1)]
+    assert plan(1 << RANDOM_TURN | 1 << TURN_RIGHT, RIGHT) == [TurnStep(1), TurnStep(1)]
     assert plan(1 << RANDOM_TURN | 1 << TURN_RIGHT, LEFT) == []
-    assert plan(fwd | 1 << TURN_LEFT, 0) == [("drive", 1), ("turn", -1)]
+    assert plan(fwd | 1 << TURN_LEFT, 0) == [DriveStep(1), TurnStep(-1)]
     assert (
         plan(0xFFF & ~(fwd | back | 1 << RANDOM_TURN | 1 << TURN_RIGHT | 1 << TURN_LEFT), 0) == []
     )
@@ -136,15 +154,15 @@ def test_bad_words_and_goals_are_refused():
     gate = armed_gate()
     core = DriveExecutorCore(ExecutorParams(), gate)
     core.submit(DriveGoal(0, 0x1FFF), 0.0)
-    ((_, goal, code, stuck),) = [e for e in core.drain() if e[0] == "status"]
-    assert code == ABORTED and stuck and not core.busy
+    assert statuses(core.drain()) == [ReportStatus(DriveGoal(0, 0x1FFF), ABORTED, True)]
+    assert not core.busy
 
 
 def test_random_turn_without_a_direction_uses_the_executor_s_own_seeded_generator():
     def direction(seed):
         core = DriveExecutorCore(ExecutorParams(seed=seed), armed_gate())
         core.submit(DriveGoal(0, 1 << RANDOM_TURN), 0.0)
-        return core.queue[0][1]
+        return core.queue[0].direction
 
     draws = [direction(s) for s in range(20)]
     assert draws == [direction(s) for s in range(20)]
@@ -157,10 +175,8 @@ def test_blocked_robot_times_out_stops_and_reports_stuck():
     params = ExecutorParams(progress_window=0.5)
     core = DriveExecutorCore(params, gate)
     plant = Plant(*robot_center(4, 4, CELL), heading_to_yaw(0))
-    (_, _, code, stuck), t, twists = run_goal(
-        core, gate, plant, DriveGoal(0, 1 << MOVE_FORWARD), move=False
-    )
-    assert code == ABORTED and stuck
+    end, t, twists = run_goal(core, gate, plant, DriveGoal(0, 1 << MOVE_FORWARD), move=False)
+    assert end.code == ABORTED and end.stuck
     assert core.counters.primitives_aborted >= 1
     assert "no progress" in core.counters.last_failure
     assert any(tw.linear > 0 for tw in twists) and twists[-1] == Twist2D()
@@ -193,12 +209,12 @@ def test_stale_pose_gives_zero_twist_at_once_and_aborts():
     assert twist.linear > 0
     gate.on_heartbeat(ARMED, 0.8)
     assert core.check(0.8) == Twist2D()  # the last pose is stamped 0.45 s: stale
-    ends = [e for e in core.drain() if e[0] == "status" and e[2] == ABORTED]
-    assert ends and ends[0][3] and not core.busy
+    ends = [e for e in statuses(core.drain()) if e.code == ABORTED]
+    assert ends and ends[0].stuck and not core.busy
     # A pose that arrives already stale moves nothing either.
     core.submit(DriveGoal(1, 1 << MOVE_FORWARD), 0.8)
     assert core.on_pose(plant.pose(), 0.0, 0.8) == Twist2D()
-    assert [e[2] for e in core.drain() if e[0] == "status"] == [EXECUTING, ABORTED]
+    assert codes(core.drain()) == [EXECUTING, ABORTED]
 
 
 @pytest.mark.parametrize("stop", ["estop", "heartbeat", "disable", "inactive"])
@@ -224,10 +240,10 @@ def test_gate_stops_at_once_and_nothing_moves_before_armed_again(stop):
     else:
         t += 0.6  # no heartbeat for longer than the deadman
     assert core.check(t) == Twist2D()
-    assert [e[2] for e in core.drain() if e[0] == "status"] == [ABORTED]
+    assert codes(core.drain()) == [ABORTED]
     # A new goal while stopped: refused at once, nothing moves.
     core.submit(DriveGoal(1, 1 << MOVE_FORWARD), t)
-    assert [e[2] for e in core.drain() if e[0] == "status"] == [EXECUTING, ABORTED]
+    assert codes(core.drain()) == [EXECUTING, ABORTED]
     assert core.on_pose(plant.pose(), t, t) == Twist2D()
     # Armed again (reset, enable, resume, heartbeat, active): the next goal moves.
     gate.on_estop(False)
@@ -258,7 +274,7 @@ def test_pause_suspends_the_goal_and_resume_ends_it_where_an_unpaused_one_ends()
                 assert core.busy  # still executing: suspended, not aborted
             gate.on_heartbeat(ARMED, t)
             twist = core.on_pose(plant.pose(), t, t)
-            statuses += [e[2] for e in core.drain() if e[0] == "status"]
+            statuses += codes(core.drain())
             if not core.busy:
                 break
             plant.apply(twist)
@@ -291,7 +307,7 @@ def test_pause_then_estop_aborts_and_a_goal_sent_while_paused_waits_for_the_resu
     assert core.check(0.2) == Twist2D() and core.busy
     gate.on_estop(True)  # an e-stop during the pause is never a pause
     assert core.check(0.3) == Twist2D() and not core.busy
-    assert [e[2] for e in core.drain() if e[0] == "status"] == [EXECUTING, ABORTED]
+    assert codes(core.drain()) == [EXECUTING, ABORTED]
 
 
 def test_nothing_moves_before_the_first_armed_heartbeat():
@@ -358,3 +374,62 @@ def test_turn_primitive_respects_rate_and_acceleration_limits():
         t += DT
     assert status is Status.SUCCEEDED
     assert abs(plant.yaw - math.pi / 2) <= params.heading_tolerance
+
+
+EVENTS = typing.get_args(ExecutorEvent)
+
+
+def test_every_event_is_a_declared_frozen_class_and_every_state_is_declared():
+    """Goals that succeed, fail, are refused, superseded and stopped: every event one of
+    ExecutorEvent's classes, each frozen; the core keeps no attribute ``__init__`` lacks."""
+    assert set(EVENTS) == {SetThrottle, ReportStatus}
+    for cls in (*EVENTS, DriveStep, TurnStep):
+        assert dataclasses.is_dataclass(cls) and cls.__dataclass_params__.frozen, cls
+        assert cls.__doc__ and not cls.__doc__.startswith(cls.__name__ + "("), cls
+    gate = armed_gate()
+    core = DriveExecutorCore(ExecutorParams(progress_window=0.5), gate)
+    declared = set(vars(core))
+    events = []
+    plant = Plant(*robot_center(4, 4, CELL), heading_to_yaw(0))
+    for goal, move in [
+        (DriveGoal(0, 1 << MOVE_FORWARD | 1 << THROTTLE_UP | 1 << TURN_RIGHT), True),
+        (DriveGoal(1, 1 << MOVE_BACKWARD | 1 << RANDOM_TURN, LEFT), False),  # blocked
+    ]:
+        end, t, _ = run_goal(core, gate, plant, goal, move=move)
+        events.append(end)
+    core.submit(DriveGoal(2, 0x1FFF), t)  # refused
+    core.submit(DriveGoal(3, 1 << THROTTLE_UP), t)  # nothing to drive: done at once
+    events += core.drain()
+    core.on_word(1 << MOVE_FORWARD, t)  # free mode, then superseded
+    core.submit(DriveGoal(4, 1 << TURN_LEFT), t)
+    core.on_override(Twist2D(0.1, 0.0), t)  # the operator takes over
+    assert core.check(t) is not None
+    events += core.drain()
+    assert {type(e) for e in events} == set(EVENTS)
+    assert {e.code for e in statuses(events)} == {EXECUTING, SUCCEEDED, ABORTED}
+    assert [e.on for e in events if isinstance(e, SetThrottle)] == [True, False, False]
+    for event in events:
+        assert isinstance(event, EVENTS)
+        for f in dataclasses.fields(event):
+            with pytest.raises(dataclasses.FrozenInstanceError):
+                setattr(event, f.name, None)
+    assert set(vars(core)) == declared
+
+
+def test_the_core_emits_no_tagged_tuples():
+    """No string-tagged tuple is left in the core (every event and step is a class)."""
+    import ast
+    import inspect
+
+    import drive_executor.core
+
+    tree = ast.parse(inspect.getsource(drive_executor.core))
+    tagged = [
+        node.lineno
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Tuple)
+        and node.elts
+        and isinstance(node.elts[0], ast.Constant)
+        and isinstance(node.elts[0].value, str)
+    ]
+    assert tagged == []

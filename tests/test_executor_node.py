@@ -39,6 +39,12 @@ class Base(Node):
         self.create_subscription(
             GoalStatus, "/robot_0/drive/status", lambda m: self.statuses.append(m.status), 10
         )
+        self.stuck: list[bool] = []  # U1, once per goal that ended
+        self.throttle: list[bool] = []  # the power mode of every goal started
+        self.create_subscription(Bool, "/robot_0/stuck", lambda m: self.stuck.append(m.data), 10)
+        self.create_subscription(
+            Bool, "/robot_0/drive/throttle", lambda m: self.throttle.append(m.data), LATCHED
+        )
         self.beating = True
         self.posing = True  # False: the localiser stops reporting (the pose goes stale)
         self.state = ARMED  # what the heartbeat says
@@ -121,6 +127,10 @@ def test_nothing_moves_before_activation_then_the_goal_drives(rig):
     assert base.twists[-1][1].header.frame_id == "robot_0/base_link"
     done = ros.spin_until(lambda: GoalStatus.STATUS_SUCCEEDED in base.statuses, 10)
     assert done, (base.statuses, node.core.counters, base.x, base.y)
+    # each event as its message: the goal's power mode, its statuses, U1 once it ended
+    assert ros.spin_until(lambda: base.stuck and base.throttle, 5)
+    assert base.statuses == [GoalStatus.STATUS_EXECUTING, GoalStatus.STATUS_SUCCEEDED]
+    assert base.stuck == [False] and base.throttle == [False]
 
 
 @pytest.mark.parametrize(

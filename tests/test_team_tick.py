@@ -2,13 +2,24 @@
 
 from __future__ import annotations
 
+import dataclasses
+import typing
+
 import numpy as np
+import pytest
 from team_tick.core import (
     LEFT,
     RIGHT,
+    Finished,
     Phase,
+    PublishTick,
+    Report,
+    RequestSnapshot,
+    SendGoal,
+    Snapshot,
     TeamTick,
     TeamTickParams,
+    TickAction,
     draw_turns,
     schedule,
 )
@@ -39,7 +50,11 @@ def feed_snapshot(tt: TeamTick, stamp: float, poses, blades=None) -> None:
 
 
 def kinds(actions):
-    return [a[0] for a in actions]
+    return [type(a) for a in actions]
+
+
+def of(cls, actions):
+    return [a for a in actions if isinstance(a, cls)]
 
 
 def test_random_turns_are_the_world_model_s_draws():
@@ -69,29 +84,32 @@ def test_conflicting_robots_wait_in_robot_order_disjoint_ones_move_at_once():
 
 def test_one_tick_end_to_end():
     tt = make(robots=3, settle=0.1)
-    assert kinds(tt.start(0.0)) == ["request"]
+    assert kinds(tt.start(0.0)) == [RequestSnapshot]
     assert tt.step(0.05, 0.0) == []  # nothing in yet
     feed_snapshot(tt, 0.2, [(2, 2, 0), (4, 3, 2), (12, 12, 1)])
     actions = tt.step(0.25, 1.0)
-    publish = [a for a in actions if a[0] == "publish"]
-    assert publish and publish[0][1:3] == (0, 0.0)
-    assert publish[0][3]["poses"] == ["pose0@0.2", "pose1@0.2", "pose2@0.2"]
-    assert publish[0][3]["stuck"] == [False, False, False]
+    publish = of(PublishTick, actions)
+    assert publish and (publish[0].tick, publish[0].stamp) == (0, 0.0)
+    assert publish[0].snapshot.poses == ("pose0@0.2", "pose1@0.2", "pose2@0.2")
+    assert publish[0].snapshot.stuck == (False, False, False)
     assert tt.phase is Phase.WORDS
     tt.on_word(0, FWD)
     tt.on_word(1, FWD | 1 << BLADE_BELOW_CMD)
     assert tt.step(0.3, 1.1) == []
     tt.on_word(2, 1 << TURN_RIGHT)
     tt.on_word(2, 0)  # a second word of the same tick does not count
-    goals = [a for a in tt.step(0.35, 1.2) if a[0] == "goal"]
-    assert [(g[1], g[4]) for g in goals] == [(0, FWD), (2, 1 << TURN_RIGHT)]  # 1 waits for 0
+    goals = of(SendGoal, tt.step(0.35, 1.2))
+    assert goals == [  # 1 waits for 0
+        SendGoal(robot=0, tick=0, stamp=0.0, word=FWD, turn=0),
+        SendGoal(robot=2, tick=0, stamp=0.0, word=1 << TURN_RIGHT, turn=0),
+    ]
     tt.on_status(0, 0, terminal=True, aborted=True, now=3.0)
-    goals = [a for a in tt.step(3.0, 2.0) if a[0] == "goal"]
-    assert [g[1] for g in goals] == [1]
+    goals = of(SendGoal, tt.step(3.0, 2.0))
+    assert [g.robot for g in goals] == [1]
     tt.on_status(2, 0, terminal=True, aborted=False, now=3.5)
     tt.on_status(1, 0, terminal=True, aborted=False, now=6.0)
     actions = tt.step(6.0, 3.0)
-    assert actions == [("request", "tick 1", 6.0 + 0.1)]
+    assert actions == [RequestSnapshot("tick 1", 6.0 + 0.1)]
     assert tt.tick == 1 and tt.phase is Phase.SNAPSHOT
     # A snapshot from before the motion ended does not count; nor a blade not yet lowered.
     feed_snapshot(tt, 5.0, [(3, 2, 0), (4, 3, 2), (12, 12, 2)])
@@ -102,9 +120,9 @@ def test_one_tick_end_to_end():
     feed_snapshot(
         tt, 6.3, [(3, 2, 0), (4, 3, 2), (12, 12, 2)], [BLADE_HOME, BLADE_BELOW, BLADE_HOME]
     )
-    publish = [a for a in tt.step(6.4, 3.3) if a[0] == "publish"]
-    assert publish[0][1:3] == (1, 1.0)
-    assert publish[0][3]["stuck"] == [True, False, False]
+    publish = of(PublishTick, tt.step(6.4, 3.3))
+    assert (publish[0].tick, publish[0].stamp) == (1, 1.0)
+    assert publish[0].snapshot.stuck == (True, False, False)
 
 
 def test_silent_controller_idles_and_a_robot_that_never_finishes_is_left_out():
@@ -114,12 +132,12 @@ def test_silent_controller_idles_and_a_robot_that_never_finishes_is_left_out():
     tt.step(0.2, 0.0)
     tt.on_word(0, FWD)
     actions = tt.step(0.3, 1.0)  # robot 1 silent past the timeout: word 0
-    assert [(a[1], a[4]) for a in actions if a[0] == "goal"] == [(0, FWD), (1, 0)]
+    assert [(a.robot, a.word) for a in of(SendGoal, actions)] == [(0, FWD), (1, 0)]
     assert tt.missed == [0, 1]
     tt.on_status(1, 0, terminal=True, aborted=False, now=0.4)
     assert kinds(tt.step(5.0, 2.0)) == []
     actions = tt.step(10.5, 3.0)
-    assert "report" in kinds(actions) and "request" in kinds(actions)
+    assert Report in kinds(actions) and RequestSnapshot in kinds(actions)
     assert tt.late == [1, 0] and tt.stuck == [True, False] and tt.records[0].late == [0]
 
 
@@ -132,14 +150,14 @@ def test_no_tick_starts_while_the_team_is_not_armed_and_the_snapshot_is_taken_ag
     tt.armed = True
     # Held: the snapshot taken before (blades homed meanwhile) does not count; a new one.
     actions = tt.step(0.7, 0.1)
-    assert actions[1:] == [("request", "tick 0", 0.7 + 0.1)]
-    assert actions[0][0] == "report" and "held" in actions[0][1]
+    assert actions[1:] == [RequestSnapshot("tick 0", 0.7 + 0.1)]
+    assert isinstance(actions[0], Report) and "held" in actions[0].message
     assert tt.step(0.75, 0.2) == []
     feed_snapshot(tt, 0.8, [(2, 2, 0)])
-    assert "publish" in kinds(tt.step(0.85, 0.3))
+    assert PublishTick in kinds(tt.step(0.85, 0.3))
 
 
-def held(tt: TeamTick, hold: str, now: float, wall: float, seconds: float) -> list[tuple]:
+def held(tt: TeamTick, hold: str, now: float, wall: float, seconds: float) -> list[TickAction]:
     """Hold the team for ``seconds`` of wall time from ``wall``; the step that re-arms it."""
     tt.armed, tt.hold = False, hold
     assert tt.step(now, wall) == [] and tt.step(now + seconds / 2, wall + seconds / 2) == []
@@ -153,7 +171,8 @@ def test_a_short_heartbeat_gap_delays_the_snapshot_but_asks_for_no_other():
     tt = make(robots=1, snapshot_retry=2.0)
     tt.start(0.0, 0.0)
     feed_snapshot(tt, 0.5, [(2, 2, 0)])
-    assert held(tt, "heartbeat lost", 0.6, 0.1, 1.5)[0][:2] == ("publish", 0)
+    action = held(tt, "heartbeat lost", 0.6, 0.1, 1.5)[0]
+    assert isinstance(action, PublishTick) and action.tick == 0
     assert tt.records[0].started_wall == 1.6
 
 
@@ -170,12 +189,13 @@ def test_a_heartbeat_gap_of_any_length_asks_for_no_other_snapshot():
         tt.start(0.0, 0.0)
         tt.on_ack("tick 0", 0.1)
         feed_snapshot(tt, 0.5, [(2, 2, 0)])
-        assert kinds(held(tt, hold, 0.6, 0.1, seconds)) == ["publish"], (hold, seconds)
+        assert kinds(held(tt, hold, 0.6, 0.1, seconds)) == [PublishTick], (hold, seconds)
     # a gap, then an unacknowledged request: sent again, unchanged (the simulator takes it once)
     tt = make(robots=1, snapshot_retry=2.0)
     tt.start(0.0, 0.0)
     actions = held(tt, "heartbeat lost", 0.6, 0.1, 3.0)
-    assert actions[1:] == [("request", "tick 0", 0.1)] and "not acknowledged" in actions[0][1]
+    assert actions[1:] == [RequestSnapshot("tick 0", 0.1)]
+    assert "not acknowledged" in actions[0].message
 
 
 def test_after_a_heartbeat_gap_the_blades_get_blade_wait_again():
@@ -187,7 +207,7 @@ def test_after_a_heartbeat_gap_the_blades_get_blade_wait_again():
     tt.on_word(0, 1 << BLADE_BELOW_CMD)
     tt.step(0.4, 0.2)
     tt.on_status(0, 0, terminal=True, aborted=False, now=1.0)
-    assert kinds(tt.step(1.0, 0.3)) == ["request"]
+    assert kinds(tt.step(1.0, 0.3)) == [RequestSnapshot]
     tt.on_ack("tick 1", 1.1)
     feed_snapshot(tt, 1.1, [(2, 2, 0)], [BLADE_BELOW])  # lowered, as the word asked
     tt.armed, tt.hold = False, "heartbeat lost"
@@ -196,8 +216,8 @@ def test_after_a_heartbeat_gap_the_blades_get_blade_wait_again():
     tt.armed, tt.hold = True, None
     assert tt.step(6.0, 5.0) == []  # past blade_wait since the motion, not since the gap
     tt.on_blade(0, BLADE_BELOW, 6.1, "lowered")
-    publish = [a for a in tt.step(6.2, 5.1) if a[0] == "publish"]
-    assert publish and publish[0][3]["blades"] == ["lowered"]
+    publish = of(PublishTick, tt.step(6.2, 5.1))
+    assert publish and publish[0].snapshot.blades == ("lowered",)
 
 
 def test_an_operator_hold_asks_for_a_new_snapshot_and_says_why():
@@ -207,11 +227,11 @@ def test_an_operator_hold_asks_for_a_new_snapshot_and_says_why():
         tt.on_ack("tick 0", 0.1)
         feed_snapshot(tt, 0.5, [(2, 2, 0)])
         actions = held(tt, hold, 0.6, 0.1, 0.2)
-        assert kinds(actions) == ["report", "request"], hold
-        assert f"({hold}); new snapshot" in actions[0][1]
-        assert actions[1][2] == 0.6 + 0.2 + 0.1  # taken after the hold ended (+ settle)
+        assert kinds(actions) == [Report, RequestSnapshot], hold
+        assert f"({hold}); new snapshot" in actions[0].message
+        assert actions[1].not_before == 0.6 + 0.2 + 0.1  # taken after the hold ended (+ settle)
         feed_snapshot(tt, 0.6 + 0.2 + 0.1, [(2, 2, 0)])
-        assert kinds(tt.step(0.6 + 0.2 + 0.2, 0.1 + 0.2 + 0.1)) == ["publish"]
+        assert kinds(tt.step(0.6 + 0.2 + 0.2, 0.1 + 0.2 + 0.1)) == [PublishTick]
     # a heartbeat gap that turns into a pause is a pause, however short
     tt = make(robots=1, snapshot_retry=2.0)
     tt.start(0.0, 0.0)
@@ -222,26 +242,27 @@ def test_an_operator_hold_asks_for_a_new_snapshot_and_says_why():
     tt.step(0.7, 0.2)
     tt.armed, tt.hold = True, None
     actions = tt.step(0.8, 0.3)
-    assert kinds(actions) == ["report", "request"]
-    assert "(heartbeat lost, team paused); new snapshot" in actions[0][1]
+    assert kinds(actions) == [Report, RequestSnapshot]
+    assert "(heartbeat lost, team paused); new snapshot" in actions[0].message
 
 
 def test_a_request_is_sent_again_only_while_not_acknowledged():
     tt = make(robots=1, settle=0.1, snapshot_retry=2.0)
-    assert tt.start(0.0, 0.0) == [("request", "tick 0", 0.1)]
+    assert tt.start(0.0, 0.0) == [RequestSnapshot("tick 0", 0.1)]
     assert tt.step(0.5, 1.9) == []
     # lost (no acknowledgement): the same request again, every snapshot_retry
     actions = tt.step(0.6, 2.0)
-    assert kinds(actions) == ["report", "request"] and "not acknowledged" in actions[0][1]
-    assert actions[1] == ("request", "tick 0", 0.1)
+    assert kinds(actions) == [Report, RequestSnapshot]
+    assert "not acknowledged" in actions[0].message
+    assert actions[1] == RequestSnapshot("tick 0", 0.1)
     assert tt.step(0.7, 3.9) == []
     tt.on_ack("tick 1", 0.2)  # another tick's (a restarted team tick's latched one): not ours
     tt.on_ack("tick 0", 0.05)  # taken before the instant asked for: not ours
-    assert kinds(tt.step(0.8, 4.0)) == ["report", "request"]
+    assert kinds(tt.step(0.8, 4.0)) == [Report, RequestSnapshot]
     tt.on_ack("tick 0", 0.15)  # taken: perception is slow, nothing is asked again
     assert tt.step(0.9, 5.9) == []
     feed_snapshot(tt, 0.15, [(2, 2, 0)])
-    assert kinds(tt.step(1.0, 6.0)) == ["publish"]
+    assert kinds(tt.step(1.0, 6.0)) == [PublishTick]
 
 
 def test_a_snapshot_taken_without_a_robot_asks_for_another_instant():
@@ -255,10 +276,10 @@ def test_a_snapshot_taken_without_a_robot_asks_for_another_instant():
     tt.on_heights(0.1, "heights")
     assert tt.step(0.5, 1.0) == []
     actions = tt.step(3.0, 2.0)
-    assert actions[1:] == [("request", "tick 0", 3.0)]  # a new instant: rendered anew
-    assert "no pose of robot 1 yet" in actions[0][1]
+    assert actions[1:] == [RequestSnapshot("tick 0", 3.0)]  # a new instant: rendered anew
+    assert "no pose of robot 1 yet" in actions[0].message
     tt.on_ack("tick 0", 0.1)  # the first request's again: not the new one's
-    assert kinds(tt.step(3.1, 4.0)) == ["report", "request"]
+    assert kinds(tt.step(3.1, 4.0)) == [Report, RequestSnapshot]
     assert tt.step(3.2, 4.1) == []  # sent again (not acknowledged), unchanged
 
 
@@ -268,9 +289,10 @@ def test_without_acknowledgements_a_request_is_never_sent_again_for_want_of_one(
     tt.start(0.0, 0.0)
     feed_snapshot(tt, 0.05, [(2, 2, 0)])  # before the motion ended: not the snapshot
     actions = tt.step(1.0, 2.0)  # incomplete: another instant, as a taken request
-    assert actions[1:] == [("request", "tick 0", 1.0)] and "no pose of robot 0" in actions[0][1]
+    assert actions[1:] == [RequestSnapshot("tick 0", 1.0)]
+    assert "no pose of robot 0" in actions[0].message
     feed_snapshot(tt, 0.2, [(2, 2, 0)])  # any instant after the motion still counts
-    assert kinds(tt.step(1.1, 2.1)) == ["publish"]
+    assert kinds(tt.step(1.1, 2.1)) == [PublishTick]
 
 
 def test_held_team_grants_no_goal_and_held_time_is_not_motion_time():
@@ -283,14 +305,14 @@ def test_held_team_grants_no_goal_and_held_time_is_not_motion_time():
     tt.armed = False
     assert tt.step(0.3, 0.1) == [] and tt.phase is Phase.WORDS  # words wait for the team
     tt.armed = True
-    assert [a[1] for a in tt.step(0.4, 0.2) if a[0] == "goal"] == [0]
+    assert [a.robot for a in of(SendGoal, tt.step(0.4, 0.2))] == [0]
     tt.armed = False  # paused while robot 0 drives: 60 s held, far beyond motion_limit
     for t in range(1, 61):
         assert tt.step(0.4 + t, 0.2 + t) == []
     tt.on_status(0, 0, terminal=True, aborted=False, now=61.0)
     assert tt.step(61.5, 62.0) == []  # robot 1 is not granted while held
     tt.armed = True
-    assert [a[1] for a in tt.step(62.0, 63.0) if a[0] == "goal"] == [1]
+    assert [a.robot for a in of(SendGoal, tt.step(62.0, 63.0))] == [1]
     assert tt.late == [0, 0]
 
 
@@ -303,17 +325,17 @@ def test_absent_robots_are_not_waited_for():
     for k in range(3):
         tt.on_blade(k, BLADE_HOME, 0.2, f"b{k}")
     tt.on_heights(0.2, "heights")
-    publish = [a for a in tt.step(0.3, 0.0) if a[0] == "publish"]
-    assert publish and publish[0][3]["poses"] == ["p0", None, "p2"]
+    publish = of(PublishTick, tt.step(0.3, 0.0))
+    assert publish and publish[0].snapshot.poses == ("p0", None, "p2")
     tt.on_word(0, FWD)
     tt.on_word(1, FWD)  # a disabled robot's word does not count
     tt.on_word(2, FWD)
-    goals = [(a[1], a[4]) for a in tt.step(0.4, 0.1) if a[0] == "goal"]
+    goals = [(a.robot, a.word) for a in of(SendGoal, tt.step(0.4, 0.1))]
     assert goals == [(0, FWD), (1, 0), (2, FWD)]  # told to idle, not awaited
     assert tt.missed == [0, 0, 0]
     tt.on_status(0, 0, terminal=True, aborted=False, now=1.0)
     tt.absent.add(2)  # lost while driving: its executor has stopped it
-    assert kinds(tt.step(1.1, 0.2)) == ["request"] and tt.tick == 1
+    assert kinds(tt.step(1.1, 0.2)) == [RequestSnapshot] and tt.tick == 1
 
 
 def test_finishes_after_the_last_tick_s_snapshot():
@@ -324,8 +346,98 @@ def test_finishes_after_the_last_tick_s_snapshot():
     tt.on_word(0, 0)
     tt.step(0.3, 0.1)
     tt.on_status(0, 0, terminal=True, aborted=False, now=0.4)
-    assert kinds(tt.step(0.4, 0.2)) == ["request"]
+    assert kinds(tt.step(0.4, 0.2)) == [RequestSnapshot]
     feed_snapshot(tt, 0.6, [(2, 2, 0)])
-    assert kinds(tt.step(0.6, 0.3)) == ["finished"]
+    assert tt.step(0.6, 0.3) == [Finished()]
     assert tt.phase is Phase.FINISHED and len(tt.records) == 1
     assert RIGHT == 1 and LEFT == -1
+
+
+ACTIONS = typing.get_args(TickAction)
+
+
+def test_every_action_is_a_declared_frozen_class_and_every_state_is_declared():
+    """A run through every path: each action one of TickAction's classes, each frozen.
+
+    It reaches every kind (a resent request, an operator's hold, a silent controller, a
+    robot left out, a stale snapshot taken as it is, the end), and leaves the tick with no
+    attribute its dataclass does not declare.
+    """
+    assert set(ACTIONS) == {RequestSnapshot, PublishTick, SendGoal, Report, Finished}
+    for cls in (*ACTIONS, Snapshot):
+        assert dataclasses.is_dataclass(cls) and cls.__dataclass_params__.frozen, cls
+        assert cls.__doc__ and not cls.__doc__.startswith(cls.__name__ + "("), cls
+    tt = make(
+        robots=2,
+        steps=2,
+        settle=0.1,
+        snapshot_retry=1.0,
+        snapshot_limit=5.0,
+        word_timeout=0.5,
+        first_word_timeout=0.5,
+        motion_limit=5.0,
+    )
+    emitted: list = []
+    emitted += tt.start(0.0, 0.0)
+    emitted += tt.step(0.1, 1.0)  # not acknowledged: sent again
+    tt.on_ack("tick 0", 0.1)
+    feed_snapshot(tt, 0.2, [(2, 2, 0), (8, 8, 0)])
+    tt.armed, tt.hold = False, "team paused"
+    emitted += tt.step(0.3, 1.1)
+    tt.armed, tt.hold = True, None
+    emitted += tt.step(0.4, 1.2)  # the operator's hold: a new snapshot
+    tt.on_ack("tick 0", 0.5)
+    feed_snapshot(tt, 0.5, [(2, 2, 0), (8, 8, 0)])
+    emitted += tt.step(0.6, 1.3)
+    tt.on_word(0, FWD | 1 << RANDOM_TURN)
+    emitted += tt.step(0.7, 2.0)  # robot 1 silent: it idles
+    tt.on_status(0, 0, terminal=True, aborted=False, now=1.0)
+    emitted += tt.step(6.0, 3.0)  # robot 1 never finishes: left out
+    tt.on_ack("tick 1", 6.1)
+    feed_snapshot(tt, 0.5, [(2, 2, 0), (8, 8, 0)])  # from before the motion ended
+    emitted += tt.step(6.2, 9.0)  # past snapshot_limit: taken as it is
+    tt.on_word(0, 0)
+    tt.on_word(1, 0)
+    emitted += tt.step(6.3, 9.1)
+    for k in range(2):
+        tt.on_status(k, 1, terminal=True, aborted=False, now=6.4)
+    emitted += tt.step(6.4, 9.2)
+    tt.on_ack("tick 2", 6.5)
+    feed_snapshot(tt, 6.5, [(3, 2, 0), (8, 8, 0)])
+    emitted += tt.step(6.6, 9.3)
+    assert tt.phase is Phase.FINISHED
+    assert {type(a) for a in emitted} == set(ACTIONS)
+    assert all(isinstance(a, ACTIONS) for a in emitted)
+    reports = [a.message for a in of(Report, emitted)]
+    assert any("not acknowledged" in m for m in reports)
+    assert any("team held" in m for m in reports)
+    assert any("no word from robots [1]" in m for m in reports)
+    assert any("did not finish" in m for m in reports)
+    assert any("without a fresh" in m for m in reports)
+    for action in emitted:
+        for f in dataclasses.fields(action) or [None]:
+            with pytest.raises(dataclasses.FrozenInstanceError):
+                setattr(action, f.name if f else "anything", None)
+    for publish in of(PublishTick, emitted):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            publish.snapshot.stuck = ()
+    assert set(vars(tt)) == {f.name for f in dataclasses.fields(TeamTick)}
+
+
+def test_the_core_emits_no_tagged_tuples():
+    """No string-tagged tuple is left in the core (every action is a class)."""
+    import ast
+    import inspect
+
+    import team_tick.core
+
+    tree = ast.parse(inspect.getsource(team_tick.core))
+    tagged = [
+        node.lineno
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Tuple)
+        and node.elts
+        and isinstance(node.elts[0], ast.Constant)
+        and isinstance(node.elts[0].value, str)
+    ]
+    assert tagged == []

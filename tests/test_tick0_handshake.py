@@ -211,3 +211,75 @@ def test_team_tick_waits_for_every_controller_to_be_ready(ros):
     assert tick.core.phase is Phase.WAITING  # present and connected, but not ready
     ready.publish(Bool(data=True))
     assert ros.spin_until(lambda: tick.core.phase is not Phase.WAITING)
+
+
+def test_team_tick_node_sends_each_action_as_its_message(ros, tmp_path):
+    """The node's dispatch on the core's action classes: each becomes its message."""
+    import json
+
+    from action_msgs.msg import GoalInfo
+    from std_msgs.msg import Header
+    from team_tick.core import (
+        Finished,
+        PublishTick,
+        Report,
+        RequestSnapshot,
+        SendGoal,
+        Snapshot,
+        TickRecord,
+    )
+    from team_tick.node import TeamTickNode
+
+    from drive_executor.goals import DriveGoal, goal_from_message
+
+    result = tmp_path / "result.json"
+    tick = ros.add(
+        TeamTickNode(
+            context=ros.context,
+            parameter_overrides=[
+                Parameter("robots", value=1),
+                Parameter("result_file", value=str(result)),
+            ],
+        )
+    )
+    heard: dict[str, list] = {}
+    probe = ros.add(Node("probe_actions", context=ros.context))
+    for msg_type, topic, qos in [
+        (Header, "/team/snapshot", 10),
+        (Header, "/team/tick", 10),
+        (PoseWithCovarianceStamped, "/tick/robot_0/pose", 10),
+        (Bool, "/tick/robot_0/stuck", 10),
+        (Image, "/tick/worksite/height_map", LATCHED),
+        (JointState, "/robot_0/blade/servo_state", 10),
+        (GoalInfo, "/robot_0/drive/goal", 10),
+    ]:
+        heard[topic] = []
+        probe.create_subscription(msg_type, topic, heard[topic].append, qos)
+    sent = [tick.request_pub, tick.tick_pub, tick.heights_pub]
+    sent += [tick.pose_pubs[0], tick.stuck_pubs[0], tick.blade_pubs[0], tick.goal_pubs[0]]
+    assert ros.spin_until(lambda: all(p.get_subscription_count() > 0 for p in sent))
+    pose, blade, heights = PoseWithCovarianceStamped(), JointState(), Image()
+    tick.core.records.append(TickRecord(3, [0x21], [-1], [True], [], 0.0, 0.5, 1.0))  # summary
+    tick.execute(
+        [
+            RequestSnapshot("tick 3", 2.5),
+            PublishTick(3, 3.0, Snapshot((pose,), heights, (blade,), (True,))),
+            SendGoal(robot=0, tick=3, stamp=3.0, word=0x21, turn=-1),
+            Report("tick 3: a report"),
+            Finished(),
+        ]
+    )
+    assert ros.spin_until(lambda: all(heard.values()))
+    stamp = TimeMsg(sec=3, nanosec=0)
+    (request,) = heard["/team/snapshot"]
+    assert request.frame_id == "tick 3" and request.stamp == TimeMsg(sec=2, nanosec=500_000_000)
+    (header,) = heard["/team/tick"]
+    assert header.frame_id == "3" and header.stamp == stamp
+    assert [m.data for m in heard["/tick/robot_0/stuck"]] == [True]
+    for topic in ("/tick/robot_0/pose", "/tick/worksite/height_map", "/robot_0/blade/servo_state"):
+        assert [m.header.stamp for m in heard[topic]] == [stamp], topic
+    (goal,) = heard["/robot_0/drive/goal"]
+    assert goal_from_message(goal) == DriveGoal(3, 0x21, -1, 0, (3, 0))
+    assert tick.reports == ["tick 3: a report"]
+    summary = json.loads(result.read_text())
+    assert summary["reports"] == ["tick 3: a report"] and summary["commands"] == [[0x21]]

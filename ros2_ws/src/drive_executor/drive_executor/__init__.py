@@ -1,4 +1,4 @@
-"""The drive executor: a behaviour word as wheel motion (DESIGN.md, "Field execution").
+"""The drive executor: a behaviour word as wheel motion (docs/architecture.md, "Field execution").
 
 Pure modules (no ``rclpy``): :mod:`~drive_executor.params` (the node's parameters),
 :mod:`~drive_executor.primitives` (closed-loop motion primitives in the manner of nav2's

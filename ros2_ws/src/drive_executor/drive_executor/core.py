@@ -18,7 +18,7 @@ the robot stands on, and the goal goes on with its remaining primitives, as the 
 model goes on after a refused move. The goal then ends ``ABORTED`` and the robot reports
 ``stuck`` (U1); otherwise ``SUCCEEDED`` and not stuck.
 
-Safety (DESIGN.md, "Operator oversight and safety"): every twist passes
+Safety (docs/architecture.md, "Operator oversight and safety"): every twist passes
 :class:`excavation_common.safety.MotionGate`; a closed gate (not active, e-stop, pause,
 disable, heartbeat lost) or a pose older than ``pose_timeout`` by its stamp gives a zero
 twist at once and aborts the goal; nothing moves until a new goal arrives with the gate
@@ -28,6 +28,10 @@ allowance and progress window moved on by the time paused (a paused and resumed 
 ends as an uninterrupted one). A drive override (``drive/override``) wins over the goal
 while younger than ``override_timeout`` (the goal aborts: the operator has taken the
 robot), clamped to the throttle limits; the gate still wins over the override.
+
+What the node must send besides the twists (which :meth:`DriveExecutorCore.on_pose` and
+:meth:`DriveExecutorCore.check` return) comes out of :meth:`DriveExecutorCore.drain` as
+events (:data:`ExecutorEvent`: one frozen dataclass per kind), in the order they happened.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
+from typing import assert_never
 
 import numpy as np
 
@@ -65,8 +70,67 @@ MOTION_BITS = sum(1 << b for b in (MOVE_FORWARD, MOVE_BACKWARD, RANDOM_TURN, TUR
 """The behaviours the executor carries out (Table 2, 2-6)."""
 
 
-def plan(word: int, turn: int) -> list[tuple[str, int]]:
-    """The primitives of a word: ``("drive", cells)`` and ``("turn", direction)`` steps.
+# --- events: what the node must send besides the twists ----------------------------------------
+
+
+@dataclass(frozen=True)
+class SetThrottle:
+    """A goal starts: the base's power mode (``drive/throttle``): Throttle Up when ``on``."""
+
+    on: bool
+
+
+@dataclass(frozen=True)
+class ReportStatus:
+    """The status of ``goal`` changed to ``code`` (``drive/status``).
+
+    ``stuck`` is the goal's U1: true when it ended aborted; the node sends it on ``stuck``
+    once the code is terminal (succeeded or aborted).
+    """
+
+    goal: DriveGoal
+    code: int
+    stuck: bool
+
+
+ExecutorEvent = SetThrottle | ReportStatus
+"""Every event :meth:`DriveExecutorCore.drain` returns (``typing.get_args`` lists them)."""
+
+
+# --- a word's primitives ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class DriveStep:
+    """Drive ``cells`` cells on the heading (forward > 0, backward < 0; 0: settle in the cell)."""
+
+    cells: int
+
+
+@dataclass(frozen=True)
+class TurnStep:
+    """A quarter turn in place: ``RIGHT`` (+1) or ``LEFT`` (-1)."""
+
+    direction: int
+
+
+Step = DriveStep | TurnStep
+"""One primitive of a goal's queue, before it runs."""
+
+
+def primitive(step: Step, params: ExecutorParams, limits: Limits) -> Primitive:
+    """The motion primitive that carries out ``step``."""
+    match step:
+        case DriveStep(cells):
+            return DriveCells(cells, params, limits)
+        case TurnStep(direction):
+            return Turn(direction, params, limits)
+        case _:
+            assert_never(step)
+
+
+def plan(word: int, turn: int) -> list[Step]:
+    """The primitives of a word: :class:`DriveStep` and :class:`TurnStep` steps.
 
     Args:
         word: Behaviour word (12 bits).
@@ -77,11 +141,11 @@ def plan(word: int, turn: int) -> list[tuple[str, int]]:
     """
     if not 0 <= word <= 0xFFF:
         raise GoalError("<goal>", "word", word, "must be a 12-bit behaviour word")
-    steps: list[tuple[str, int]] = []
+    steps: list[Step] = []
     if (word >> MOVE_FORWARD) & 1:
-        steps.append(("drive", 1))
+        steps.append(DriveStep(1))
     if (word >> MOVE_BACKWARD) & 1:
-        steps.append(("drive", -1))
+        steps.append(DriveStep(-1))
     quarter = 0
     if (word >> RANDOM_TURN) & 1:
         if turn not in (RIGHT, LEFT):
@@ -90,7 +154,7 @@ def plan(word: int, turn: int) -> list[tuple[str, int]]:
     quarter += (word >> TURN_RIGHT) & 1
     quarter -= (word >> TURN_LEFT) & 1
     quarter %= 4
-    steps += {0: [], 1: [("turn", RIGHT)], 2: [("turn", RIGHT)] * 2, 3: [("turn", LEFT)]}[quarter]
+    steps += {0: [], 1: [TurnStep(RIGHT)], 2: [TurnStep(RIGHT)] * 2, 3: [TurnStep(LEFT)]}[quarter]
     return steps
 
 
@@ -99,12 +163,19 @@ class Counters:
     """What the executor has done (for ``/diagnostics`` and the trial's result)."""
 
     goals: int = 0
+    """Goals started."""
     goals_aborted: int = 0
+    """Goals that ended aborted."""
     primitives: int = 0
+    """Primitives started."""
     primitives_aborted: int = 0
+    """Primitives that failed or were cut short."""
     cycles: int = 0
+    """Control steps (poses taken)."""
     last_failure: str = ""
+    """The newest failure."""
     failures: list[str] = field(default_factory=list)
+    """The last 20 aborted goals: ``tick t: why``."""
 
 
 class DriveExecutorCore:
@@ -113,28 +184,45 @@ class DriveExecutorCore:
     Feed it poses (:meth:`on_pose`, which returns the twist of this control step), goals
     (:meth:`submit`), overrides (:meth:`on_override`) and the gate's inputs (through
     :attr:`gate`); call :meth:`check` from the safety loop and after every gate change.
-    Status changes collect in :attr:`events` as ``("status", goal, code, stuck)``;
-    ``("throttle", on)`` announces the power mode of the goal starting. Times are seconds
-    on one clock (the pose stamps' clock: sim time in CI).
+    Events (:data:`ExecutorEvent`) collect in :attr:`events` until :meth:`drain`:
+    :class:`ReportStatus` for every status change, :class:`SetThrottle` for the power mode of
+    the goal starting. Times are seconds on one clock (the pose stamps' clock: sim time in
+    CI).
     """
 
     def __init__(self, params: ExecutorParams, gate: MotionGate | None = None) -> None:
-        self.params = params
-        self.gate = gate if gate is not None else MotionGate(deadman=params.deadman)
-        self.rng = np.random.default_rng(params.seed)
+        self.params: ExecutorParams = params
+        """The node's parameters."""
+        self.gate: MotionGate = gate if gate is not None else MotionGate(deadman=params.deadman)
+        """Whether the robot may move (the node feeds its inputs)."""
+        self.rng: np.random.Generator = np.random.default_rng(params.seed)
+        """Random-turn directions of goals that come without one (free mode)."""
         self.goal: DriveGoal | None = None
-        self.queue: deque[tuple[str, int]] = deque()
+        """The goal running (``None``: idle)."""
+        self.queue: deque[Step] = deque()
+        """The running goal's steps not started yet."""
         self.current: Primitive | None = None
-        self.limits = Limits.of(params, False)
+        """The primitive running (``None``: the next step starts on the next pose)."""
+        self.limits: Limits = Limits.of(params, False)
+        """Speed limits of the running goal's primitives (Throttle Up raises them)."""
         self.goal_failures: list[str] = []
+        """Why the running goal's primitives failed (any: it ends aborted)."""
         self.pose: Pose2D | None = None
+        """The newest pose."""
         self.pose_stamp: float | None = None
+        """The newest pose's stamp (``pose_timeout`` counts from it)."""
         self.override: tuple[Twist2D, float] | None = None
-        self.events: list[tuple] = []
-        self.counters = Counters()
+        """The operator's newest drive override and the time it came."""
+        self.events: list[ExecutorEvent] = []
+        """Events not yet taken by :meth:`drain`, oldest first."""
+        self.counters: Counters = Counters()
+        """What the executor has done."""
         self.stop_reason: str | None = "no goal yet"
-        self.free_ticks = 0
+        """Why the robot is held still (``None``: the control loop may act)."""
+        self.free_ticks: int = 0
+        """Goals started from free-mode words (their tick numbers)."""
         self.suspended_at: float | None = None
+        """Time the running goal was suspended by a pause (``None``: not suspended)."""
 
     # --- inputs -----------------------------------------------------------------------------
 
@@ -160,8 +248,8 @@ class DriveExecutorCore:
         self.goal_failures = []
         throttle = bool((goal.word >> THROTTLE_UP) & 1)
         self.limits = Limits.of(self.params, throttle)
-        self.events.append(("throttle", throttle))
-        self.events.append(("status", goal, EXECUTING, False))
+        self.events.append(SetThrottle(throttle))
+        self.events.append(ReportStatus(goal, EXECUTING, False))
         if not self.queue:
             self._finish()
             return
@@ -194,9 +282,7 @@ class DriveExecutorCore:
                 if not self.queue:
                     self._finish()
                     return STOP
-                kind, arg = self.queue.popleft()
-                cls = DriveCells if kind == "drive" else Turn
-                self.current = cls(arg, self.params, self.limits)
+                self.current = primitive(self.queue.popleft(), self.params, self.limits)
                 self.counters.primitives += 1
                 try:
                     self.current.on_run(pose, stamp)
@@ -211,7 +297,7 @@ class DriveExecutorCore:
                 self.counters.last_failure = self.current.failure
                 self.goal_failures.append(self.current.failure)
                 if isinstance(self.current, DriveCells) and self.current.cells != 0:
-                    self.queue.appendleft(("drive", 0))
+                    self.queue.appendleft(DriveStep(0))
                 self.current = None
                 return STOP
             self.current = None  # succeeded: start the next primitive on this pose
@@ -297,14 +383,14 @@ class DriveExecutorCore:
             self.counters.goals_aborted += 1
             self.counters.failures.append(f"tick {goal.tick}: " + "; ".join(self.goal_failures))
             del self.counters.failures[:-20]
-        self.events.append(("status", goal, ABORTED if failed else SUCCEEDED, failed))
+        self.events.append(ReportStatus(goal, ABORTED if failed else SUCCEEDED, failed))
         self.goal = None
         self.current = None
         self.queue.clear()
         self.suspended_at = None
 
-    def drain(self) -> list[tuple]:
-        """The events since the last call."""
+    def drain(self) -> list[ExecutorEvent]:
+        """The events since the last call, oldest first."""
         out, self.events = self.events, []
         return out
 

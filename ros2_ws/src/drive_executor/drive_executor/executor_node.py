@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import sys
+from typing import assert_never
 
 from action_msgs.msg import GoalInfo, GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -39,7 +40,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from std_msgs.msg import Bool, Header, UInt16
 
-from drive_executor.core import DriveExecutorCore
+from drive_executor.core import DriveExecutorCore, ReportStatus, SetThrottle
 from drive_executor.errors import GoalError
 from drive_executor.goals import TERMINAL, goal_from_message, status_message
 from drive_executor.params import ExecutorParams
@@ -230,13 +231,15 @@ class ExecutorNode(LifecycleNode):
     def publish_events(self) -> None:
         """Statuses, U1 and the power mode the core reported."""
         for event in self.core.drain():
-            if event[0] == "throttle":
-                self.throttle_pub.publish(Bool(data=event[1]))
-                continue
-            _, goal, code, stuck = event
-            self.status_pub.publish(status_message(goal, code))
-            if code in TERMINAL:
-                self.stuck_pub.publish(Bool(data=bool(stuck)))
+            match event:
+                case SetThrottle(on):
+                    self.throttle_pub.publish(Bool(data=on))
+                case ReportStatus(goal, code, stuck):
+                    self.status_pub.publish(status_message(goal, code))
+                    if code in TERMINAL:
+                        self.stuck_pub.publish(Bool(data=bool(stuck)))
+                case _:
+                    assert_never(event)
 
     def publish_diagnostics(self) -> None:
         """OK while driving or ready; WARN while stopped (with why); ERROR on bad input."""

@@ -103,14 +103,22 @@ class Primitive:
     name = "primitive"
 
     def __init__(self, params: ExecutorParams, limits: Limits) -> None:
-        self.params = params
-        self.limits = limits
+        self.params: ExecutorParams = params
+        """The executor's parameters (tolerances, gains, time allowance)."""
+        self.limits: Limits = limits
+        """Speed and acceleration limits."""
         self.started: float | None = None
-        self.check_time = 0.0
-        self.check_error = math.inf
+        """Time :meth:`on_run` started it (moved on by a pause; ``None``: not started)."""
+        self.check_time: float = 0.0
+        """Time the progress window began."""
+        self.check_error: float = math.inf
+        """The error left when the progress window began."""
         self.last_time: float | None = None
-        self.last_twist = STOP
-        self.failure = ""
+        """Time of the last control step."""
+        self.last_twist: Twist2D = STOP
+        """The twist of the last control step (the ramps start from it)."""
+        self.failure: str = ""
+        """Why it failed (empty: it has not)."""
 
     def on_run(self, pose: Pose2D, now: float) -> None:
         """Start from ``pose`` at time ``now`` (s).
@@ -205,11 +213,16 @@ class DriveCells(Primitive):
 
     def __init__(self, cells: int, params: ExecutorParams, limits: Limits) -> None:
         super().__init__(params, limits)
-        self.cells = int(cells)
-        self.name = {1: "forward", -1: "backward", 0: "settle"}.get(self.cells, "drive")
-        self.target = (0.0, 0.0)
-        self.axis = (1.0, 0.0)
-        self.yaw = 0.0
+        self.cells: int = int(cells)
+        """Cells to drive (negative: backward; 0: settle)."""
+        self.name: str = {1: "forward", -1: "backward", 0: "settle"}.get(self.cells, "drive")
+        """The primitive's name in failures."""
+        self.target: tuple[float, float] = (0.0, 0.0)
+        """The cell centre to reach (set by :meth:`on_run`)."""
+        self.axis: tuple[float, float] = (1.0, 0.0)
+        """Unit vector of the heading held."""
+        self.yaw: float = 0.0
+        """The heading held (rad)."""
 
     def _start(self, pose: Pose2D) -> None:
         cell = self.params.cell_size
@@ -256,9 +269,12 @@ class Turn(Primitive):
         super().__init__(params, limits)
         if direction not in (1, -1):
             raise GoalError("<goal>", "turn", direction, "must be +1 (right) or -1 (left)")
-        self.direction = direction
-        self.name = "turn right" if direction == 1 else "turn left"
-        self.target = 0.0
+        self.direction: int = direction
+        """+1: right, -1: left."""
+        self.name: str = "turn right" if direction == 1 else "turn left"
+        """The primitive's name in failures."""
+        self.target: float = 0.0
+        """The yaw to reach (set by :meth:`on_run`)."""
 
     def _start(self, pose: Pose2D) -> None:
         self.target = heading_to_yaw((yaw_to_heading(pose.yaw) + self.direction) % 4)

@@ -31,10 +31,10 @@ turns that back into ticks the controllers can run on unchanged, in their lockst
    behaviour waits for nobody and blocks nobody. A robot whose executor does not finish
    within ``motion_limit`` seconds is reported and the tick goes on without it (stuck).
 
-Oversight (DESIGN.md, "Operator oversight and safety"): the tick runs only while the team is
-:attr:`TeamTick.armed` (the node sets it from the supervisor's heartbeat, with the 0.5 s
-deadman, and the e-stop). Not armed, no snapshot is taken, no word is turned into goals and
-no further goal is granted; a pause while robots drive leaves their goals to their
+Oversight (docs/architecture.md, "Operator oversight and safety"): the tick runs only while
+the team is :attr:`TeamTick.armed` (the node sets it from the supervisor's heartbeat, with
+the 0.5 s deadman, and the e-stop). Not armed, no snapshot is taken, no word is turned into
+goals and no further goal is granted; a pause while robots drive leaves their goals to their
 executors (which stop and carry on after the resume), and time not armed does not count
 toward ``motion_limit``. A snapshot the team was held for by the operator (a pause, a
 disarm or an e-stop: :attr:`TeamTick.hold` says why the team is held) is asked for again
@@ -45,19 +45,20 @@ only delays the tick, however long it lasts: the request stands, and asking agai
 render another frame and sweep and move the simulated sensors' noise stream on; only the
 blades get ``blade_wait`` again to reach their settings (a blade driver homes its blade
 when heartbeats stop). (A supervisor that restarts in the dome starts disarmed, which is
-the operator's hold.)
-Robots in :attr:`TeamTick.absent`
-(disabled or lost: ``/robot_k/enabled`` false) are not waited for: the snapshot needs no
-pose of theirs, their word is 0 and their motion counts as done at once.
+the operator's hold.) Robots in :attr:`TeamTick.absent` (disabled or lost:
+``/robot_k/enabled`` false) are not waited for: the snapshot needs no pose of theirs, their
+word is 0 and their motion counts as done at once.
 
 Times: ``now`` is the node clock (sim time in CI), ``wall`` a monotonic wall clock for the
-controllers' answers. The node turns the returned actions into messages.
+controllers' answers. The node turns the returned actions (:data:`TickAction`: one frozen
+dataclass per kind) into messages, in the order returned.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import Any
 
 import numpy as np
 
@@ -76,6 +77,74 @@ GAPS = (HEARTBEAT_GAP, NO_HEARTBEAT)
 """Holds that cannot have changed the site: no new snapshot after them."""
 STAMP_SLACK = 1e-6
 """Seconds: stamps are integer nanoseconds, times here floats (0.1 + 3.65 > 3.75)."""
+
+
+# --- actions: what the tick asks its node to send --------------------------------------------
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """The perception snapshot of one tick: the payloads the node stored, per robot.
+
+    ``poses`` and ``blades`` hold, per robot, the message of its newest pose and blade
+    state (``None`` for a robot never seen: an absent one); ``heights`` the newest height
+    map; ``stuck`` every robot's U1 (its executor aborted the last goal, or it was left out).
+    """
+
+    poses: tuple[Any, ...]
+    heights: Any
+    blades: tuple[Any, ...]
+    stuck: tuple[bool, ...]
+
+
+@dataclass(frozen=True)
+class RequestSnapshot:
+    """Ask for a snapshot (``/team/snapshot``): taken at ``not_before`` (s) or later.
+
+    ``label`` is ``tick t``; a request not acknowledged is sent again unchanged.
+    """
+
+    label: str
+    not_before: float
+
+
+@dataclass(frozen=True)
+class PublishTick:
+    """Republish the snapshot of tick ``tick`` stamped ``stamp`` (s): the controllers decide."""
+
+    tick: int
+    stamp: float
+    snapshot: Snapshot
+
+
+@dataclass(frozen=True)
+class SendGoal:
+    """Robot ``robot`` may move: its ``word`` of tick ``tick`` (stamped ``stamp``, s).
+
+    ``turn`` is the random turn's direction (``RIGHT``, ``LEFT``; 0: the word has none).
+    """
+
+    robot: int
+    tick: int
+    stamp: float
+    word: int
+    turn: int
+
+
+@dataclass(frozen=True)
+class Report:
+    """Something the operator should read (logged, kept for the result, on ``/diagnostics``)."""
+
+    message: str
+
+
+@dataclass(frozen=True)
+class Finished:
+    """The last tick's snapshot is in: write the result and stop."""
+
+
+TickAction = RequestSnapshot | PublishTick | SendGoal | Report | Finished
+"""Every action :class:`TeamTick` returns (``typing.get_args`` lists the classes)."""
 
 
 @dataclass(frozen=True)
@@ -177,54 +246,101 @@ def draw_turns(words: list[int], rng: np.ndarray) -> list[int]:
 class TeamTick:
     """The barrier between perception, controllers and executors (pure, no ``rclpy``).
 
-    Feed it inputs (``on_*``), call :meth:`step` often; it returns actions:
-    ``("request", label, not_before)`` ask for a snapshot taken at ``not_before`` or later
-    (sent again unchanged while not acknowledged);
-    ``("publish", tick, stamp, snapshot)`` the snapshot of a tick (``snapshot``:
-    ``{"poses": [...], "heights": ..., "blades": [...], "stuck": [...]}``, the payloads
-    the node stored); ``("goal", robot, tick, stamp, word,
-    turn)``; ``("report", message)``; ``("finished",)``.
+    Feed it inputs (``on_*``), call :meth:`step` often; it returns actions
+    (:data:`TickAction`), in the order the node must send them:
+    :class:`RequestSnapshot` (ask for a snapshot; sent again unchanged while not
+    acknowledged), :class:`PublishTick` (the snapshot of a tick), :class:`SendGoal` (a robot
+    may move), :class:`Report` and :class:`Finished`.
 
     The node sets :attr:`armed` (the team may move) and :attr:`hold` (while not armed, why:
     :meth:`~excavation_common.safety.MotionGate.kind` of the gate's reason; ``None`` counts
-    as a hold that may have changed the site) before every :meth:`step`.
+    as a hold that may have changed the site) before every :meth:`step`, and keeps
+    :attr:`absent`. Every other field is the tick's own state.
     """
 
     params: TeamTickParams
     rng: np.ndarray
-    phase: Phase = Phase.WAITING
-    tick: int = 0
-    poses: dict[int, Latest] = field(default_factory=dict)
-    heights: Latest | None = None
-    blades: dict[int, Latest] = field(default_factory=dict)
-    words: dict[int, int] = field(default_factory=dict)
+    """The world's random-turn stream (``next_random`` state), advanced by every random turn."""
+
+    # --- set by the node ---------------------------------------------------------------------
     armed: bool = True
+    """The team may move (a fresh armed heartbeat, no e-stop)."""
     hold: str | None = None
+    """While not armed, why (:data:`GAPS` only delay the snapshot)."""
     absent: set[int] = field(default_factory=set)
-    records: list[TickRecord] = field(default_factory=list)
-    stuck: list[bool] = field(default_factory=list)
-    late: list[int] = field(default_factory=list)
-    missed: list[int] = field(default_factory=list)
-    _since: float = 0.0
-    _asked: float = 0.0
-    _after: float = 0.0
-    _after_wall: float = 0.0
-    _wall: float = 0.0
-    _expected: list[int | None] = field(default_factory=list)
-    _waits: list[set[int]] = field(default_factory=list)
-    _granted: dict[int, float] = field(default_factory=dict)
-    _done: set[int] = field(default_factory=set)
-    _turns: list[int] = field(default_factory=list)
-    _final: bool = False
-    holds: int = 0
-    _was_armed: bool = True
-    _held: bool = False
-    _held_wall: float = 0.0
-    _held_kinds: list[str] = field(default_factory=list)
-    _not_before: float = 0.0
-    _acked: bool = False
-    _rearmed: float = 0.0
-    _last_now: float | None = None
+    """Robots disabled or lost: not waited for, word 0."""
+
+    # --- where the tick is (read by the node and the tests) ---------------------------------
+    phase: Phase = field(default=Phase.WAITING, init=False)
+    """The state machine's phase."""
+    tick: int = field(default=0, init=False)
+    """The tick being run (the next one once its motion ended)."""
+    poses: dict[int, Latest] = field(default_factory=dict, init=False)
+    """Per robot: its newest pose (value: grid ``(row, col, heading)``)."""
+    heights: Latest | None = field(default=None, init=False)
+    """The newest height map."""
+    blades: dict[int, Latest] = field(default_factory=dict, init=False)
+    """Per robot: its newest measured blade (value: the setting)."""
+    words: dict[int, int] = field(default_factory=dict, init=False)
+    """This tick's words so far, per robot (the first word after the snapshot)."""
+    records: list[TickRecord] = field(default_factory=list, init=False)
+    """What every tick so far did."""
+    stuck: list[bool] = field(default_factory=list, init=False)
+    """Per robot: U1 (its executor aborted its last goal, or it was left out)."""
+    late: list[int] = field(default_factory=list, init=False)
+    """Per robot: ticks it was left out of for not finishing within ``motion_limit``."""
+    missed: list[int] = field(default_factory=list, init=False)
+    """Per robot: ticks it idled for want of a word."""
+    holds: int = field(default=0, init=False)
+    """Times the team was held (armed turned false) while the ticks ran."""
+
+    # --- the snapshot request ---------------------------------------------------------------
+    _after: float = field(default=0.0, init=False)
+    """Node time the last motion ended (or the team was armed after an operator's hold)."""
+    _after_wall: float = field(default=0.0, init=False)
+    """Wall time of :attr:`_after` (``snapshot_limit`` counts from it)."""
+    _asked: float = field(default=0.0, init=False)
+    """Wall time the request was last sent (``snapshot_retry`` counts from it)."""
+    _not_before: float = field(default=0.0, init=False)
+    """The instant the request standing asks for (node time)."""
+    _acked: bool = field(default=False, init=False)
+    """The simulator acknowledged the request standing (or none will: ``snapshot_ack`` off)."""
+    _rearmed: float = field(default=0.0, init=False)
+    """Node time the team was last armed again after a hold (blades get ``blade_wait`` anew)."""
+    _final: bool = field(default=False, init=False)
+    """The last tick's motion ended: its snapshot finishes the run."""
+
+    # --- holds ------------------------------------------------------------------------------
+    _was_armed: bool = field(default=True, init=False)
+    """:attr:`armed` at the previous :meth:`step` (counts :attr:`holds`)."""
+    _last_now: float | None = field(default=None, init=False)
+    """Node time of the previous :meth:`step` (held time is added to the grants)."""
+    _held: bool = field(default=False, init=False)
+    """The snapshot phase is held (not armed) since :attr:`_held_wall`."""
+    _held_wall: float = field(default=0.0, init=False)
+    """Wall time the snapshot phase's hold began."""
+    _held_kinds: list[str] = field(default_factory=list, init=False)
+    """Why the snapshot phase was held, each reason once in order."""
+
+    # --- the tick's snapshot, words and motion ----------------------------------------------
+    _wall: float = field(default=0.0, init=False)
+    """Wall time the tick's snapshot was published (the word timeouts count from it)."""
+    _grid: list[tuple[int, int, int]] = field(default_factory=list, init=False)
+    """Per robot: its grid pose in the tick's snapshot (``(0, 0, 0)``: none)."""
+    _settings: list[int | None] = field(default_factory=list, init=False)
+    """Per robot: its blade setting in the tick's snapshot (``None``: none)."""
+    _word_of: list[int] = field(default_factory=list, init=False)
+    """Per robot: the word it carries out this tick (0: silent or absent)."""
+    _turns: list[int] = field(default_factory=list, init=False)
+    """Per robot: this tick's random-turn direction (0: none)."""
+    _waits: list[set[int]] = field(default_factory=list, init=False)
+    """Per robot: the robots it waits for this tick (:func:`schedule`)."""
+    _expected: list[int | None] = field(default_factory=list, init=False)
+    """Per robot: the blade setting its last word asked for (``None``: unknown)."""
+    _granted: dict[int, float] = field(default_factory=dict, init=False)
+    """Robots granted their goal this tick: node time of the grant (moved on while held)."""
+    _done: set[int] = field(default_factory=set, init=False)
+    """Robots whose motion this tick is over (finished, left out or absent)."""
 
     def __post_init__(self) -> None:
         n = self.params.robots
@@ -296,7 +412,7 @@ class TeamTick:
             "holds": self.holds,
         }
 
-    def start(self, now: float, wall: float = 0.0) -> list[tuple]:
+    def start(self, now: float, wall: float = 0.0) -> list[TickAction]:
         """The team is present: ask for the snapshot of tick 0."""
         self.phase = Phase.SNAPSHOT
         self._after, self._after_wall = now, wall
@@ -304,7 +420,7 @@ class TeamTick:
 
     # --- the state machine ----------------------------------------------------------------------
 
-    def step(self, now: float, wall: float) -> list[tuple]:
+    def step(self, now: float, wall: float) -> list[TickAction]:
         """Advance as far as the inputs allow."""
         last, self._last_now = self._last_now, now
         if self.armed != self._was_armed:
@@ -321,17 +437,17 @@ class TeamTick:
             return self._step_motion(now, wall)
         return []
 
-    def _request(self, wall: float, not_before: float | None = None) -> list[tuple]:
+    def _request(self, wall: float, not_before: float | None = None) -> list[TickAction]:
         """Ask for the snapshot (``not_before``: a later instant than the tick's own)."""
         self._asked = wall
         self._not_before = self._after + self.params.settle if not_before is None else not_before
         self._acked = not self.params.snapshot_ack  # none will come: taken as it is sent
-        return [("request", f"tick {self.tick}", self._not_before)]
+        return [RequestSnapshot(f"tick {self.tick}", self._not_before)]
 
-    def _resend(self, wall: float) -> list[tuple]:
+    def _resend(self, wall: float) -> list[TickAction]:
         """The request not acknowledged, unchanged (the simulator takes it once)."""
         self._asked = wall
-        return [("request", f"tick {self.tick}", self._not_before)]
+        return [RequestSnapshot(f"tick {self.tick}", self._not_before)]
 
     def snapshot_ready(self, now: float) -> str | None:
         """What the snapshot still lacks (``None``: complete)."""
@@ -351,7 +467,7 @@ class TeamTick:
                     return f"blade of robot {k} at its setting"
         return None
 
-    def _step_snapshot(self, now: float, wall: float) -> list[tuple]:
+    def _step_snapshot(self, now: float, wall: float) -> list[TickAction]:
         if not self.armed:
             if not self._held:
                 self._held, self._held_wall, self._held_kinds = True, wall, []
@@ -370,43 +486,43 @@ class TeamTick:
                 self._after, self._after_wall = now, wall
                 why = ", ".join(self._held_kinds)
                 return [
-                    ("report", f"tick {self.tick}: team held {held:.1f} s ({why}); new snapshot"),
+                    Report(f"tick {self.tick}: team held {held:.1f} s ({why}); new snapshot"),
                     *self._request(wall),
                 ]
         missing = self.snapshot_ready(now)
-        out: list[tuple] = []
+        out: list[TickAction] = []
         if missing is not None:
             late = wall - self._after_wall > self.params.snapshot_limit
             if late and self._has_everything():
-                out.append(("report", f"tick {self.tick}: snapshot without a fresh {missing}"))
+                out.append(Report(f"tick {self.tick}: snapshot without a fresh {missing}"))
             else:
                 if wall - self._asked >= self.params.snapshot_retry:
                     if not self._acked:
                         out.append(
-                            ("report", f"tick {self.tick}: request not acknowledged; asking again")
+                            Report(f"tick {self.tick}: request not acknowledged; asking again")
                         )
                         out += self._resend(wall)
                     else:  # taken, and still without it: another instant
-                        out.append(("report", f"tick {self.tick}: no {missing} yet; asking again"))
+                        out.append(Report(f"tick {self.tick}: no {missing} yet; asking again"))
                         out += self._request(wall, max(now, self._not_before))
                 return out
         if self._final:
             self.phase = Phase.FINISHED
-            return out + [("finished",)]
+            return out + [Finished()]
         n = self.params.robots
-        snapshot = {
-            "poses": [self.poses[k].payload if k in self.poses else None for k in range(n)],
-            "heights": self.heights.payload,
-            "blades": [self.blades[k].payload if k in self.blades else None for k in range(n)],
-            "stuck": list(self.stuck),
-        }
+        snapshot = Snapshot(
+            poses=tuple(self.poses[k].payload if k in self.poses else None for k in range(n)),
+            heights=self.heights.payload,
+            blades=tuple(self.blades[k].payload if k in self.blades else None for k in range(n)),
+            stuck=tuple(self.stuck),
+        )
         self._grid = [self.poses[k].value if k in self.poses else (0, 0, 0) for k in range(n)]
         self._settings = [self.blades[k].value if k in self.blades else None for k in range(n)]
         self.phase = Phase.WORDS
         self.words = {}
         self._wall = wall
         self.records.append(TickRecord(self.tick, [], [], [], [], started_wall=wall))
-        return out + [("publish", self.tick, self.tick * self.params.tick_period, snapshot)]
+        return out + [PublishTick(self.tick, self.tick * self.params.tick_period, snapshot)]
 
     def _has_everything(self) -> bool:
         present = [k for k in range(self.params.robots) if k not in self.absent]
@@ -416,7 +532,7 @@ class TeamTick:
             and all(k in self.blades for k in present)
         )
 
-    def _step_words(self, now: float, wall: float) -> list[tuple]:
+    def _step_words(self, now: float, wall: float) -> list[TickAction]:
         n = self.params.robots
         limit = self.params.first_word_timeout if self.tick == 0 else self.params.word_timeout
         present = set(range(n)) - self.absent
@@ -424,12 +540,12 @@ class TeamTick:
             return []
         if not self.armed:
             return []  # the words wait for the team (held: nothing moves)
-        out: list[tuple] = []
+        out: list[TickAction] = []
         silent = sorted(present - set(self.words))
         for k in silent:
             self.missed[k] += 1
         if silent:
-            out.append(("report", f"tick {self.tick}: no word from robots {silent}; they idle"))
+            out.append(Report(f"tick {self.tick}: no word from robots {silent}; they idle"))
         words = [self.words.get(k, 0) if k in present else 0 for k in range(n)]
         self._turns = draw_turns(words, self.rng)
         self._waits = schedule(self._grid, words, self.params.reach)
@@ -438,15 +554,14 @@ class TeamTick:
             for k in range(n)
         ]
         self._granted, self._done = {}, set()
-        self._words_list = words
+        self._word_of = words
         record = self.records[-1]
         record.words, record.turns, record.motion_wall = words, list(self._turns), wall
         self.phase = Phase.MOTION
-        self._since = now
         return out + self._grant(now)
 
-    def _grant(self, now: float) -> list[tuple]:
-        out = []
+    def _grant(self, now: float) -> list[TickAction]:
+        out: list[TickAction] = []
         if not self.armed:
             return out
         stamp = self.tick * self.params.tick_period
@@ -454,13 +569,13 @@ class TeamTick:
             if k in self._granted or not self._waits[k] <= self._done:
                 continue
             self._granted[k] = now
-            out.append(("goal", k, self.tick, stamp, self._words_list[k], self._turns[k]))
+            out.append(SendGoal(k, self.tick, stamp, self._word_of[k], self._turns[k]))
             if k in self.absent:  # told (its executor and the simulator keep in step), not awaited
                 self._done.add(k)
         return out
 
-    def _step_motion(self, now: float, wall: float) -> list[tuple]:
-        out: list[tuple] = []
+    def _step_motion(self, now: float, wall: float) -> list[TickAction]:
+        out: list[TickAction] = []
         for k in self.absent & set(self._granted):
             self._done.add(k)  # disabled or lost while driving: its executor has stopped it
         for k, granted in self._granted.items():
@@ -470,10 +585,9 @@ class TeamTick:
                 self.stuck[k] = True
                 self.late[k] += 1
                 out.append(
-                    (
-                        "report",
+                    Report(
                         f"tick {self.tick}: robot {k} did not finish within "
-                        f"{self.params.motion_limit} s; the tick goes on without it",
+                        f"{self.params.motion_limit} s; the tick goes on without it"
                     )
                 )
         out += self._grant(now)

@@ -36,6 +36,7 @@ import json
 import sys
 import time
 from dataclasses import dataclass
+from typing import assert_never
 
 import numpy as np
 from action_msgs.msg import GoalInfo, GoalStatus
@@ -62,7 +63,18 @@ from excavation_common.ros import (
 )
 from excavation_common.safety import ENABLED_TOPIC, ESTOP_TOPIC, HEARTBEAT_TOPIC, MotionGate
 from excavation_sim.world import scenario_start
-from team_tick.core import Phase, TeamTick, TeamTickParams
+from team_tick.core import (
+    Finished,
+    Phase,
+    PublishTick,
+    Report,
+    RequestSnapshot,
+    SendGoal,
+    Snapshot,
+    TeamTick,
+    TeamTickParams,
+    TickAction,
+)
 
 SNAPSHOT_TOPIC = "/team/snapshot"
 SNAPSHOT_ACK_TOPIC = "/team/snapshot_ack"
@@ -265,41 +277,42 @@ class TeamTickNode(Node):
             return
         self.execute(self.core.step(now, wall))
 
-    def execute(self, actions: list[tuple]) -> None:
-        """Publish what the state machine decided."""
+    def execute(self, actions: list[TickAction]) -> None:
+        """Publish what the state machine decided, in its order."""
         for action in actions:
-            kind = action[0]
-            if kind == "request":
-                self.request_pub.publish(Header(stamp=_time(action[2]), frame_id=action[1]))
-            elif kind == "publish":
-                self.publish_tick(action[1], _time(action[2]), action[3])
-            elif kind == "goal":
-                _, k, tick, stamp, word, turn = action
-                ns = int(round(stamp * 1e9))
-                goal = DriveGoal(tick, word, turn, k, (ns // 1_000_000_000, ns % 1_000_000_000))
-                self.goal_pubs[k].publish(goal_message(goal))
-            elif kind == "report":
-                self.reports.append(action[1])
-                self.get_logger().warning(action[1])
-                self.publish_diagnostics(action[1])
-            elif kind == "finished":
-                if self.topics.result_file:
-                    summary = self.core.summary() | {"reports": self.reports}
-                    write_text_atomic(self.topics.result_file, json.dumps(summary))
-                self.publish_diagnostics(f"finished {self.core.tick} ticks")
+            match action:
+                case RequestSnapshot(label, not_before):
+                    self.request_pub.publish(Header(stamp=_time(not_before), frame_id=label))
+                case PublishTick(tick, stamp, snapshot):
+                    self.publish_tick(tick, _time(stamp), snapshot)
+                case SendGoal(k, tick, stamp, word, turn):
+                    ns = int(round(stamp * 1e9))
+                    sec_ns = (ns // 1_000_000_000, ns % 1_000_000_000)
+                    self.goal_pubs[k].publish(goal_message(DriveGoal(tick, word, turn, k, sec_ns)))
+                case Report(message):
+                    self.reports.append(message)
+                    self.get_logger().warning(message)
+                    self.publish_diagnostics(message)
+                case Finished():
+                    if self.topics.result_file:
+                        summary = self.core.summary() | {"reports": self.reports}
+                        write_text_atomic(self.topics.result_file, json.dumps(summary))
+                    self.publish_diagnostics(f"finished {self.core.tick} ticks")
+                case _:
+                    assert_never(action)
 
-    def publish_tick(self, tick: int, stamp: TimeMsg, snapshot: dict) -> None:
+    def publish_tick(self, tick: int, stamp: TimeMsg, snapshot: Snapshot) -> None:
         """Republish a snapshot stamped with its tick."""
         self.tick_pub.publish(Header(stamp=stamp, frame_id=str(tick)))
-        heights = snapshot["heights"]
+        heights = snapshot.heights
         heights.header.stamp = stamp
         self.heights_pub.publish(heights)
         for k in range(self.n):
-            self.stuck_pubs[k].publish(Bool(data=bool(snapshot["stuck"][k])))
-            blade = snapshot["blades"][k]
+            self.stuck_pubs[k].publish(Bool(data=bool(snapshot.stuck[k])))
+            blade = snapshot.blades[k]
             blade.header.stamp = stamp
             self.blade_pubs[k].publish(blade)
-            pose = snapshot["poses"][k]
+            pose = snapshot.poses[k]
             pose.header.stamp = stamp
             self.pose_pubs[k].publish(pose)
 
