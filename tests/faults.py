@@ -1,7 +1,7 @@
 """Fault injection for trials through the nodes (docs/reliability.md, "Fault matrix").
 
 :class:`FaultTrial` runs a lockstep trial with every node its own process
-(:class:`excavation_bringup.trial.TrialProcesses`, what ``ant-trial --processes`` runs) and
+(:class:`excavation_bringup.launch.ProcessLauncher`, what ``ant-trial --processes`` runs) and
 a watcher node in this process that listens on the same ROS domain: the tick (``/clock``),
 every ``/diagnostics`` status, and with full perception the true and the mapped height
 maps. A test kills a node (SIGKILL), restarts it, changes a node's parameters at runtime
@@ -28,7 +28,9 @@ from pathlib import Path
 import numpy as np
 from conftest import next_domain
 
-from excavation_bringup.trial import TrialProcesses, TrialSpec
+from excavation_bringup.deployment import Deployment
+from excavation_bringup.graph import build
+from excavation_bringup.launch import ProcessLauncher
 
 
 @dataclass
@@ -143,8 +145,8 @@ class FaultTrial:
         workdir: Logs, ``result.json``, the calibration (and bags, when asked).
         robots, steps, seed, controller, blueprint, command_timeout, blade_driver,
         perception, record: As ``ant-trial``'s options.
-        start: Start every node now (else: change ``processes.commands``, then
-            ``processes.start()``).
+        start: Start every node now (else: change parameters with
+            ``processes.set_params``, then ``processes.start()``).
         continuous: The continuous trial (``--drive continuous``): drive executors, the
             ``dynamics`` simulator and the team tick, whose ``/team/tick`` is the tick and
             whose ``result.json`` is :meth:`result`.
@@ -167,7 +169,7 @@ class FaultTrial:
     ) -> None:
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
         self.domain = next_domain()
-        self.spec = TrialSpec(
+        self.spec = Deployment(
             controller,
             robots,
             steps,
@@ -180,14 +182,11 @@ class FaultTrial:
             blade_driver,
             record,
             perception,
+            drive="continuous" if continuous else "grid",
+            exact=True,  # ant-trial --drive continuous --no-slip
+            processes=True,
         )
-        if continuous:  # ant-trial --drive continuous --processes (exact: no slip noise)
-            from excavation_bringup.continuous_processes import FINAL, continuous_commands
-
-            commands = continuous_commands(self.spec, Path(workdir), exact=True)
-            self.processes = TrialProcesses(self.spec, workdir, commands=commands, final=FINAL)
-        else:
-            self.processes = TrialProcesses(self.spec, workdir)
+        self.processes = ProcessLauncher(build(self.spec, workdir))
         self.watcher = Watcher(self.domain, perception, continuous)
         self.started = time.monotonic()
         if start:

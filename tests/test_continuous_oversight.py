@@ -30,7 +30,8 @@ from conftest import next_domain
 from test_continuous_trial import offline
 from test_trial_oversight import Watcher as LockstepWatcher
 
-from excavation_bringup.trial import LOST_GRACE, LOST_TIMEOUT, TrialSpec
+from excavation_bringup.deployment import Deployment
+from excavation_bringup.nodes import LOST_GRACE, LOST_TIMEOUT
 from excavation_common.safety import ESTOPPED, HELD
 
 GENOME = "genomes/best.json"
@@ -50,14 +51,12 @@ TIME_FACTOR = 5.0
 then keeps up with every ``cmd_vel`` (4 robots x 20 Hz of sim time) on a loaded machine."""
 
 
-def _trial(spec: TrialSpec, exact: bool, time_factor: float, out) -> None:
+def _trial(spec: Deployment, out) -> None:
     """The trial process: runs the continuous trial and sends back its result (or error)."""
-    from ant_controller.controller import Controller
-    from excavation_bringup.continuous_trial import run_continuous
+    from excavation_bringup.trial import run_deployment
 
     try:
-        ctl = Controller.from_file(spec.controller)
-        out.put(("result", run_continuous(ctl, spec, exact=exact, time_factor=time_factor)))
+        out.put(("result", run_deployment(spec)))
     except Exception as exc:  # reported by the test
         out.put(("error", repr(exc)))
 
@@ -66,7 +65,7 @@ class Trial:
     """A continuous trial in a spawned process."""
 
     def __init__(self, domain: int, steps: int, exact=True, time_factor=TIME_FACTOR, **spec):
-        self.spec = TrialSpec(
+        self.spec = Deployment(
             controller=GENOME,
             robots=ROBOTS,
             steps=steps,
@@ -80,13 +79,13 @@ class Trial:
             record=None,
             perception=spec.pop("perception", "truth"),
             drive="continuous",
+            exact=exact,
+            time_factor=time_factor,
             **spec,
         )
         ctx = multiprocessing.get_context("spawn")
         self.queue = ctx.Queue()
-        self.process = ctx.Process(
-            target=_trial, args=(self.spec, exact, time_factor, self.queue), daemon=True
-        )
+        self.process = ctx.Process(target=_trial, args=(self.spec, self.queue), daemon=True)
         self.process.start()
         self.outcome = None
 

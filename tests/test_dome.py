@@ -263,10 +263,10 @@ def test_the_real_dome_wires_executor_team_tick_and_controller(tmp_path, ros, ro
     import yaml
 
     from excavation_bringup import site as sitefile
-    from excavation_bringup.dome import node_table
+    from excavation_bringup.dome import dome_graph
 
     site = sitefile.load_site(ROOT / "tests/data/sites/good.yaml")
-    by_name = {s.name: s for s in node_table(site, tmp_path)}
+    by_name = {s.name: s for s in dome_graph(site, tmp_path).nodes}
     env = {**ros_env, "ROS_DOMAIN_ID": str(ros.domain)}
     procs = []
     try:

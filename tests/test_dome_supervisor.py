@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from excavation_bringup.dome import NodeSpec, RestartPolicy, Supervisor
+from excavation_bringup.nodes import NodeSpec
+from excavation_bringup.supervise import Kill, Report, RestartPolicy, Start, Stop, Supervisor
 
 POLICY = RestartPolicy(
     backoff=1.0,
@@ -24,8 +25,11 @@ def make(final_last=False, restart=True):
     return Supervisor.create(specs, POLICY)
 
 
+KINDS = {"start": Start, "stop": Stop, "kill": Kill}
+
+
 def kinds(actions, kind):
-    return [a.name for a in actions if a.kind == kind]
+    return [a.name for a in actions if type(a) is KINDS[kind]]
 
 
 def start_all(sup, now=0.0):
@@ -34,7 +38,7 @@ def start_all(sup, now=0.0):
         assert kinds(sup.poll(now), "start") == []  # waits for name's diagnostics
         sup.ready(name, now)
     actions = sup.poll(now)
-    assert any("all 3 nodes are up" in a.text for a in actions)
+    assert any("all 3 nodes are up" in a.text for a in actions if isinstance(a, Report))
     assert sup.phase == "running"
 
 
@@ -50,14 +54,16 @@ def test_a_crashed_node_restarts_with_growing_back_off():
     now = 10.0
     for _ in range(3):
         sup.exited("b", -9, now)
-        reports = [a.text for a in sup.poll(now) if a.kind == "report"]
+        reports = [a.text for a in sup.poll(now) if isinstance(a, Report)]
         assert "b exited with code -9" in reports
         restart_at = sup.child("b").next_start
         delays.append(restart_at - now)
         assert kinds(sup.poll(restart_at - 0.01), "start") == []
         assert kinds(sup.poll(restart_at), "start") == ["b"]
         sup.ready("b", restart_at + 1)
-        assert any("b is up again" in a.text for a in sup.poll(restart_at + 1))
+        assert any(
+            "b is up again" in a.text for a in sup.poll(restart_at + 1) if isinstance(a, Report)
+        )
         now = restart_at + 2
     assert delays == [1.0, 2.0, 4.0]
     sup.exited("b", 1, now)  # the fourth crash within a minute: give up
@@ -128,3 +134,26 @@ def test_ctrl_c_stops_everything_and_a_crash_in_back_off_is_not_restarted():
     assert not sup.failure
     assert kinds(sup.poll(10.0), "start") == []
     assert sup.child("a").state == "stopped"
+
+
+def test_every_action_is_one_frozen_dataclass_per_kind():
+    import dataclasses
+
+    import pytest
+
+    sup = make(final_last=True)
+    seen = []
+    for name in ("a", "b", "c"):
+        seen += sup.poll(0.0)
+        sup.ready(name, 0.0)
+    seen += sup.poll(0.0)
+    sup.exited("b", 1, 1.0)
+    seen += sup.poll(5.0)
+    sup.exited("c", 0, 6.0)
+    for t in (6.0, 30.0):
+        seen += sup.poll(t)
+    assert {type(a) for a in seen} == {Start, Stop, Kill, Report}
+    for action in seen:
+        assert dataclasses.is_dataclass(action)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            action.name = "x"

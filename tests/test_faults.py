@@ -543,7 +543,7 @@ def test_evolve_killed_during_checkpoint_writes(tmp_path):
 
 # --- the continuous trial (ant-trial --drive continuous --processes) ---------------------------
 #
-# Every node its own process (excavation_bringup.continuous_processes): the fault is a SIGKILL
+# Every node its own process (excavation_bringup.launch.ProcessLauncher): the fault is a SIGKILL
 # of the node's process and its restart with the same command line.
 
 MOTION_LIMIT = 15.0
@@ -559,7 +559,7 @@ def executor(k: int) -> str:
 def continuous_fault_trial(tmp_path, robots: int, steps: int) -> FaultTrial:
     """A continuous process trial (truth perception) whose team tick waits 15 s for a robot."""
     trial = FaultTrial(tmp_path, robots=robots, steps=steps, continuous=True, start=False)
-    trial.processes.commands["team_tick"] += ["-p", f"motion_limit:={MOTION_LIMIT}"]
+    trial.processes.set_params("team_tick", motion_limit=MOTION_LIMIT)
     trial.processes.start()
     return trial
 

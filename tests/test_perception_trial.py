@@ -6,20 +6,21 @@ import numpy as np
 import pytest
 from conftest import next_domain
 
-import excavation_bringup.perception as perception
+import excavation_bringup.trial as trial
 from excavation_bringup.trial import main, run_trial
 
 
 def test_short_trial_with_full_perception_matches_truth(monkeypatch):
     made = []
-    original = perception.perception_nodes
+    original = trial.compose
 
     def spy(*args, **kwargs):
         nodes = original(*args, **kwargs)
-        made.extend(nodes)
+        if "sensors" in nodes:  # the full-perception run, not the truth run after it
+            made.extend(nodes[name] for name in ("sensors", "localizer", "mapper"))
         return nodes
 
-    monkeypatch.setattr(perception, "perception_nodes", spy)
+    monkeypatch.setattr(trial, "compose", spy)
     steps, seed = 10, 3
     full = run_trial(
         "genomes/best.json",

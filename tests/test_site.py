@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from excavation_bringup import site as sitefile
-from excavation_bringup.dome import main, node_table
+from excavation_bringup.dome import dome_graph, main
 from excavation_common.params import validate
 
 SITES = Path(__file__).parent / "data" / "sites"
@@ -101,13 +101,13 @@ def test_the_dome_template_lacks_only_its_calibration_and_drives_every_base(tmp_
     assert "does not exist (run `calibrate`" in str(errors[0])
     assert main(["check", str(template)]) == 1
     assert capsys.readouterr().out.count("camera.calibration") == 1
-    table = node_table(site, tmp_path)
+    table = dome_graph(site, tmp_path).nodes
     by_name = {s.name: s for s in table}
     assert table[0].name == "supervisor" and table[0].params["arm_at_start"] is False
     assert all("use_sim_time" not in s.params for s in table)  # the dome runs on wall time
     for k, robot in enumerate(site.robots):
         executor = by_name[f"executor_{k}"]
-        assert executor.module == "drive_executor.executor_node"
+        assert executor.kind == "executor"
         assert executor.remaps == (f"/robot_{k}/cmd_vel:={robot.drive_topic}",)
         validate(ExecutorParams, executor.params, executor.name)
     tick = by_name["team_tick"]
@@ -124,12 +124,9 @@ def test_missing_file_and_load_site_raises(tmp_path):
         sitefile.load_site(SITES / "soil_unit.yaml")
 
 
-def _config_keys(package: str, name: str) -> set[str]:
-    import importlib
-
-    module = importlib.import_module(package)
-    doc = yaml.safe_load((Path(module.__file__).parents[1] / "config" / name).read_text())
-    return set(next(iter(doc.values()))["ros__parameters"])
+def _config_keys(kind: str) -> set[str]:
+    """Every parameter node kind ``kind`` declares (the registry's dataclasses)."""
+    return sitefile.node_parameter_names(kind)
 
 
 @pytest.mark.parametrize("sim", [False, True])
@@ -141,7 +138,7 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
 
     path = CONFIG / "site_sim.yaml" if sim else SITES / "good.yaml"
     site = sitefile.load_site(path, sim=sim)
-    table = node_table(site, tmp_path, sim=sim, record=str(tmp_path / "bag"), view=True)
+    table = dome_graph(site, tmp_path, sim=sim, record=str(tmp_path / "bag"), view=True).nodes
     names = [s.name for s in table]
     # the recorder first (it sees every topic); with --sim the simulated robots and the
     # clock (dynamics, the executors), then the team supervisor; in the dome the executors
@@ -159,7 +156,7 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
         # every node but the clock, the recorder and the view runs on the simulator's clock
         on_sim_time = spec.params.pop("use_sim_time", False)
         assert on_sim_time == (sim and spec.name not in ("dynamics", "recorder", "view"))
-        if spec.module.startswith(("overhead_localizer", "terrain_mapper")):
+        if spec.kind in ("localizer", "mapper"):
             classes = (
                 (LocalizerNodeParams, LocalizerParams)
                 if spec.name == "localizer"
@@ -169,9 +166,9 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
                 own = {f.name for f in fields(cls)}
                 validate(cls, {k: v for k, v in spec.params.items() if k in own}, spec.name)
             assert set(spec.params) <= {f.name for c in classes for f in fields(c)}
-    controller_keys = _config_keys("ant_controller", "controller.yaml")
-    executor_keys = _config_keys("drive_executor", "executor.yaml")
-    driver_keys = _config_keys("blade_driver", "driver.yaml")
+    controller_keys = _config_keys("controller")
+    executor_keys = _config_keys("executor")
+    driver_keys = _config_keys("blade_driver")
     for k in range(site.n_robots):
         c = by_name[f"controller_{k}"]
         assert set(c.params) <= controller_keys and c.namespace == f"/robot_{k}"
@@ -201,7 +198,7 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
             assert "deadman" not in executor.params
             assert executor.remaps == (f"{ns}/cmd_vel:={site.robots[k].drive_topic}",)
     tick = by_name["team_tick"]
-    assert set(tick.params) <= _config_keys("team_tick", "team_tick.yaml")
+    assert set(tick.params) <= _config_keys("team_tick")
     assert tick.params["robots"] == site.n_robots and not tick.restart
     assert tick.params.get("blade_in", "blade/plant_state") == (
         "blade/plant_state" if sim else "blade/joint_states"
@@ -209,10 +206,10 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
     assert tick.params.get("blade_out", "blade/servo_state") == (
         "blade/servo_state" if sim else "blade/tick_state"
     )
-    assert set(by_name["server"].params) <= _config_keys("blueprint_server", "server.yaml")
-    assert set(by_name["recorder"].params) <= _config_keys("excavation_bags", "bag_recorder.yaml")
+    assert set(by_name["server"].params) <= _config_keys("server")
+    assert set(by_name["recorder"].params) <= _config_keys("recorder")
     supervisor = by_name["supervisor"].params
-    assert set(supervisor) <= _config_keys("team_supervisor", "supervisor.yaml")
+    assert set(supervisor) <= _config_keys("supervisor")
     assert supervisor["robots"] == site.n_robots
     assert supervisor["arm_at_start"] is sim  # the dome starts disarmed: the operator arms
     # the one map_info publisher is the blueprint server
@@ -235,7 +232,7 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
     else:
         assert (tmp_path / "camera.yaml").exists()
         assert by_name["localizer"].params["calibration"] == str(tmp_path / "camera.yaml")
-        assert set(by_name["dynamics"].params) <= _config_keys("excavation_sim", "dynamics.yaml")
+        assert set(by_name["dynamics"].params) <= _config_keys("dynamics")
         assert by_name["dynamics"].params["slip"] == 0.0  # site_sim.yaml: sim.exact
         assert tick.final and tick.params["steps"] == site.sim.ticks
 

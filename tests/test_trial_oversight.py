@@ -25,7 +25,8 @@ from conftest import next_domain
 from test_supervisor_node import operator
 from test_trial import offline
 
-from excavation_bringup.trial import LOST_GRACE, LOST_TIMEOUT, run_trial
+from excavation_bringup.nodes import LOST_GRACE, LOST_TIMEOUT
+from excavation_bringup.trial import run_trial
 from excavation_common.safety import HELD
 
 GENOME = "genomes/best.json"

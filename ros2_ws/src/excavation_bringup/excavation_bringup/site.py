@@ -5,8 +5,9 @@ A site file names everything the node suite needs to run in one dome: the worksi
 CameraInfo topic, calibration file, LED table), the overhead laser (scan and mount topics,
 mount position and orientation offsets), the robots (name, LED pair, blade backend and port,
 drive topic, controller genome) and the network (ROS domain, discovery range). Every node's
-parameters are generated from it by one function per node (:func:`server_params`,
-:func:`localizer_params`, ...), so a value such as the soil unit is written once.
+parameters are made from it by the node spec functions of :mod:`excavation_bringup.nodes`
+(through a :class:`~excavation_bringup.deployment.Deployment`), so a value such as the soil
+unit is written once.
 
 :func:`load_site` reads and checks a file; :func:`check_site` returns every problem it
 finds (each a :class:`SiteError` naming file, field and value), which is what
@@ -23,8 +24,6 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-import yaml
 
 from excavation_common.errors import FieldError
 from excavation_common.loaders import parse_yaml, read_text_bounded
@@ -676,34 +675,12 @@ OVERRIDABLE = tuple(DERIVED)
 
 
 def node_parameter_names(node: str) -> set[str]:
-    """Every parameter the node declares (its dataclass, or its package's config YAML)."""
-    if node == "localizer":
-        from dataclasses import fields
+    """Every parameter node kind ``node`` declares (its parameter dataclasses)."""
+    from dataclasses import fields
 
-        from overhead_localizer.localize import LocalizerParams
-        from overhead_localizer.params import LocalizerNodeParams
+    from excavation_bringup.kinds import kind
 
-        return {f.name for cls in (LocalizerNodeParams, LocalizerParams) for f in fields(cls)}
-    if node == "mapper":
-        from dataclasses import fields
-
-        from terrain_mapper.mapper import MapperParams
-        from terrain_mapper.params import MapperNodeParams
-
-        return {f.name for cls in (MapperNodeParams, MapperParams) for f in fields(cls)}
-    package, config = {
-        "server": ("blueprint_server", "server.yaml"),
-        "controller": ("ant_controller", "controller.yaml"),
-        "blade_driver": ("blade_driver", "driver.yaml"),
-        "recorder": ("excavation_bags", "bag_recorder.yaml"),
-        "supervisor": ("team_supervisor", "supervisor.yaml"),
-    }[node]
-    import importlib
-
-    module = importlib.import_module(package)
-    doc = yaml.safe_load((Path(module.__file__).parents[1] / "config" / config).read_text())
-    section = next(iter(doc.values()))
-    return set(section["ros__parameters"])
+    return {f.name for cls in kind(node).param_classes() for f in fields(cls)}
 
 
 def _check_overrides(site: Site) -> list[SiteError]:
@@ -757,298 +734,7 @@ def load_site(path: str | Path, sim: bool = False) -> Site:
     return site
 
 
-# --- node parameters ----------------------------------------------------------------------
-
-
-def _merge(site: Site, node: str, params: dict[str, Any]) -> dict[str, Any]:
-    return {**params, **site.overrides.get(node, {})}
-
-
-def server_params(site: Site) -> dict[str, Any]:
-    """``blueprint_server server``: the blueprint (it alone publishes ``map_info``)."""
-    return _merge(site, "server", {"blueprint": site.worksite.blueprint})
-
-
-SIM_CLOCK = {"use_sim_time": True}
-"""With ``--sim`` every node but ``dynamics`` (the clock), the recorder and the view runs on
-the simulator's ``/clock`` (``ant-dome`` adds it to their parameters)."""
-
-
-def _sim_spec(site: Site, ticks: int):
-    """The ``ant-trial --drive continuous --perception full`` trial a ``--sim`` run equals."""
-    from excavation_bringup.trial import TrialSpec
-
-    s = site.sim
-    return TrialSpec(
-        controller="",  # each robot's genome is its controller's argument
-        robots=site.n_robots,
-        steps=int(ticks),
-        seed=s.seed,
-        blueprint=site.worksite.blueprint,
-        scenario=s.scenario,
-        domain=site.network.domain,
-        command_timeout=float(s.command_timeout),
-        timeout=0.0,
-        blade_driver=True,
-        record=None,
-        perception="full",
-        drive="continuous",
-    )
-
-
-def dynamics_params(site: Site, result_file: str) -> dict[str, Any]:
-    """``excavation_sim dynamics`` for ``--sim``: the continuous trial's simulator.
-
-    Per-step truth under ``/truth`` (the executors' loop), snapshots under ``/snapshot``
-    (what the synthetic camera and laser render); it writes ``result_file`` (the world at
-    every snapshot).
-    """
-    from excavation_bringup.continuous_processes import DYNAMICS_COMMAND_TIMEOUT, MAX_TIME_FACTOR
-    from excavation_bringup.continuous_trial import dynamics_parameters
-
-    return {
-        **dynamics_parameters(_sim_spec(site, site.sim.ticks), site.sim.exact),
-        "command_timeout": min(float(site.sim.command_timeout), DYNAMICS_COMMAND_TIMEOUT),
-        "max_time_factor": MAX_TIME_FACTOR,
-        "result_file": str(result_file),
-    }
-
-
-def executor_params(site: Site, k: int, sim: bool = True) -> dict[str, Any]:
-    """``drive_executor executor`` of robot ``k``.
-
-    With ``--sim`` its loop closes on the simulator's truth (sim time, a deadman of sim
-    seconds); in the dome on the localiser's ``/robot_k/pose`` (its relative ``pose``), on
-    the wall clock with the team's 0.5 s deadman, and its ``cmd_vel`` goes to the robot's
-    ``drive_topic`` (:func:`executor_remaps`).
-    """
-    from excavation_bringup.continuous_processes import SIM_DEADMAN
-    from excavation_bringup.continuous_trial import executor_parameters
-
-    params = executor_parameters(_sim_spec(site, 1), k, site.worksite.cell_size)
-    if not sim:
-        return {**params, "pose_topic": "pose"}
-    return {**params, "deadman": SIM_DEADMAN}
-
-
-def executor_remaps(site: Site, k: int) -> list[str]:
-    """The dome: robot ``k``'s executor drives the base on its ``drive_topic``."""
-    robot = site.robots[k]
-    return [f"/{robot.name}/cmd_vel:={robot.drive_topic}"]
-
-
-DOME_BLADE_IN = "blade/joint_states"
-"""The dome: the team tick's measured blade is each blade driver's joint state."""
-DOME_BLADE_OUT = "blade/tick_state"
-"""The dome: the blade state the team tick republishes per tick (the controller's, remapped:
-the serial driver's own joint state is stamped on the wall clock, never with a tick)."""
-
-
-def team_tick_params(
-    site: Site, ticks: int, result_file: str, sim: bool = True, record: bool = False
-) -> dict[str, Any]:
-    """``excavation_bringup team_tick``: ``ticks`` ticks (0: until stopped), then ``result_file``.
-
-    With ``record`` (``--record``) tick 0 also waits for the bag recorder to subscribe the
-    team tick's topics (``wait_for_recorder``), so that the bag holds every tick.
-
-    With ``--sim`` it reads the simulator's blades (``blade/plant_state``) and waits sim
-    seconds for them; in the dome it reads each blade driver's ``blade/joint_states``, the
-    localiser's poses and the mapper's height map, on the wall clock, and no node
-    acknowledges its snapshot requests (``snapshot_ack`` off: the camera and the laser run
-    anyway, so a request is never sent again for want of an acknowledgement).
-    """
-    from excavation_bringup.continuous_processes import SIM_BLADE_WAIT, SIM_SNAPSHOT_RETRY
-    from excavation_bringup.continuous_trial import tick_parameters
-
-    params = {
-        **tick_parameters(_sim_spec(site, ticks)),
-        "result_file": str(result_file),
-        "wait_for_recorder": bool(record),
-    }
-    if not sim:
-        return {
-            **params,
-            "blade_in": DOME_BLADE_IN,
-            "blade_out": DOME_BLADE_OUT,
-            "snapshot_ack": False,
-        }
-    return {
-        **params,
-        "blade_wait": SIM_BLADE_WAIT,
-        "snapshot_retry": SIM_SNAPSHOT_RETRY,
-        "first_word_timeout": float(site.sim.first_command_timeout),
-    }
-
-
-def controller_remaps(site: Site, k: int, sim: bool = True) -> list[str]:
-    """Robot ``k``'s controller reads the team tick's snapshot (``/tick``).
-
-    In the dome its blade state is the tick's too (:data:`DOME_BLADE_OUT`); with ``--sim``
-    the blade driver's ``sim`` backend already stamps it with the tick.
-    """
-    from excavation_bringup.continuous_trial import controller_remaps as remaps
-
-    out = remaps(k, site.n_robots)[2::2]  # past "--ros-args", each "-r"
-    if not sim:
-        ns = f"/{site.robots[k].name}"
-        out.append(f"{ns}/blade/joint_states:={ns}/{DOME_BLADE_OUT}")
-    return out
-
-
-def sensors_params(site: Site) -> dict[str, Any]:
-    """``excavation_sim sensors`` for ``--sim``: the synthetic camera and laser of the site."""
-    w = site.worksite
-    from excavation_bringup.continuous_trial import SNAPSHOT_PREFIX
-
-    return {
-        "robots": site.n_robots,
-        "seed": site.sim.seed,
-        "truth_prefix": SNAPSHOT_PREFIX,  # the simulator's snapshot after each tick's motion
-        "sweep_scans": site.laser.sweep_scans,
-        "cell_size": float(w.cell_size),
-        "rows": w.rows,
-        "cols": w.cols,
-        "reliable": True,
-    }
-
-
-def localizer_params(
-    site: Site, calibration: str, beacons: str, reliable: bool = False
-) -> dict[str, Any]:
-    """``overhead_localizer localizer``: camera topics, calibration and the site's LED table."""
-    from excavation_bringup.perception import RETAKES
-
-    c = site.camera
-    return _merge(
-        site,
-        "localizer",
-        {
-            "robots": site.n_robots,
-            "calibration": str(calibration),
-            "beacons": str(beacons),
-            "image_topic": c.image_topic,
-            "compressed": c.compressed,
-            "camera_info_topic": c.camera_info_topic,
-            "reliable": bool(reliable),
-            # --sim: the synthetic camera renders one frame per tick and answers retakes
-            "retakes": RETAKES if reliable else 0,
-        },
-    )
-
-
-def mapper_params(site: Site, reliable: bool = False) -> dict[str, Any]:
-    """``terrain_mapper mapper``: grid, mount pose and offsets; never a map_info publisher.
-
-    ``reliable`` (``--sim``: the synthetic laser's reliable QoS, and the localizer a process
-    on the same loaded machine) also lengthens the waits that are fallbacks only: a scan's
-    for its mount state, a sweep's for the localizer's poses of its instant
-    (:data:`excavation_bringup.perception.PROCESS_POSE_WAIT`).
-    """
-    from excavation_bringup.perception import POSE_WAIT, PROCESS_POSE_WAIT, RELIABLE_MOUNT_WAIT
-
-    w, las = site.worksite, site.laser
-    return _merge(
-        site,
-        "mapper",
-        {
-            "robots": site.n_robots,
-            "rows": w.rows,
-            "cols": w.cols,
-            "cell_size": float(w.cell_size),
-            "mount_x": float(las.mount[0]),
-            "mount_y": float(las.mount[1]),
-            "mount_z": float(las.mount[2]),
-            "pan_offset": float(las.pan_offset),
-            "tilt_offset": float(las.tilt_offset),
-            "roll_offset": float(las.roll_offset),
-            "sweep_scans": las.sweep_scans,
-            "scan_topic": las.scan_topic,
-            "mount_topic": las.mount_state_topic,
-            "prior_known": w.prior_height is not None,
-            "prior_height": float(w.prior_height or 0.0),
-            "robot_height": float(las.robot_height),
-            "publish_map_info": False,
-            "pose_wait": PROCESS_POSE_WAIT if reliable else POSE_WAIT,
-            # reliable delivery repairs a lost sample within a heartbeat (seconds): wait
-            "mount_wait": RELIABLE_MOUNT_WAIT if reliable else 1.0,
-            "reliable": bool(reliable),
-        },
-    )
-
-
-def controller_params(site: Site, k: int) -> dict[str, Any]:
-    """``ant_controller controller`` of robot ``k`` (its genome goes on the command line).
-
-    Lockstep, in the dome as with ``--sim``: it decides once per team tick, on the tick's
-    topics (:func:`controller_remaps`).
-
-    R1 comes from the robot's IMU (``tilt_source: imu``); a dome whose robots carry none
-    sets ``overrides: {controller: {tilt_source: height_map}}``.
-    """
-    return _merge(
-        site,
-        "controller",
-        {
-            "robot_id": k,
-            "robots": site.n_robots,
-            "height_unit": float(site.worksite.soil_unit),
-            "lockstep": True,
-            "tilt_source": "imu",  # R1 from /robot_k/imu (the robot's, or the simulator's)
-        },
-    )
-
-
-def controller_args(site: Site, k: int) -> list[str]:
-    """The controller's command-line arguments (``--genome FILE`` or ``--hand-coded``)."""
-    genome = site.robots[k].genome
-    return ["--hand-coded"] if genome == HAND_CODED else ["--genome", genome]
-
-
-def blade_driver_params(
-    site: Site, k: int, sim: bool = False, after_motion: bool = False
-) -> dict[str, Any]:
-    """``blade_driver driver`` of robot ``k``; with ``--sim`` the simulator is the board.
-
-    ``after_motion``: the dome runs drive executors and the team tick, so a tick's blade
-    bits wait for the end of its drive (``blade_after_motion``, Table 2 order); without
-    executors (the lockstep simulator) nothing would ever end a drive, so it stays off.
-    """
-    robot = site.robots[k]
-    backend = "sim" if sim else robot.backend
-    params: dict[str, Any] = {"backend": backend}
-    if after_motion:
-        params["blade_after_motion"] = True
-    if backend == "serial":
-        params["port"] = robot.port
-    if sim:
-        from excavation_bringup.continuous_processes import SIM_DEADMAN
-
-        params["deadman"] = SIM_DEADMAN
-    return _merge(site, "blade_driver", params)
-
-
-def supervisor_params(site: Site, sim: bool = False) -> dict[str, Any]:
-    """The team supervisor: disarmed at start in the dome, armed at start with ``--sim``.
-
-    In the dome nothing moves until the operator runs ``ant-operator arm``; a ``--sim`` run
-    is unattended, so its supervisor arms the team itself, on the simulator's clock, with the
-    lost-robot policy of ``ant-trial --drive continuous`` (off: the localizer sees the robots
-    once per tick, in each snapshot).
-    """
-    params: dict[str, Any] = {"robots": site.n_robots, "arm_at_start": bool(sim)}
-    if sim:
-        from excavation_bringup.continuous_trial import supervisor_parameters
-
-        params = supervisor_parameters(_sim_spec(site, 1))
-    return _merge(site, "supervisor", params)
-
-
-def recorder_params(site: Site, out: str) -> dict[str, Any]:
-    """The bag recorder: the bag directory and the soil unit stored with it."""
-    return _merge(
-        site, "recorder", {"out": str(out), "height_unit": float(site.worksite.soil_unit)}
-    )
+# --- files the nodes read ----------------------------------------------------------------
 
 
 def beacons_document(site: Site) -> dict[str, Any]:

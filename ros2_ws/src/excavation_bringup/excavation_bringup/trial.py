@@ -10,11 +10,12 @@ resumes and ends as an unpaused one does (docs/operator.md). By default the node
 composed on one executor in one process (the way ``executors/composed.py`` of ros2/examples
 composes nodes; this environment has no launch); ``--processes`` starts each node as its own
 process, as separate ``ros2 run`` commands would, and collects the result from the
-simulator's ``result_file``. Either way it runs ``--steps`` ticks, prints the fitness and
+final node's ``result.json``. Either way it runs ``--steps`` ticks, prints the fitness and
 stops every node. ``--drive continuous`` runs drive executors, the team tick and the
-continuous-motion simulator instead of the lockstep one
-(:mod:`excavation_bringup.continuous_trial`; with ``--processes``
-:mod:`excavation_bringup.continuous_processes`); ``--record BAG`` records either kind.
+continuous-motion simulator instead of the lockstep one; ``--record BAG`` records either
+kind. The options become a :class:`~excavation_bringup.deployment.Deployment`, whose graph
+(:mod:`excavation_bringup.graph`) one of the two launchers runs
+(:mod:`excavation_bringup.launch`).
 The result equals ``ant-eval --scenarios 1`` with the same seed (``tests/test_trial.py``).
 
 Examples::
@@ -31,18 +32,23 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
-import subprocess
+import re
 import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
+from excavation_bringup.deployment import Deployment
+from excavation_bringup.graph import Graph, build
+from excavation_bringup.launch import (
+    ProcessLauncher,
+    RecorderThread,
+    close_composed,
+    compose,
+)
 from excavation_common.limits import MAX_ROBOTS, int_in
-from excavation_common.middleware import use_profiles
 
 
 @dataclass
@@ -69,73 +75,53 @@ class TrialResult:
     robots_late: int = 0
 
 
-@dataclass(frozen=True)
-class TrialSpec:
-    """What one trial runs (the arguments of :func:`run_trial`, resolved)."""
+def continuous_result(
+    ticks: dict, world: dict, primitives_aborted: int, seconds: float, steps: int
+) -> TrialResult:
+    """A continuous trial's result from the team tick's summary and the ``dynamics`` world.
 
-    controller: str
-    robots: int
-    steps: int
-    seed: int
-    blueprint: str
-    scenario: int
-    domain: int
-    command_timeout: float
-    timeout: float
-    blade_driver: bool
-    record: str | None
-    perception: str
-    supervisor: str = "internal"
-    occlude: str = ""
-    drive: str = "grid"
-
-
-LOST_TIMEOUT = 1.5
-"""Seconds of pose stamps (1.5 ticks) after which the trial's supervisor stops a silent robot:
-more than one tick, since the poses of one tick arrive one after another."""
-LOST_GRACE = 2.0
-"""Further seconds (2 ticks) before a lost robot is disabled for the rest of the trial."""
-
-
-def _supervisor_params(robots: int, armed: bool, watch_poses: bool | None = None) -> dict:
-    """The trial's supervisor parameters (``watch_poses``: the node's default when None)."""
-    values = {
-        "robots": robots,
-        "lost_timeout": LOST_TIMEOUT,
-        "lost_grace": LOST_GRACE,
-        "arm_at_start": armed,
-    }
-    if watch_poses is not None:
-        values["watch_poses"] = watch_poses
-    return values
-
-
-def _lockstep_watches_poses(spec: TrialSpec) -> bool:
-    """Whether a lockstep trial's supervisor runs the lost-robot policy.
-
-    Only with ``perception="full"``, where the localizer can lose a robot. With truth
-    perception the simulator publishes every robot's pose of a tick together, so no robot
-    can be lost; the policy could only misjudge one from the order in which a busy
-    supervisor takes the poses of a trial running faster than real time.
+    Args:
+        ticks: :meth:`team_tick.core.TeamTick.summary`.
+        world: :meth:`excavation_sim.dynamics_node.DynamicsNode.result`.
+        primitives_aborted: Summed over the executors.
+        seconds: Wall time of the trial.
+        steps: Ticks run (the fitness trace has one more entry).
     """
-    return spec.perception == "full"
+    return TrialResult(
+        world["fitness"],
+        [world["snapshots"].get(f"tick {t}", float("nan")) for t in range(steps + 1)],
+        np.array(world["heights"], dtype=np.int64),
+        {int(k): n for k, n in ticks["missed"].items()},
+        seconds,
+        ticks["commands"],
+        holds=ticks.get("holds", 0),
+        tick_wall=ticks["tick_wall"],
+        primitives_aborted=primitives_aborted,
+        stuck_events=ticks["stuck_events"],
+        sim_seconds=world["sim_seconds"],
+        robots_late=ticks["robots_late"],
+    )
 
 
-def close_composed(executor, nodes, context, recorder=None) -> None:
-    """Tear a composed trial down: close its bag, destroy its nodes, shut its context."""
-    import rclpy
+def lockstep_result(data: dict, seconds: float) -> TrialResult:
+    """A grid trial's result from the lockstep simulator's ``result.json``."""
+    return TrialResult(
+        data["fitness"],
+        data["trace"],
+        np.array(data["heights"], dtype=np.int64),
+        {int(k): v for k, v in data["missed"].items()},
+        seconds,
+        data["commands"],
+        data.get("holds", 0),
+    )
 
-    if recorder is not None:
-        recorder.close()
-    for node in nodes:
-        executor.remove_node(node)
-        node.destroy_node()
-    executor.shutdown()
-    rclpy.try_shutdown(context=context)
 
-
-def _controller_args(controller_spec: str) -> list[str]:
-    return ["--hand-coded"] if controller_spec == "hand-coded" else ["--genome", controller_spec]
+def recorder_source(dep: Deployment) -> str:
+    """The ``source`` note of a trial's bag."""
+    return (
+        f"ant-trial {dep.controller} robots={dep.robots} steps={dep.steps} "
+        f"seed={dep.seed} blueprint={dep.blueprint} drive={dep.drive}"
+    )
 
 
 def run_trial(
@@ -156,6 +142,7 @@ def run_trial(
     occlude: str = "",
     drive: str = "grid",
     exact: bool = False,
+    time_factor: float = 0.0,
 ) -> TrialResult:
     """Run a trial through the nodes and return its result.
 
@@ -166,52 +153,35 @@ def run_trial(
         seed: Scenario seed (with ``scenario`` 0: scenario 0 of ``ant-eval --seed``).
         blueprint: Blueprint spec for the server and the simulator.
         domain: ROS domain id (default: ``ROS_DOMAIN_ID`` or 0).
-        command_timeout: Seconds the simulator waits for a command.
+        command_timeout: Seconds a tick waits for every controller's word.
         timeout: Give up after this many seconds.
         blade_driver: One ``blade_driver`` node per robot between controller and simulator.
         processes: Each node in its own process instead of one composed process.
-        record: Bag directory to record every suite topic into (``ant-bag record``'s
-            recorder node on the same executor, or its own process).
+        record: Bag directory to record every suite topic into.
         perception: ``"truth"``: controllers read the simulator's poses and heights;
-            ``"full"``: they read the overhead localizer's and the terrain mapper's, which
-            see the simulator through its synthetic camera and laser
-            (:mod:`excavation_bringup.perception`).
+            ``"full"``: they read the overhead localiser's and the terrain mapper's, which
+            see the simulator through its synthetic camera and laser.
         scenario: Scenario index of ``seed`` (``ScenarioSet.create(..., seed)``'s i-th).
         supervisor: ``"internal"``: the trial starts the team supervisor and arms it;
-            ``"external"``: an operator's supervisor (``ros2 run team_supervisor
-            supervisor``) must be running, and nothing moves until it is armed.
-        occlude: The sensors node's ``occlude`` (``"2:front,2:rear"`` hides robot 2 from
-            the camera; ``perception="full"`` only).
-        drive: ``"grid"``: the lockstep simulator applies each word at once; ``"continuous"``:
-            drive executors, the team tick and the ``dynamics`` simulator
-            (:mod:`excavation_bringup.continuous_trial`, with ``processes``
-            :mod:`excavation_bringup.continuous_processes`).
+            ``"external"``: an operator's supervisor must be running, and nothing moves
+            until it is armed.
+        occlude: LEDs hidden from the synthetic camera (``"2:front,2:rear"``).
+        drive: ``"grid"``: the lockstep simulator applies each word at once;
+            ``"continuous"``: drive executors, the team tick and ``dynamics``.
         exact: ``drive="continuous"`` without slip and noise (the parity setting).
+        time_factor: ``drive="continuous"``: the simulator's clock at most this many times
+            real time (0: as fast as the team answers).
 
     Raises:
         TimeoutError: When the trial does not finish in time.
         RuntimeError: ``processes``: a node process failed (its log is in the message).
+        ValueError: Options that cannot run together.
         ant_controller.errors.GenomeFormatError: For a bad genome file.
     """
-    from ant_controller.controller import Controller
-
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    ctl = (
-        Controller.hand_coded()
-        if controller_spec == "hand-coded"
-        else Controller.from_file(controller_spec)
-    )
     if domain is None:
         domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
-    if perception not in ("truth", "full"):
-        raise ValueError(f"perception = {perception!r}: expected 'truth' or 'full'")
-    if supervisor not in ("internal", "external"):
-        raise ValueError(f"supervisor = {supervisor!r}: expected 'internal' or 'external'")
-    if occlude and perception != "full":
-        raise ValueError("occlude: hides a robot from the camera, so needs perception 'full'")
-    if drive not in ("grid", "continuous"):
-        raise ValueError(f"drive = {drive!r}: expected 'grid' or 'continuous'")
-    spec = TrialSpec(
+    dep = Deployment(
         controller_spec,
         robots,
         steps,
@@ -227,177 +197,68 @@ def run_trial(
         supervisor,
         occlude,
         drive,
+        exact=exact,
+        processes=processes,
+        time_factor=time_factor,
     )
-    if drive == "continuous" and processes:
-        from excavation_bringup.continuous_processes import run_continuous_processes
-
-        return run_continuous_processes(spec, exact=exact)
-    if drive == "continuous":
-        from excavation_bringup.continuous_trial import run_continuous
-
-        return run_continuous(ctl, spec, exact=exact)
-    return _run_processes(spec) if processes else _run_composed(ctl, spec)
+    return run_deployment(dep)
 
 
-PERCEPTION_SIM = {"truth_prefix": "/truth", "wait_for_ready": True}
-"""The simulator's parameters with ``--perception full``: the true state moves aside, and
-tick 0 waits for every controller's ``ready`` (its side of each input connected; the
-sensors node holds a frame until the localizer's subscription is matched)."""
-
-
-def _recorder_source(spec: TrialSpec) -> str:
-    return (
-        f"ant-trial {spec.controller} robots={spec.robots} steps={spec.steps} "
-        f"seed={spec.seed} blueprint={spec.blueprint} drive={spec.drive}"
-    )
-
-
-def trial_recorder(context, spec: TrialSpec):
-    """The bag recorder of a composed trial (``ant-bag record``'s node) on ``context``."""
-    from rclpy.parameter import Parameter
-
-    from blueprint_server.blueprint import resolve_blueprint
-    from excavation_bags.recorder_node import RecorderNode
-
-    return RecorderNode(
-        custom_data={"source": _recorder_source(spec)},
-        context=context,
-        parameter_overrides=[
-            Parameter("out", value=str(spec.record)),
-            Parameter("height_unit", value=float(resolve_blueprint(spec.blueprint).height_unit)),
-        ],
-    )
-
-
-def recorder_command(spec: TrialSpec, height_unit: float) -> list[str]:
-    """The bag recorder of a trial as a process (``ant-bag record --out BAG``)."""
-    return [
-        sys.executable,
-        "-m",
-        "excavation_bags.cli",
-        "record",
-        "--out",
-        str(spec.record),
-        "--height-unit",
-        repr(float(height_unit)),
-    ]
-
-
-def node_command(name: str, module: str, *args: str, ns: str = "", remaps=(), **params):
-    """``python -m module ARGS --ros-args`` naming the node ``name`` in ``ns``.
+def run_deployment(dep: Deployment, events_executor: bool = True) -> TrialResult:
+    """Run the trial ``dep`` describes (its graph, by its launcher) and return its result.
 
     Args:
-        name: Node name (``-r __node:=name``).
-        module: The node's module (run by this interpreter, as ``ros2 run`` would).
-        *args: Arguments before ``--ros-args``.
-        ns: Namespace, or empty.
-        remaps: Further ``from:=to`` remappings.
-        **params: ROS parameters (``-p name:=value``).
+        dep: The trial.
+        events_executor: A composed continuous trial spins on rclpy's
+            ``experimental.EventsExecutor`` (C++ event queue) instead of the
+            ``SingleThreadedExecutor``, whose wait-set rebuild per callback makes a trial of
+            some 1,500 callbacks per tick about 20 times slower (docs/benchmarks.md).
+
+    Raises:
+        As :func:`run_trial`.
     """
-    cmd = [sys.executable, "-m", module, *args, "--ros-args", "-r", f"__node:={name}"]
-    if ns:
-        cmd += ["-r", f"__ns:={ns}"]
-    for remap in remaps:
-        cmd += ["-r", remap]
-    for key, value in params.items():
-        cmd += ["-p", f"{key}:={_ros_value(value)}"]
-    return cmd
+    from ant_controller.controller import Controller
+
+    dep.check()
+    if dep.controller != "hand-coded":
+        Controller.from_file(dep.controller)  # a bad genome fails before any node starts
+    with tempfile.TemporaryDirectory(prefix="ant-trial-") as tmp:
+        graph = build(dep, tmp)
+        if dep.processes:
+            return _run_processes(graph)
+        if dep.drive == "continuous":
+            return _run_composed_continuous(graph, events_executor)
+        return _run_composed_lockstep(graph)
 
 
-def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
-    """All nodes on one executor in this process."""
-    robots, steps, seed = spec.robots, spec.steps, spec.seed
-    blueprint, domain, timeout, perception = (
-        spec.blueprint,
-        spec.domain,
-        spec.timeout,
-        spec.perception,
-    )
+def _run_composed_lockstep(graph: Graph) -> TrialResult:
+    """A grid trial's nodes on one executor in this process."""
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
 
-    from ant_controller.controller_node import ControllerNode
-    from blade_driver.driver_node import BladeDriverNode
-    from blueprint_server.server_node import BlueprintServer
-    from excavation_sim.sim_node import SimNode
-    from team_supervisor.supervisor_node import SupervisorNode
-
-    context = Context()
     from excavation_common.ros import init_rclpy
 
-    init_rclpy(context=context, domain_id=domain)
+    dep = graph.deployment
+    context = Context()
+    init_rclpy(context=context, domain_id=dep.domain)
     executor = SingleThreadedExecutor(context=context)
-    nodes = []
-    recorder = None
+    built: dict = {}
     started = time.monotonic()
     try:
-        if spec.record:  # first, so that it sees every topic appear
-            recorder = trial_recorder(context, spec)
-            nodes.append(recorder)
-        if spec.supervisor == "internal":
-            values = _supervisor_params(robots, True, _lockstep_watches_poses(spec))
-            nodes.append(
-                SupervisorNode(
-                    context=context,
-                    parameter_overrides=[Parameter(k, value=v) for k, v in values.items()],
-                )
-            )
-        nodes.append(
-            BlueprintServer(
-                context=context, parameter_overrides=[Parameter("blueprint", value=blueprint)]
-            )
-        )
-        sim = SimNode(
-            context=context,
-            parameter_overrides=[
-                Parameter("blueprint", value=blueprint),
-                Parameter("robots", value=robots),
-                Parameter("steps", value=steps),
-                Parameter("seed", value=seed),
-                Parameter("scenario", value=spec.scenario),
-                Parameter("command_timeout", value=float(spec.command_timeout)),
-                Parameter("blade_driver", value=spec.blade_driver),
-            ]
-            + (
-                [Parameter(name, value=value) for name, value in PERCEPTION_SIM.items()]
-                if perception == "full"
-                else []
-            ),
-        )
-        nodes.append(sim)
-        if perception == "full":
-            from excavation_bringup.perception import perception_nodes
-
-            nodes += perception_nodes(context, robots, seed, sim.blueprint, spec.occlude)
-        height_unit = sim.blueprint.height_unit
-        for k in range(robots):
-            nodes.append(
-                ControllerNode(
-                    ctl,
-                    context=context,
-                    namespace=f"/robot_{k}",
-                    parameter_overrides=[
-                        Parameter("robot_id", value=k),
-                        Parameter("robots", value=robots),
-                        Parameter("height_unit", value=height_unit),
-                        Parameter("lockstep", value=True),
-                    ],
-                )
-            )
-            if spec.blade_driver:
-                nodes.append(BladeDriverNode(context=context, namespace=f"/robot_{k}"))
-        for node in nodes:
+        built = compose(graph, context, recorder_source(dep))
+        for node in built.values():
             executor.add_node(node)
+        sim = built["sim"]
         while not sim.finished:
-            if time.monotonic() - started > timeout:
-                raise TimeoutError(f"trial did not finish within {timeout} s (tick {sim.tick})")
+            if time.monotonic() - started > dep.timeout:
+                raise TimeoutError(f"trial did not finish within {dep.timeout} s (tick {sim.tick})")
             executor.spin_once(timeout_sec=0.05)
+        recorder = built.get("recorder")
         if recorder is not None:  # the last tick's state and the controllers' answers to it
-            last = time.monotonic() + 5.0
-            topics = ["/clock"] + [f"/robot_{k}/behaviour" for k in range(robots)]
+            last = time.monotonic() + graph.profile.recorder_tail
+            topics = ["/clock"] + [f"/robot_{k}/behaviour" for k in range(dep.robots)]
             while time.monotonic() < last and any(
-                recorder.recorded.get(t, 0) < steps + 1 for t in topics
+                recorder.recorded.get(t, 0) < dep.steps + 1 for t in topics
             ):
                 executor.spin_once(timeout_sec=0.05)
         return TrialResult(
@@ -410,246 +271,144 @@ def _run_composed(ctl, spec: TrialSpec) -> TrialResult:
             sim.holds,
         )
     finally:
-        close_composed(executor, nodes, context, recorder)
+        close_composed(executor, built.values(), context, built.get("recorder"))
 
 
-def _ros_value(value) -> str:
-    """``value`` as a ``-p name:=value`` argument (parsed as YAML by rcl)."""
-    if isinstance(value, bool):
-        return str(value).lower()
-    if isinstance(value, float):
-        return repr(value)
-    if value == "":
-        return '""'  # rcl cannot parse an empty value; YAML's empty string
-    return str(value)
+def _run_composed_continuous(graph: Graph, events_executor: bool) -> TrialResult:
+    """A continuous trial's nodes on one executor (the recorder on a thread of its own)."""
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from team_tick.core import Phase
 
+    from excavation_common.ros import init_rclpy
 
-def process_commands(spec: TrialSpec, workdir: Path) -> dict[str, list[str]]:
-    """Each node's command line for ``spec``, in start order (name -> argv).
+    dep = graph.deployment
+    context = Context()
+    init_rclpy(context=context, domain_id=dep.domain)
+    if events_executor:
+        from rclpy.experimental.events_executor import EventsExecutor
 
-    What separate ``ros2 run`` commands would start: the recorder first (``record``), the
-    team supervisor (armed; none when the operator runs their own), the blueprint server,
-    the simulator (writing ``workdir/result.json`` at the end; with a recorder, tick 0 waits
-    for it), with ``perception="full"``
-    the sensors, localizer (its camera calibration written to ``workdir/camera.yaml`` now)
-    and mapper, then per robot a controller and a blade driver.
-    """
-    from blueprint_server.blueprint import resolve_blueprint
-
-    bp = resolve_blueprint(spec.blueprint)
-    height_unit = bp.height_unit
-    full = spec.perception == "full"
-
-    node = node_command
-    commands: dict[str, list[str]] = {}
-    if spec.record:
-        commands["recorder"] = recorder_command(spec, height_unit)
-    if spec.supervisor == "internal":
-        commands["supervisor"] = node(
-            "supervisor",
-            "team_supervisor.supervisor_node",
-            **_supervisor_params(spec.robots, True, _lockstep_watches_poses(spec)),
-        )
-    commands["server"] = node("server", "blueprint_server.server_node", blueprint=spec.blueprint)
-    commands["sim"] = node(
-        "sim",
-        "excavation_sim.sim_node",
-        blueprint=spec.blueprint,
-        robots=spec.robots,
-        steps=spec.steps,
-        seed=spec.seed,
-        scenario=spec.scenario,
-        command_timeout=float(spec.command_timeout),
-        blade_driver=spec.blade_driver,
-        result_file=str(Path(workdir) / "result.json"),
-        wait_for_recorder=bool(spec.record),
-        **(PERCEPTION_SIM if full else {}),
-    )
-    if full:
-        from excavation_bringup.perception import perception_parameters
-
-        values = perception_parameters(
-            spec.robots,
-            spec.seed,
-            bp,
-            str(Path(workdir) / "camera.yaml"),
-            spec.occlude,
-            processes=True,
-        )
-        commands["sensors"] = node("sensors", "excavation_sim.sensors_node", **values["sensors"])
-        commands["localizer"] = node(
-            "localizer", "overhead_localizer.localizer_node", **values["localizer"]
-        )
-        commands["mapper"] = node("mapper", "terrain_mapper.mapper_node", **values["mapper"])
-    for k in range(spec.robots):
-        commands[f"controller_{k}"] = node(
-            "controller",
-            "ant_controller.controller_node",
-            *_controller_args(spec.controller),
-            ns=f"/robot_{k}",
-            robot_id=k,
-            robots=spec.robots,
-            height_unit=float(height_unit),
-            lockstep=True,
-        )
-        if spec.blade_driver:
-            commands[f"blade_driver_{k}"] = node(
-                "blade_driver", "blade_driver.driver_node", ns=f"/robot_{k}", backend="sim"
-            )
-    return commands
-
-
-class TrialProcesses:
-    """A trial's nodes as processes: start, watch, kill and restart them, read the result.
-
-    ``ant-trial --processes`` starts them all and waits for the simulator; the fault tests
-    (``tests/faults.py``) and ``ant-soak`` also kill and restart single nodes. Each node's
-    output goes to ``workdir/NAME.log`` (appended across restarts).
-
-    Args:
-        spec: The trial.
-        workdir: Folder for logs, the calibration and ``result.json``.
-        env: Environment of the nodes (default: this one); ``ROS_DOMAIN_ID`` is the spec's.
-        commands: The node commands (default: :func:`process_commands` of ``spec``).
-        final: The node whose exit ends the trial and which writes ``result.json`` (the
-            lockstep ``sim``; the continuous trial's ``team_tick``).
-    """
-
-    def __init__(
-        self,
-        spec: TrialSpec,
-        workdir: str | Path,
-        env: dict | None = None,
-        commands: dict[str, list[str]] | None = None,
-        final: str = "sim",
-    ) -> None:
-        self.spec = spec
-        self.workdir = Path(workdir)
-        self.workdir.mkdir(parents=True, exist_ok=True)
-        self.commands = commands if commands is not None else process_commands(spec, self.workdir)
-        self.final = final
-        self.env = dict(env if env is not None else os.environ, ROS_DOMAIN_ID=str(spec.domain))
-        self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        use_profiles(self.env)  # the nodes' middleware settings (excavation_common.middleware)
-        self.procs: dict[str, subprocess.Popen] = {}
-        self.result_file = self.workdir / "result.json"
-
-    def log(self, name: str) -> Path:
-        """The log file of node ``name``."""
-        return self.workdir / f"{name}.log"
-
-    def start(self, name: str | None = None, command: list[str] | None = None, **popen) -> None:
-        """Start node ``name`` (default: every node, in order), with ``command`` if given."""
-        if name is None:
-            for n in self.commands:
-                self.start(n)
-            return
-        cmd = command or self.commands[name]
-        with open(self.log(name), "ab") as out:
-            self.procs[name] = subprocess.Popen(
-                cmd, env=self.env, stdout=out, stderr=subprocess.STDOUT, **popen
-            )
-
-    def kill(self, name: str, sig: int = signal.SIGKILL) -> int:
-        """Send ``sig`` to node ``name``, wait for it and forget it; returns its exit code."""
-        proc = self.procs.pop(name)
-        if proc.poll() is None:
-            proc.send_signal(sig)
-        return proc.wait()
-
-    def check(self) -> None:
-        """Raise when a node exited by itself with an error.
-
-        Raises:
-            RuntimeError: Naming the node, its exit code and the end of its log.
-        """
-        for name, proc in self.procs.items():
-            if proc.poll() is not None and proc.returncode != 0:
-                log = _tail(self.log(name))
-                raise RuntimeError(f"{name} exited with {proc.returncode}:\n{log}")
-
-    @property
-    def finished(self) -> bool:
-        """The final node ended (after its last tick, or by a failure)."""
-        final = self.procs.get(self.final)
-        return final is not None and final.poll() is not None
-
-    def wait(self, timeout: float, started: float | None = None, idle=None) -> dict:
-        """Wait for the final node to end and return its result (``result.json``).
-
-        Args:
-            timeout: Seconds from ``started`` (default: now) to give up after.
-            started: ``time.monotonic()`` of the trial's start.
-            idle: Called instead of sleeping 0.1 s between checks (a trial spinning a
-                node of its own), or ``None``.
-
-        Raises:
-            TimeoutError: Not finished within ``timeout`` seconds of ``started``.
-            RuntimeError: A node failed, or the final node wrote no result.
-        """
-        started = time.monotonic() if started is None else started
-        while not self.finished:
-            if time.monotonic() - started > timeout:
-                raise TimeoutError(f"trial did not finish within {timeout} s")
-            self.check()
-            if idle is None:
-                time.sleep(0.1)
-            else:
-                idle()
-        final = self.procs[self.final]
-        if final.returncode != 0 or not self.result_file.exists():
-            log = _tail(self.log(self.final))
-            raise RuntimeError(f"{self.final} exited with {final.returncode}:\n{log}")
-        return json.loads(self.result_file.read_text())
-
-    def stop(self) -> None:
-        """Stop every node as Ctrl-C would; the recorder last, so that the bag is complete."""
-        recorder = {n: p for n, p in self.procs.items() if n == "recorder"}
-        _stop({n: p for n, p in self.procs.items() if n != "recorder"})
-        _stop(recorder)
-        self.procs.clear()
-
-    def __enter__(self) -> TrialProcesses:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
-
-
-def _run_processes(spec: TrialSpec) -> TrialResult:
-    """Every node in its own process, as separate ``ros2 run`` commands would start them."""
+        executor = EventsExecutor(context=context)
+    else:
+        executor = SingleThreadedExecutor(context=context)
+    built: dict = {}
+    recorder = None
     started = time.monotonic()
-    with tempfile.TemporaryDirectory(prefix="ant-trial-") as tmp:
-        with TrialProcesses(spec, tmp) as trial:
+    try:
+        built = compose(graph, context, recorder_source(dep))
+        if "recorder" in built:
+            recorder = RecorderThread(built.pop("recorder"), context)
+        for node in built.values():
+            executor.add_node(node)
+        tick, dynamics = built["team_tick"], built["dynamics"]
+        while tick.core.phase is not Phase.FINISHED:
+            if time.monotonic() - started > dep.timeout:
+                raise TimeoutError(
+                    f"trial did not finish within {dep.timeout} s (tick {tick.core.tick}, "
+                    f"{tick.core.phase.value})"
+                )
+            executor.spin_once(timeout_sec=0.05)
+        executors = [built[f"executor_{k}"] for k in range(dep.robots)]
+        result = continuous_result(
+            tick.core.summary(),
+            dynamics.result(),
+            sum(e.core.counters.primitives_aborted for e in executors),
+            time.monotonic() - started,
+            dep.steps,
+        )
+        if recorder is not None:  # what is still in flight
+            last = time.monotonic() + graph.profile.record_tail
+            while time.monotonic() < last:
+                executor.spin_once(timeout_sec=0.05)
+        return result
+    finally:
+        close_composed(executor, built.values(), context, recorder)
+
+
+EXECUTOR_STATUS = re.compile(r"/robot_(\d+)/executor")
+
+
+class ExecutorCounters:
+    """The executors' latest ``primitives_aborted``, read from ``/diagnostics``."""
+
+    def __init__(self, robots: int) -> None:
+        self.robots = robots
+        self.aborted: dict[int, int] = {}
+        self.received: dict[int, float] = {}
+
+    def on_diagnostics(self, msg) -> None:
+        """Keep each executor's counter and when it arrived (wall clock)."""
+        for status in msg.status:
+            match = EXECUTOR_STATUS.fullmatch(status.name)
+            values = {kv.key: kv.value for kv in status.values}
+            if match and "primitives_aborted" in values:
+                k = int(match.group(1))
+                self.aborted[k] = int(values["primitives_aborted"])
+                self.received[k] = time.monotonic()
+
+    def missing_since(self, since: float) -> list[int]:
+        """Robots whose executor has not reported since ``since`` (wall clock)."""
+        return [k for k in range(self.robots) if self.received.get(k, -1.0) <= since]
+
+
+def _run_processes(graph: Graph) -> TrialResult:
+    """Every node in its own process, as separate ``ros2 run`` commands would start them.
+
+    A grid trial's result is the lockstep simulator's ``result.json``. A continuous one's
+    is the team tick's ``result.json`` (words, wall time per tick, stuck events, missed
+    words) with ``dynamics``'s ``world.json`` (fitness per tick, heights) and the
+    primitives the executors aborted, from their last ``/diagnostics`` report, which a
+    small node of this process reads.
+    """
+    dep = graph.deployment
+    started = time.monotonic()
+    if dep.drive == "grid":
+        with ProcessLauncher(graph) as trial:
             trial.start()
-            data = trial.wait(spec.timeout, started)
-    return TrialResult(
-        data["fitness"],
-        data["trace"],
-        np.array(data["heights"], dtype=np.int64),
-        {int(k): v for k, v in data["missed"].items()},
-        time.monotonic() - started,
-        data["commands"],
-        data.get("holds", 0),
-    )
+            data = trial.wait(dep.timeout, started)
+        return lockstep_result(data, time.monotonic() - started)
 
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
 
-def _tail(log: Path, lines: int = 20) -> str:
-    return "\n".join(log.read_text(errors="replace").splitlines()[-lines:])
+    from excavation_common.ros import init_rclpy
 
-
-def _stop(procs: dict[str, subprocess.Popen]) -> None:
-    """SIGINT every node still running (as Ctrl-C would), then kill what is left."""
-    for proc in procs.values():
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-    deadline = time.monotonic() + 10.0
-    for proc in procs.values():
-        try:
-            proc.wait(timeout=max(0.1, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+    counters = ExecutorCounters(dep.robots)
+    context = Context()
+    init_rclpy(context=context, domain_id=dep.domain)
+    node = rclpy.create_node("ant_trial", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    node.create_subscription(DiagnosticArray, "/diagnostics", counters.on_diagnostics, 50)
+    wait = graph.profile.counters_wait
+    try:
+        with ProcessLauncher(graph) as trial:
+            trial.start()
+            ticks = trial.wait(
+                dep.timeout, started, idle=lambda: executor.spin_once(timeout_sec=0.1)
+            )
+            ended = time.monotonic()
+            while counters.missing_since(ended) and time.monotonic() < ended + wait:
+                trial.check()
+                executor.spin_once(timeout_sec=0.1)
+            silent = counters.missing_since(ended)
+            if silent:
+                raise RuntimeError(
+                    f"executors of robots {silent} did not report on /diagnostics "
+                    f"within {wait:.0f} s of the last tick"
+                )
+            world = json.loads(graph.files.world.read_text())
+            if f"tick {dep.steps}" not in world["snapshots"]:
+                raise RuntimeError(f"dynamics wrote no snapshot of tick {dep.steps}")
+            seconds = time.monotonic() - started
+    finally:
+        executor.remove_node(node)
+        node.destroy_node()
+        executor.shutdown()
+        rclpy.try_shutdown(context=context)
+    return continuous_result(ticks, world, sum(counters.aborted.values()), seconds, dep.steps)
 
 
 MAX_TRIAL_STEPS = 100_000

@@ -1,7 +1,7 @@
 """``ant-soak``: a long trial through the nodes, watching every process's memory.
 
 Runs a lockstep trial with every node its own process (what ``ant-trial --processes``
-runs: :class:`excavation_bringup.trial.TrialProcesses`), by default 4 robots for 10,000
+runs: :class:`excavation_bringup.launch.ProcessLauncher`), by default 4 robots for 10,000
 ticks with full perception (sensors, localizer, mapper), and samples the resident memory
 (``VmRSS`` of ``/proc/PID/status``) of every node every ``--interval`` seconds together with
 the tick (``/clock``). At the end it reports, per process, the growth from the end of the
@@ -31,7 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from excavation_bringup.trial import TrialProcesses, TrialSpec
+from excavation_bringup.deployment import Deployment
+from excavation_bringup.graph import build
+from excavation_bringup.launch import ProcessLauncher
 
 
 def rss_mb(pid: int) -> float | None:
@@ -147,7 +149,7 @@ class _ClockWatcher:
         self.node.destroy_node()
 
 
-def run_soak(spec: TrialSpec, interval: float, workdir: str | Path, progress=None) -> dict:
+def run_soak(spec: Deployment, interval: float, workdir: str | Path, progress=None) -> dict:
     """Run the trial of ``spec`` as processes, sampling memory; the samples and the result.
 
     Ctrl-C (or SIGTERM) stops the soak early: the nodes are stopped and the samples so far
@@ -168,7 +170,7 @@ def run_soak(spec: TrialSpec, interval: float, workdir: str | Path, progress=Non
     result = None
     started = time.monotonic()
     try:
-        with TrialProcesses(spec, workdir) as trial:
+        with ProcessLauncher(build(spec, workdir)) as trial:
             trial.start()
             next_sample = time.monotonic()
             while not trial.finished:
@@ -264,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     warmup = args.warmup if args.warmup is not None else max(args.steps // 10, 5)
     domain = args.domain if args.domain is not None else int(os.environ.get("ROS_DOMAIN_ID", "0"))
-    spec = TrialSpec(
+    spec = Deployment(
         "hand-coded" if args.hand_coded else args.genome,
         args.robots,
         args.steps,
@@ -277,6 +279,7 @@ def main(argv: list[str] | None = None) -> int:
         True,
         None,
         args.perception,
+        processes=True,
     )
 
     def progress(sample: dict) -> None:

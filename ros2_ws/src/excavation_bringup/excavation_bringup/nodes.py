@@ -1,0 +1,584 @@
+"""One function per node kind: its node spec from a deployment and a timing profile.
+
+A node spec is a node's name, namespace, parameters, remaps, clock and restart rule; each
+function here makes one from a :class:`~excavation_bringup.deployment.Deployment` and a
+:class:`~excavation_bringup.profiles.TimingProfile`.
+
+These functions are the only place where a node's parameters are chosen for a trial or a
+dome; the graph functions (:mod:`excavation_bringup.graph`) only pick which nodes run and in
+what order, and the launchers (:mod:`excavation_bringup.launch`) only start them. A run from
+a site file takes topics, offsets, the LED table and its ``overrides:`` from the site; a
+trial from command-line options takes them from the blueprint. ``docs/architecture.md``
+("Node kinds") lists the kinds; the parameters themselves are declared once, in each node's
+parameter dataclass (the registry :mod:`excavation_bringup.kinds` names them).
+
+Pure module: no ``rclpy``.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+from excavation_bringup import site as sitefile
+from excavation_bringup.deployment import Deployment
+from excavation_bringup.kinds import kind as node_kind
+from excavation_bringup.profiles import TimingProfile
+
+TICK_PREFIX = "/tick"
+"""Where the team tick republishes its snapshot for the controllers."""
+SNAPSHOT_PREFIX = "/snapshot"
+"""Where ``dynamics`` publishes the instant the team tick asked for (the sensors render it)."""
+TRUTH_PREFIX = "/truth"
+"""Where a simulator publishes its truth with full perception."""
+
+LOST_TIMEOUT = 1.5
+"""Seconds of pose stamps (1.5 ticks) after which a simulated trial's supervisor stops a
+silent robot: more than one tick, since the poses of one tick arrive one after another."""
+LOST_GRACE = 2.0
+"""Further seconds (2 ticks) before a lost robot is disabled for the rest of the trial."""
+
+TRIAL_SWEEP_SCANS = 32
+"""Scans per laser sweep in a trial from command-line options: half the mapper's default,
+since every message costs a composed trial's single executor a few milliseconds; one such
+sweep still measures every cell not under a robot to 0.05 soil unit RMSE
+(docs/perception.md)."""
+
+RETAKES = 2
+"""Frames of one instant the localiser may ask the synthetic camera for when a robot it was
+tracking is not seen. One frame per tick means a robot hidden by one frame's glare (about 1
+robot-frame in 2,000, docs/perception.md) would hold a lockstep team for a whole tick
+timeout; a second frame of the same instant has its own glare."""
+
+DOME_BLADE_IN = "blade/joint_states"
+"""The dome: the team tick's measured blade is each blade driver's joint state."""
+DOME_BLADE_OUT = "blade/tick_state"
+"""The dome: the blade state the team tick republishes per tick (the controller's, remapped:
+the serial driver's own joint state is stamped on the wall clock, never with a tick)."""
+
+SIM_CLOCK = {"use_sim_time": True}
+"""With the continuous-motion simulator every node but ``dynamics`` (the clock), the
+recorder and the view runs on the simulator's ``/clock``."""
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node of a graph.
+
+    Attributes:
+        name: Unique label (log file, state, reports), e.g. ``controller_1``.
+        kind: Its node kind (:data:`excavation_bringup.kinds.KINDS`).
+        params: ROS parameters (a process gets them as ``RUN/params/NAME.yaml``).
+        diagnostics: ``/diagnostics`` status names (or prefixes ending in ``*``) that show
+            the node is up.
+        args: Command-line arguments before ``--ros-args``.
+        namespace: ROS namespace (``/robot_k``), or empty.
+        restart: The dome restarts it when it crashes.
+        final: Its exit with code 0 ends the run (the team tick after its ticks).
+        remaps: Topic remappings ``from:=to``.
+        module: ``python -m`` module, when not the kind's (the recorder runs through
+            ``ant-bag record``).
+    """
+
+    name: str
+    kind: str
+    params: dict[str, Any]
+    diagnostics: tuple[str, ...]
+    args: tuple[str, ...] = ()
+    namespace: str = ""
+    restart: bool = True
+    final: bool = False
+    remaps: tuple[str, ...] = ()
+    module: str = ""
+
+    def command(self, params_file: str | Path) -> list[str]:
+        """The command line that starts it (this interpreter, as ``ros2 run`` would)."""
+        module = self.module or node_kind(self.kind).module
+        cmd = [sys.executable, "-m", module, *self.args, "--ros-args"]
+        if self.namespace:
+            cmd += ["-r", f"__ns:={self.namespace}"]
+        for remap in self.remaps:
+            cmd += ["-r", remap]
+        return cmd + ["--params-file", str(params_file)]
+
+    def reports(self, status_name: str) -> bool:
+        """True when a ``/diagnostics`` status of this name comes from this node."""
+        for name in self.diagnostics:
+            if status_name == name or (name.endswith("*") and status_name.startswith(name[:-1])):
+                return True
+        return False
+
+
+@dataclass(frozen=True)
+class RunFiles:
+    """The files of one run, all in its run directory.
+
+    Attributes:
+        run_dir: The run directory (logs, parameters, results).
+        calibration: The camera model the localiser loads (a site's own file, or the
+            synthetic camera's, written here by the graph).
+    """
+
+    run_dir: Path
+    calibration: str = ""
+
+    @property
+    def beacons(self) -> Path:
+        """The site's LED table, as the localiser reads it."""
+        return self.run_dir / "beacons.yaml"
+
+    @property
+    def world(self) -> Path:
+        """``dynamics``: the world at every snapshot (fitness, heights)."""
+        return self.run_dir / "world.json"
+
+    @property
+    def result(self) -> Path:
+        """The final node's summary after its last tick (``sim`` or the team tick)."""
+        return self.run_dir / "result.json"
+
+
+class Geometry:
+    """Grid, laser and soil unit of a deployment: the site's, or its blueprint's."""
+
+    def __init__(self, dep: Deployment) -> None:
+        self.dep = dep
+
+    @cached_property
+    def blueprint(self):
+        """The resolved blueprint."""
+        from blueprint_server.blueprint import resolve_blueprint
+
+        return resolve_blueprint(self.dep.blueprint)
+
+    @cached_property
+    def laser(self):
+        """The synthetic laser's parameters over a trial's site (no site file)."""
+        from excavation_sim.laser import LaserParams
+
+        rows, cols = self.blueprint.shape
+        return LaserParams.for_site(
+            rows, cols, float(self.blueprint.cell_size), sweep_scans=TRIAL_SWEEP_SCANS
+        )
+
+    @property
+    def rows(self) -> int:
+        """Grid rows."""
+        site = self.dep.site
+        return site.worksite.rows if site is not None else int(self.blueprint.shape[0])
+
+    @property
+    def cols(self) -> int:
+        """Grid columns."""
+        site = self.dep.site
+        return site.worksite.cols if site is not None else int(self.blueprint.shape[1])
+
+    @property
+    def cell_size(self) -> float:
+        """Cell edge, m."""
+        site = self.dep.site
+        return float(site.worksite.cell_size if site is not None else self.blueprint.cell_size)
+
+    @property
+    def height_unit(self) -> float:
+        """One soil unit, m."""
+        site = self.dep.site
+        return float(site.worksite.soil_unit if site is not None else self.blueprint.height_unit)
+
+    @property
+    def sweep_scans(self) -> int:
+        """Scans per laser sweep."""
+        site = self.dep.site
+        return site.laser.sweep_scans if site is not None else self.laser.sweep_scans
+
+
+# --- helpers ---------------------------------------------------------------------------------
+
+
+def _continuous_sim(dep: Deployment) -> bool:
+    """The continuous-motion simulator is the clock of every other node."""
+    return dep.drive == "continuous" and dep.sim
+
+
+def _finish(dep: Deployment, node: str, params: dict[str, Any], clock: bool = True) -> dict:
+    """``params`` with the site's ``overrides:`` for ``node`` and the simulator's clock."""
+    out = dict(params)
+    if dep.site is not None:
+        out.update(dep.site.overrides.get(node, {}))
+    if clock and _continuous_sim(dep):
+        out.update(SIM_CLOCK)
+    return out
+
+
+def _sim_deadman(dep: Deployment, profile: TimingProfile) -> dict[str, Any]:
+    """The deadman of a node on the simulator's clock (the profile's), else the node's own."""
+    if profile.deadman is not None and _continuous_sim(dep):
+        return {"deadman": profile.deadman}
+    return {}
+
+
+def robot_namespace(k: int) -> str:
+    """Robot ``k``'s namespace (robots are named by their index)."""
+    return f"/robot_{k}"
+
+
+# --- the node kinds -------------------------------------------------------------------------
+
+
+def recorder(dep: Deployment, geometry: Geometry) -> NodeSpec:
+    """The bag recorder (``ant-bag record``), first, so that it sees every topic appear.
+
+    Not restartable: a second recorder cannot reopen the bag.
+    """
+    params = {"out": str(dep.record), "height_unit": geometry.height_unit}
+    return NodeSpec(
+        "recorder",
+        "recorder",
+        _finish(dep, "recorder", params, clock=False),
+        ("/bag_recorder",),
+        args=("record", "--out", str(dep.record)),
+        restart=False,
+        module="excavation_bags.cli",
+    )
+
+
+def supervisor(dep: Deployment) -> NodeSpec:
+    """The team supervisor: armed at start when simulated, disarmed in the dome.
+
+    In the dome nothing moves until the operator runs ``ant-operator arm``. A simulated run
+    is unattended, so its supervisor arms the team itself, with the lost-robot policy's
+    trial timing (:data:`LOST_TIMEOUT`, :data:`LOST_GRACE`); a lockstep trial watches poses
+    only with full perception, where the localiser can lose a robot (with truth the
+    simulator publishes a tick's poses together, and a busy supervisor could only misjudge
+    a robot from their order).
+    """
+    params: dict[str, Any] = {"robots": dep.robots}
+    if dep.sim:
+        params |= {"lost_timeout": LOST_TIMEOUT, "lost_grace": LOST_GRACE}
+    params["arm_at_start"] = dep.sim
+    if dep.drive == "grid":
+        params["watch_poses"] = dep.full
+    params = _finish(dep, "supervisor", params)
+    return NodeSpec("supervisor", "supervisor", params, ("/supervisor",))
+
+
+def server(dep: Deployment) -> NodeSpec:
+    """The blueprint server (it alone publishes ``/worksite/map_info``)."""
+    return NodeSpec(
+        "server",
+        "server",
+        _finish(dep, "server", {"blueprint": dep.blueprint}),
+        ("/blueprint_server", "blueprint_server: *"),
+    )
+
+
+def sim(dep: Deployment, files: RunFiles, processes: bool) -> NodeSpec:
+    """The lockstep simulator: the clock of a grid trial, and its final node.
+
+    With full perception its truth moves under ``/truth`` and tick 0 waits for every
+    controller's ``ready``; as a process it writes ``result.json`` at the end and, with a
+    recorder, tick 0 waits for it.
+    """
+    params: dict[str, Any] = {
+        "blueprint": dep.blueprint,
+        "robots": dep.robots,
+        "steps": dep.steps,
+        "seed": dep.seed,
+        "scenario": dep.scenario,
+        "command_timeout": float(dep.command_timeout),
+        "blade_driver": dep.blade_driver,
+    }
+    if processes:
+        params |= {"result_file": str(files.result), "wait_for_recorder": bool(dep.record)}
+    if dep.full:
+        params |= {"truth_prefix": TRUTH_PREFIX, "wait_for_ready": True}
+    return NodeSpec("sim", "sim", params, ("/sim",), restart=False, final=True)
+
+
+def dynamics(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeSpec:
+    """The continuous-motion simulator: the clock of every other node.
+
+    With full perception its per-step truth goes under ``/truth`` (the executors' loop)
+    and the snapshots the team tick asks for under ``/snapshot`` (what the synthetic
+    camera and laser render). It writes ``world.json`` at every snapshot. Not restartable:
+    a new one would start the world over.
+    """
+    from excavation_sim.dynamics import DynamicsParams
+
+    physics = DynamicsParams.exact() if dep.exact else DynamicsParams()
+    params: dict[str, Any] = {
+        "blueprint": dep.blueprint,
+        "robots": dep.robots,
+        "seed": dep.seed,
+        "scenario": dep.scenario,
+        "noise_seed": dep.seed,
+        "pose_prefix": TRUTH_PREFIX if dep.full else "",
+        "snapshot_prefix": SNAPSHOT_PREFIX if dep.full else "",
+        "idle_time_factor": profile.idle_time_factor,
+    } | vars(physics)
+    if profile.dynamics_command_timeout is not None:
+        params["command_timeout"] = min(
+            float(dep.command_timeout), profile.dynamics_command_timeout
+        )
+    if profile.max_time_factor is not None:
+        params["max_time_factor"] = profile.max_time_factor
+    params["time_factor"] = float(dep.time_factor)
+    params["result_file"] = str(files.world)
+    return NodeSpec("dynamics", "dynamics", params, ("/dynamics",), restart=False)
+
+
+def sensors(dep: Deployment, geometry: Geometry) -> NodeSpec:
+    """The synthetic overhead camera and laser, rendering the simulator's truth.
+
+    A lockstep trial renders ``/truth`` every tick, a continuous one the snapshot
+    ``dynamics`` took for the team tick (``/snapshot``).
+    """
+    params: dict[str, Any] = {
+        "robots": dep.robots,
+        "seed": dep.seed,
+        "truth_prefix": SNAPSHOT_PREFIX if dep.drive == "continuous" else TRUTH_PREFIX,
+        "sweep_scans": geometry.sweep_scans,
+        "cell_size": geometry.cell_size,
+        "rows": geometry.rows,
+        "cols": geometry.cols,
+        "reliable": True,
+    }
+    if dep.occlude:
+        params["occlude"] = dep.occlude
+    return NodeSpec("sensors", "sensors", _finish(dep, "sensors", params), ("/sensors",))
+
+
+def localizer(dep: Deployment, files: RunFiles, view: bool = False) -> NodeSpec:
+    """The overhead localiser: camera topics, calibration and (a site's) LED table.
+
+    Simulated, the synthetic camera is reliable, renders one frame per tick and answers
+    retakes (:data:`RETAKES`). With the live view it publishes annotated frames.
+    """
+    params: dict[str, Any] = {"robots": dep.robots, "calibration": files.calibration}
+    site = dep.site
+    if site is not None:
+        c = site.camera
+        params |= {
+            "beacons": str(files.beacons),
+            "image_topic": c.image_topic,
+            "compressed": c.compressed,
+            "camera_info_topic": c.camera_info_topic,
+        }
+    params |= {"reliable": dep.sim, "retakes": RETAKES if dep.sim else 0}
+    if view:
+        params["annotated_period"] = 0.5
+    return NodeSpec(
+        "localizer", "localizer", _finish(dep, "localizer", params), ("/localizer", "localizer: *")
+    )
+
+
+def mapper(dep: Deployment, profile: TimingProfile, geometry: Geometry) -> NodeSpec:
+    """The terrain mapper: grid, mount pose and offsets; never a ``map_info`` publisher.
+
+    It starts from a level site (``prior_known``: the survey before the robots enter), so
+    the cells under the robots' start positions have a value before any beam reaches them.
+    The profile's waits are fallbacks: current poses end ``pose_wait`` at once, a mount
+    state ``mount_wait``.
+    """
+    site = dep.site
+    if site is not None:
+        w, las = site.worksite, site.laser
+        mount = las.mount
+        laser = {
+            "pan_offset": float(las.pan_offset),
+            "tilt_offset": float(las.tilt_offset),
+            "roll_offset": float(las.roll_offset),
+            "sweep_scans": las.sweep_scans,
+            "scan_topic": las.scan_topic,
+            "mount_topic": las.mount_state_topic,
+        }
+        prior = {
+            "prior_known": w.prior_height is not None,
+            "prior_height": float(w.prior_height or 0.0),
+        }
+        robot_height = las.robot_height
+    else:
+        mount = geometry.laser.mount
+        laser = {"sweep_scans": geometry.sweep_scans}
+        prior = {"prior_known": True, "prior_height": 0.0}
+        robot_height = geometry.laser.robot_height
+    params: dict[str, Any] = {
+        "robots": dep.robots,
+        "rows": geometry.rows,
+        "cols": geometry.cols,
+        "cell_size": geometry.cell_size,
+        "mount_x": float(mount[0]),
+        "mount_y": float(mount[1]),
+        "mount_z": float(mount[2]),
+        **laser,
+        **prior,
+        "robot_height": float(robot_height),
+        "publish_map_info": False,
+        "pose_wait": profile.pose_wait,
+        "mount_wait": profile.mount_wait,
+        "reliable": dep.sim,
+    }
+    return NodeSpec("mapper", "mapper", _finish(dep, "mapper", params), ("/mapper", "mapper"))
+
+
+def controller_remaps(dep: Deployment, k: int) -> tuple[str, ...]:
+    """A continuous run's controller reads the team tick's snapshot (``/tick``).
+
+    In the dome its blade state is the tick's too (:data:`DOME_BLADE_OUT`); simulated, the
+    blade driver's ``sim`` backend already stamps it with the tick.
+    """
+    if dep.drive != "continuous":
+        return ()
+    out = [f"/robot_{j}/pose:={TICK_PREFIX}/robot_{j}/pose" for j in range(dep.robots)]
+    out.append(f"/worksite/height_map:={TICK_PREFIX}/worksite/height_map")
+    out.append(f"/robot_{k}/stuck:={TICK_PREFIX}/robot_{k}/stuck")
+    if not dep.sim:
+        ns = robot_namespace(k)
+        out.append(f"{ns}/blade/joint_states:={ns}/{DOME_BLADE_OUT}")
+    return tuple(out)
+
+
+def controller_args(spec: str) -> tuple[str, ...]:
+    """The controller's command-line arguments for a genome file or ``"hand-coded"``."""
+    return ("--hand-coded",) if spec == sitefile.HAND_CODED else ("--genome", spec)
+
+
+def controller(dep: Deployment, k: int, geometry: Geometry) -> NodeSpec:
+    """Robot ``k``'s controller (its genome on the command line), lockstep.
+
+    In a continuous run it decides once per team tick on the tick's topics
+    (:func:`controller_remaps`), and R1 comes from the robot's IMU (``tilt_source: imu``;
+    a dome whose robots carry none overrides it with ``height_map``).
+    """
+    ns = robot_namespace(k)
+    params: dict[str, Any] = {
+        "robot_id": k,
+        "robots": dep.robots,
+        "height_unit": geometry.height_unit,
+        "lockstep": True,
+    }
+    if dep.drive == "continuous":
+        params["tilt_source"] = "imu"
+    return NodeSpec(
+        f"controller_{k}",
+        "controller",
+        _finish(dep, "controller", params),
+        (f"{ns}/controller",),
+        args=controller_args(dep.robot_controller(k)),
+        namespace=ns,
+        remaps=controller_remaps(dep, k),
+    )
+
+
+def blade_driver(dep: Deployment, k: int, profile: TimingProfile) -> NodeSpec:
+    """Robot ``k``'s blade driver; simulated, the simulator is the board.
+
+    With drive executors a tick's blade bits wait for the end of its drive
+    (``blade_after_motion``, Table 2 order); the lockstep simulator ends no drive, so there
+    it stays off.
+    """
+    ns = robot_namespace(k)
+    robot = dep.site.robots[k] if dep.site is not None else None
+    backend = "sim" if dep.sim or robot is None else robot.backend
+    params: dict[str, Any] = {"backend": backend}
+    if dep.drive == "continuous":
+        params["blade_after_motion"] = True
+    if backend == "serial":
+        params["port"] = robot.port
+    params |= _sim_deadman(dep, profile)
+    return NodeSpec(
+        f"blade_driver_{k}",
+        "blade_driver",
+        _finish(dep, "blade_driver", params),
+        (f"{ns}/blade_driver",),
+        namespace=ns,
+    )
+
+
+def executor(dep: Deployment, k: int, profile: TimingProfile, geometry: Geometry) -> NodeSpec:
+    """Robot ``k``'s drive executor (a lifecycle node: its program configures and activates it).
+
+    Simulated, its loop closes on the simulator's per-step pose (``/truth`` with full
+    perception), which stands in for a localiser at camera rate; in the dome on the
+    localiser's pose, and its ``cmd_vel`` goes to the robot's ``drive_topic`` (the base).
+    """
+    ns = robot_namespace(k)
+    pose = f"{TRUTH_PREFIX}/robot_{k}/pose" if dep.full and dep.sim else "pose"
+    params: dict[str, Any] = {
+        "cell_size": geometry.cell_size,
+        "pose_topic": pose,
+        "seed": dep.seed * 1000 + k,
+    }
+    params |= _sim_deadman(dep, profile)
+    remaps: tuple[str, ...] = ()
+    if not dep.sim:
+        remaps = (f"{ns}/cmd_vel:={dep.site.robots[k].drive_topic}",)
+    return NodeSpec(
+        f"executor_{k}",
+        "executor",
+        _finish(dep, "executor", params),
+        (f"{ns}/executor",),
+        namespace=ns,
+        remaps=remaps,
+    )
+
+
+def team_tick(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeSpec:
+    """The team tick: last; its exit after ``steps`` ticks ends the run (0: never).
+
+    Tick 0 waits for every controller's inputs (``wait_for_ready``) and, recording, for the
+    recorder (the bag then holds every tick). Simulated it reads the simulator's blades; in
+    the dome each blade driver's joint state, on the wall clock, and no node acknowledges
+    its snapshot requests (the camera and the laser run anyway). Not restartable: a new one
+    would start the ticks over.
+    """
+    params: dict[str, Any] = {
+        "robots": dep.robots,
+        "steps": dep.steps,
+        "seed": dep.seed,
+        "scenario": dep.scenario,
+        "blueprint": dep.blueprint,
+        "word_timeout": float(dep.command_timeout),
+        "wait_for_ready": True,
+        "wait_for_recorder": bool(dep.record),
+        "result_file": str(files.result),
+    }
+    if not dep.sim:
+        params |= {"blade_in": DOME_BLADE_IN, "blade_out": DOME_BLADE_OUT, "snapshot_ack": False}
+    if profile.blade_wait is not None:
+        params["blade_wait"] = profile.blade_wait
+    if profile.snapshot_retry is not None:
+        params["snapshot_retry"] = profile.snapshot_retry
+    first = dep.first_command_timeout or profile.first_word_timeout
+    if first is not None:
+        params["first_word_timeout"] = float(first)
+    return NodeSpec(
+        "team_tick",
+        "team_tick",
+        _finish(dep, "team_tick", params),
+        ("/team_tick",),
+        restart=False,
+        final=dep.steps > 0,
+    )
+
+
+def view(dep: Deployment, files: RunFiles, port: int) -> NodeSpec:
+    """The live view (``ant-view``) of a site's run."""
+    return NodeSpec(
+        "view",
+        "view",
+        {},
+        ("/ant_view",),
+        args=(
+            "--site",
+            str(Path(dep.site.path).resolve()),
+            "--calibration",
+            str(files.calibration),
+            "--port",
+            str(port),
+        ),
+        module="excavation_bringup.view",
+    )
