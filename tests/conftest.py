@@ -1,4 +1,15 @@
-"""Shared fixtures. ROS tests stay on loopback with a domain of their own."""
+"""Shared fixtures. ROS tests stay on loopback with a domain of their own.
+
+A test takes its ROS domain from a fixture: ``domain`` (one fresh id), ``domains`` (a
+function handing out fresh ids, ``domains(n)`` the first of ``n`` consecutive ones; session
+scoped, so a fixture of any scope can use it), or ``ros`` / ``ros_env`` (which take theirs
+from ``domains``). Shared helpers live in ``tests/helpers`` (``from helpers.worlds import
+...``); the ``camera`` fixture is :func:`helpers.cameras.camera`, registered here.
+
+``next_domain`` and ``next_domains`` stay importable only for the modules not yet switched
+to the fixtures (``tests/faults.py`` and the trial, dome, soak and fault test modules); a
+new test asks for ``domain`` or ``domains`` instead.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +18,7 @@ import os
 import time
 
 import pytest
+from helpers.cameras import camera  # noqa: F401 - the fixture, for every test module
 
 from excavation_common.middleware import use_profiles
 
@@ -76,15 +88,36 @@ def next_domain() -> int:
     return next_domains(1)
 
 
+@pytest.fixture(scope="session")
+def domains():
+    """A function handing out fresh ROS domains of this worker's block.
+
+    ``domains()`` is one id, ``domains(n)`` the first of ``n`` consecutive ones (all taken);
+    every call gives ids no other call of this session gives (see :func:`next_domains`).
+    Session scoped: fixtures of any scope may use it.
+    """
+
+    def take(count: int = 1) -> int:
+        return next_domains(count)
+
+    return take
+
+
 @pytest.fixture
-def ros():
+def domain(domains) -> int:
+    """A fresh ROS domain id (1-100) of this worker's block, for this test alone."""
+    return domains()
+
+
+@pytest.fixture
+def ros(domains):
     """A fresh rclpy context on its own ROS domain, with a spin-until helper."""
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
 
     context = Context()
-    domain = next_domain()
+    domain = domains()
     rclpy.init(context=context, domain_id=domain)
     executor = SingleThreadedExecutor(context=context)
 
@@ -115,8 +148,6 @@ def ros():
 
 
 @pytest.fixture
-def ros_env() -> dict[str, str]:
+def ros_env(domains) -> dict[str, str]:
     """Environment for a node started as a subprocess: loopback, a domain of its own."""
-    return dict(
-        os.environ, ROS_DOMAIN_ID=str(next_domain()), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"
-    )
+    return dict(os.environ, ROS_DOMAIN_ID=str(domains()), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")

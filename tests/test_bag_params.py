@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from conftest import next_domain
 from rclpy.parameter import Parameter
 
 from excavation_bags.cli import main as ant_bag
@@ -31,10 +29,12 @@ SAMPLE = Path(__file__).resolve().parents[1] / "bags" / "sample"
         ("play", "lockstep_timeout:=-1.0", "lockstep_timeout"),
     ],
 )
-def test_bad_value_at_start_is_one_line_and_exit_code_2(tmp_path, capsys, command, setting, reason):
+def test_bad_value_at_start_is_one_line_and_exit_code_2(
+    tmp_path, capsys, domain, command, setting, reason
+):
     out = tmp_path / "rec"
     where = ["--out", str(out)] if command == "record" else [str(SAMPLE)]
-    argv = [command, *where, "--domain", str(next_domain()), "--ros-args", "-p", setting]
+    argv = [command, *where, "--domain", str(domain), "--ros-args", "-p", setting]
     assert ant_bag(argv) == 2
     err = capsys.readouterr().err
     lines = [line for line in err.splitlines() if line.strip()]
@@ -44,14 +44,11 @@ def test_bad_value_at_start_is_one_line_and_exit_code_2(tmp_path, capsys, comman
     assert not out.exists()  # nothing is recorded with a bad parameter
 
 
-def test_bad_value_in_a_real_process(tmp_path):
-    env = dict(
-        os.environ, ROS_DOMAIN_ID=str(next_domain()), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"
-    )
+def test_bad_value_in_a_real_process(tmp_path, ros_env):
     cmd = [sys.executable, "-m", "excavation_bags.cli", "record", "--out", str(tmp_path / "r")]
     proc = subprocess.run(
         [*cmd, "--ros-args", "-p", "flush_period:=-1.0"],
-        env=env,
+        env=ros_env,
         capture_output=True,
         text=True,
         timeout=60,

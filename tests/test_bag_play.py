@@ -6,7 +6,6 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import next_domain
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.serialization import serialize_message
@@ -149,9 +148,9 @@ def test_loop_and_topic_selection(ros, tmp_path):
         )
 
 
-def test_cli_play_errors(tmp_path, capsys):
+def test_cli_play_errors(tmp_path, capsys, domain):
     small_bag(tmp_path / "b")
-    args = ["play", str(tmp_path / "b"), "--topics", "/nope", "--domain", str(next_domain())]
+    args = ["play", str(tmp_path / "b"), "--topics", "/nope", "--domain", str(domain)]
     assert ant_bag(args) == 2
     assert "no playable topic" in capsys.readouterr().err
 

@@ -9,16 +9,18 @@ import sys
 import time
 
 import pytest
-from conftest import next_domain
 from ruamel.yaml import YAML
 
 from excavation_bags.metadata import PRODUCER, latched
 from excavation_bags.reader import open_bag
 from excavation_bags.recover import recover_bag
-from excavation_bringup.trial import TrialProcesses, TrialSpec, run_trial
+from excavation_bringup.deployment import Deployment
+from excavation_bringup.graph import build
+from excavation_bringup.launch import ProcessLauncher
+from excavation_bringup.trial import run_trial
 
 
-def test_trial_records_every_tick(tmp_path):
+def test_trial_records_every_tick(tmp_path, domain):
     steps, robots = 12, 2
     bag_dir = tmp_path / "trial"
     result = run_trial(
@@ -27,7 +29,7 @@ def test_trial_records_every_tick(tmp_path):
         steps,
         1,
         "default:1",
-        domain=next_domain(),
+        domain=domain,
         command_timeout=30.0,
         record=str(bag_dir),
     )
@@ -70,27 +72,27 @@ def _metadata_count(bag_dir) -> int:
         return 0
 
 
-def _run_with_a_late_recorder(trial: TrialProcesses) -> dict:
+def _run_with_a_late_recorder(trial: ProcessLauncher) -> dict:
     """Start every node but the recorder, the recorder 5 s later; the trial's result."""
-    for name in trial.commands:
+    for name in trial.specs:
         if name != "recorder":
             trial.start(name)
     time.sleep(5.0)  # the team is up long before the recorder
-    assert not trial.result_file.exists()
+    assert not trial.graph.files.result.exists()
     trial.start("recorder")
     return trial.wait(300.0)
 
 
 @pytest.mark.system  # every node its own process
-def test_process_trial_waits_for_a_late_recorder(tmp_path):
+def test_process_trial_waits_for_a_late_recorder(tmp_path, domain):
     """Tick 0 waits for the recorder process, even one that starts after every other node."""
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     steps, bag_dir = 6, tmp_path / "bag"
-    spec = TrialSpec(
-        "hand-coded", 2, steps, 1, "default:1", 0, next_domain(), 30.0, 300.0, False,
-        str(bag_dir), "truth",
+    spec = Deployment(
+        "hand-coded", 2, steps, 1, "default:1", 0, domain, 30.0, 300.0, False,
+        str(bag_dir), "truth", processes=True,
     )  # fmt: skip
-    with TrialProcesses(spec, tmp_path / "nodes") as trial:
+    with ProcessLauncher(build(spec, tmp_path / "nodes")) as trial:
         result = _run_with_a_late_recorder(trial)
     assert result["missed"] == {"0": 0, "1": 0}
     bag = open_bag(bag_dir)
@@ -99,21 +101,18 @@ def test_process_trial_waits_for_a_late_recorder(tmp_path):
 
 
 @pytest.mark.system  # every node its own process
-def test_continuous_process_trial_waits_for_a_late_recorder(tmp_path):
+def test_continuous_process_trial_waits_for_a_late_recorder(tmp_path, domain):
     """The continuous trial's tick 0 waits for the recorder too (the team tick's
     ``wait_for_recorder``): the bag has every tick although the recorder starts last."""
-    from excavation_bringup.continuous_processes import FINAL, continuous_commands
-
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     steps, bag_dir = 4, tmp_path / "bag"
-    spec = TrialSpec(
-        "hand-coded", 2, steps, 1, "default:1", 0, next_domain(), 30.0, 300.0, True,
-        str(bag_dir), "truth",
+    spec = Deployment(
+        "hand-coded", 2, steps, 1, "default:1", 0, domain, 30.0, 300.0, True,
+        str(bag_dir), "truth", drive="continuous", exact=True, processes=True,
     )  # fmt: skip
-    work = tmp_path / "nodes"
-    commands = continuous_commands(spec, work, exact=True)
-    assert "wait_for_recorder:=true" in commands[FINAL]
-    with TrialProcesses(spec, work, commands=commands, final=FINAL) as trial:
+    graph = build(spec, tmp_path / "nodes")
+    assert graph.spec(graph.final).params["wait_for_recorder"] is True
+    with ProcessLauncher(graph) as trial:
         result = _run_with_a_late_recorder(trial)
     assert len(result["tick_wall"]) == steps
     bag = open_bag(bag_dir)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from helpers.blades import word
 
 from ant_controller.layout import (
     BLADE_ABOVE,
@@ -20,10 +21,6 @@ from ant_controller.layout import (
 from blade_driver.core import AfterDrive, BladeDriverCore, DriverParams, Pid, blade_setting
 from blade_driver.errors import BoardError, DriverConfigError
 from blade_driver.protocol import ServoCalibration, checksum, decode, encode
-
-
-def word(*bits: int) -> int:
-    return sum(1 << b for b in bits)
 
 
 @pytest.mark.parametrize(

@@ -6,6 +6,7 @@ import os
 import threading
 
 import pytest
+from helpers.blades import blade_driver_node, blade_probe, word
 
 from ant_controller.layout import (
     BLADE_ABOVE_CMD,
@@ -18,10 +19,6 @@ from blade_driver.errors import BoardError
 from blade_driver.fake_board import FakeBoard, open_pty
 from blade_driver.protocol import ServoCalibration
 from blade_driver.serial_backend import SerialBackend
-
-
-def word(*bits: int) -> int:
-    return sum(1 << b for b in bits)
 
 
 @pytest.fixture
@@ -85,70 +82,13 @@ def test_board_refusal_and_missing_port(board, tmp_path):
         SerialBackend(str(tmp_path / "no-such-tty"))
 
 
-def _supervisor(ros, armed=True):
-    """The team's supervisor (one robot), armed at start unless told otherwise."""
-    from rclpy.parameter import Parameter
-
-    from team_supervisor.supervisor_node import SupervisorNode
-
-    return ros.add(
-        SupervisorNode(
-            context=ros.context,
-            parameter_overrides=[
-                Parameter("robots", value=1),
-                Parameter("watch_poses", value=False),
-                Parameter("arm_at_start", value=armed),
-            ],
-        )
-    )
-
-
-def _driver(ros, supervised=True, **params):
-    from rclpy.parameter import Parameter
-
-    from blade_driver.driver_node import BladeDriverNode
-
-    if supervised:
-        _supervisor(ros)
-    return ros.add(
-        BladeDriverNode(
-            context=ros.context,
-            namespace="/robot_0",
-            parameter_overrides=[Parameter(k, value=v) for k, v in params.items()],
-        )
-    )
-
-
-def _probe(ros):
-    """A node that talks to the driver like a controller, an operator and a monitor."""
-    from diagnostic_msgs.msg import DiagnosticArray
-    from rclpy.node import Node
-    from sensor_msgs.msg import JointState
-    from std_msgs.msg import Float64MultiArray, UInt16
-
-    node = ros.add(Node("probe", context=ros.context))
-    node.joints, node.servo, node.diags = [], [], []
-    node.create_subscription(JointState, "/robot_0/blade/joint_states", node.joints.append, 10)
-    node.create_subscription(JointState, "/robot_0/blade/servo_command", node.servo.append, 10)
-    node.create_subscription(
-        DiagnosticArray,
-        "/diagnostics",
-        lambda m: node.diags.extend(s for s in m.status if s.name.endswith("blade_driver")),
-        10,
-    )
-    node.behaviour = node.create_publisher(UInt16, "/robot_0/behaviour", 10)
-    node.override = node.create_publisher(Float64MultiArray, "/robot_0/blade/commands", 10)
-    node.state = node.create_publisher(JointState, "/robot_0/blade/servo_state", 10)
-    return node
-
-
 def test_serial_driver_node_commands_the_board(ros, board):
     from std_msgs.msg import Float64MultiArray, UInt16
 
     fake, path = board
     cal = ServoCalibration()
-    _driver(ros, backend="serial", port=path, rate=50.0, watchdog_timeout=0.6)
-    probe = _probe(ros)
+    blade_driver_node(ros, backend="serial", port=path, rate=50.0, watchdog_timeout=0.6)
+    probe = blade_probe(ros)
     assert ros.spin_until(lambda: len(probe.joints) > 3)  # reads the board and publishes
     assert probe.joints[-1].position[0] == pytest.approx(0.10, abs=1e-4)  # starts home
 
@@ -187,8 +127,8 @@ def test_sim_driver_node_answers_each_tick_in_sim_time(ros):
 
     from blade_driver.driver_node import joint_state
 
-    driver = _driver(ros, backend="sim", watchdog_timeout=1.5)
-    probe = _probe(ros)
+    driver = blade_driver_node(ros, backend="sim", watchdog_timeout=1.5)
+    probe = blade_probe(ros)
     assert ros.spin_until(lambda: probe.count_subscribers("/robot_0/blade/servo_state") > 0)
     assert ros.spin_until(lambda: driver.hold is None)  # the team is armed
 
@@ -233,8 +173,8 @@ def test_sim_driver_waits_for_the_ticks_drive_before_moving_the_blade(ros):
 
     from blade_driver.driver_node import joint_state
 
-    driver = _driver(ros, backend="sim", blade_after_motion=True)
-    probe = _probe(ros)
+    driver = blade_driver_node(ros, backend="sim", blade_after_motion=True)
+    probe = blade_probe(ros)
     probe.status = probe.create_publisher(GoalStatus, "/robot_0/drive/status", 10)
     assert ros.spin_until(lambda: probe.count_subscribers("/robot_0/drive/status") > 0)
     assert ros.spin_until(lambda: driver.hold is None)
@@ -288,8 +228,8 @@ def test_serial_driver_waits_for_the_team_ticks_drive(ros, board):
 
     fake, path = board
     cal = ServoCalibration()
-    driver = _driver(ros, backend="serial", port=path, rate=50.0, blade_after_motion=True)
-    probe = _probe(ros)
+    driver = blade_driver_node(ros, backend="serial", port=path, rate=50.0, blade_after_motion=True)
+    probe = blade_probe(ros)
     probe.status = probe.create_publisher(GoalStatus, "/robot_0/drive/status", 10)
     team_tick = probe.create_publisher(Header, "/team/tick", 10)
     assert ros.spin_until(lambda: probe.count_subscribers("/team/tick") > 0)

@@ -9,12 +9,11 @@ import time
 
 import pytest
 from builtin_interfaces.msg import Time
-from rclpy.parameter import Parameter
+from helpers.blades import blade_driver_node, blade_probe, blade_supervisor, word
 from std_msgs.msg import Float64MultiArray, UInt16
-from test_blade_driver import _probe, _supervisor, word
 
 from ant_controller.layout import BLADE_BELOW_CMD
-from blade_driver.driver_node import BladeDriverNode, joint_state
+from blade_driver.driver_node import joint_state
 from blade_driver.fake_board import FakeBoard, open_pty
 from blade_driver.protocol import ServoCalibration
 from excavation_common.safety import HELD
@@ -22,22 +21,12 @@ from excavation_common.safety import HELD
 HOME = 0.10
 
 
-def driver(ros, **params):
-    return ros.add(
-        BladeDriverNode(
-            context=ros.context,
-            namespace="/robot_0",
-            parameter_overrides=[Parameter(k, value=v) for k, v in params.items()],
-        )
-    )
-
-
 @pytest.fixture
 def sim(ros):
     """Supervisor (armed), sim-backend driver and a probe; tick 0 answered with 'below'."""
-    sup = _supervisor(ros)
-    drv = driver(ros, backend="sim")
-    probe = _probe(ros)
+    sup = blade_supervisor(ros)
+    drv = blade_driver_node(ros, supervised=False, backend="sim")
+    probe = blade_probe(ros)
     assert ros.spin_until(lambda: probe.count_subscribers("/robot_0/blade/servo_state") > 0)
     assert ros.spin_until(lambda: drv.hold is None)
     probe.state.publish(joint_state(HOME, 0.0, Time(sec=0)))
@@ -108,9 +97,9 @@ def test_sim_blade_homes_on_heartbeat_loss_and_lifecycle(ros, sim):
 
 
 def test_an_unarmed_team_never_moves_the_blade(ros):
-    _supervisor(ros, armed=False)
-    drv = driver(ros, backend="sim")
-    probe = _probe(ros)
+    blade_supervisor(ros, armed=False)
+    drv = blade_driver_node(ros, supervised=False, backend="sim")
+    probe = blade_probe(ros)
     assert ros.spin_until(lambda: probe.count_subscribers("/robot_0/blade/servo_state") > 0)
     assert ros.spin_until(lambda: drv.hold == "team disarmed")
     for t in range(3):
@@ -150,9 +139,17 @@ class Plug:
 def test_serial_port_absent_at_start_then_unplugged_and_replugged(ros, tmp_path):
     link = str(tmp_path / "ttyBLADE")
     plug = Plug(link)
-    _supervisor(ros)
-    drv = driver(ros, backend="serial", port=link, rate=50.0, reopen_initial=0.05, reopen_max=0.2)
-    probe = _probe(ros)
+    blade_supervisor(ros)
+    drv = blade_driver_node(
+        ros,
+        supervised=False,
+        backend="serial",
+        port=link,
+        rate=50.0,
+        reopen_initial=0.05,
+        reopen_max=0.2,
+    )
+    probe = blade_probe(ros)
     cal = ServoCalibration()
 
     def diag(text):

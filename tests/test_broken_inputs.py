@@ -22,7 +22,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 import pytest
-from limits_helper import limited
+from helpers.limits import limited
 
 from excavation_common.errors import FieldError
 from excavation_common.limits import INT32_MAX, MAX_DEPTH_UNITS, MAX_GRID_CELLS

@@ -18,11 +18,6 @@ from excavation_sim.camera import (
 from excavation_sim.world import World
 
 
-@pytest.fixture(scope="module")
-def camera():
-    return OverheadCamera(CameraParams(), default_beacons(), 16, 16, 0.25, seed=0)
-
-
 def scene(n=4, seed=0):
     bp = default_blueprint(2)
     world = World.scenario(bp.zones, bp.goal, n, seed)

@@ -12,58 +12,38 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers.worlds import random_masks, random_state
 
 from ant_controller.controller import Controller
 from ant_controller.genome import random_genome
-from ant_controller.layout import MOVE_BACKWARD, MOVE_FORWARD, N_BEHAVIOURS, N_SENSORS
+from ant_controller.layout import MOVE_BACKWARD, MOVE_FORWARD, N_SENSORS
 from ant_controller.sensing import occupied_by_other
 from ant_controller.tissue import decide
 from ant_evolution.breakdown import phase_times
 from ant_evolution.evaluate import ScenarioSet, evaluate, scenario_worlds
 from ant_evolution.kernel import decide_cached, new_workspace
 from blueprint_server.blueprint import default_blueprint
-from excavation_sim.rules import WorldRules
 from excavation_sim.world import (
-    BLADE,
-    MEMORY,
-    STUCK,
     apply_all,
     occupancy,
     occupied,
-    place_robots,
     seed_state,
     step_robots,
 )
 
 
-def _random_state(rng: np.random.Generator, shape=(12, 12), n_robots=5):
-    heights = rng.integers(-3, 4, shape).astype(np.int32)
-    robots = place_robots(shape, n_robots, rng)
-    robots[:, BLADE] = rng.integers(0, 4, n_robots)
-    robots[:, MEMORY] = rng.integers(0, 2, n_robots)
-    robots[:, STUCK] = rng.integers(0, 2, n_robots)
-    active = rng.random(n_robots) < 0.85
-    params = WorldRules(
-        normal_load=int(rng.integers(4, 13)), soil_fill=bool(rng.integers(0, 2))
-    ).as_array()
-    return heights, robots, active, params
-
-
-def _masks(rng: np.random.Generator, n: int, p: float) -> np.ndarray:
-    bits = rng.random((n, N_BEHAVIOURS)) < p
-    return (bits * (1 << np.arange(N_BEHAVIOURS))).sum(axis=1).astype(np.int64)
-
-
 @pytest.mark.parametrize("seed", range(10))
 def test_occupancy_kept_by_the_moves_equals_a_rebuilt_one(seed):
     rng = np.random.default_rng(seed)
-    heights, robots, active, params = _random_state(rng)
+    heights, _, _, robots, active, params = random_state(rng, (12, 12), 5, maps=False)
     state = seed_state(seed + 1)
     occ = np.zeros(heights.shape, dtype=np.int16)
     occupancy(robots, active, occ)
     fresh = np.zeros_like(occ)
     for _ in range(300):
-        step_robots(heights, robots, active, occ, _masks(rng, len(robots), 0.3), state, params)
+        step_robots(
+            heights, robots, active, occ, random_masks(rng, len(robots), 0.3), state, params
+        )
         occupancy(robots, active, fresh)
         assert np.array_equal(occ, fresh)
     for k in range(len(robots)):  # the grid answers as the scan over robots does
@@ -77,11 +57,11 @@ def test_nothing_changed_means_the_state_is_unchanged(seed):
     """Sparse masks (many idle steps), forward and backward together (soil moves while
     the pose comes back): whenever the step says False, nothing differs."""
     rng = np.random.default_rng(100 + seed)
-    heights, robots, active, params = _random_state(rng)
+    heights, _, _, robots, active, params = random_state(rng, (12, 12), 5, maps=False)
     state = seed_state(seed + 7)
     quiet = 0
     for t in range(200):
-        masks = _masks(rng, len(robots), 0.06)
+        masks = random_masks(rng, len(robots), 0.06)
         if t % 5 == 0:
             masks |= (1 << MOVE_FORWARD) | (1 << MOVE_BACKWARD)
         before = heights.copy(), robots.copy(), int(state[0])

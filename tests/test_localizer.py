@@ -29,11 +29,6 @@ CELL, UNIT = 0.25, 0.05
 
 
 @pytest.fixture(scope="module")
-def camera():
-    return OverheadCamera(CameraParams(), default_beacons(), 16, 16, CELL, seed=0)
-
-
-@pytest.fixture(scope="module")
 def model(camera):
     pixels, points = calibration_marks(camera, np.random.default_rng(1))
     return calibrate(pixels, points, (1280, 720))

@@ -11,7 +11,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
 
-from excavation_sim.camera import CameraParams, OverheadCamera, RobotView, default_beacons
+from excavation_sim.camera import RobotView
 from overhead_localizer.beacons import CONFIG_DIR
 from overhead_localizer.errors import LocalizerConfigError
 from overhead_localizer.images import frame_to_message
@@ -21,8 +21,7 @@ VIEWS = [RobotView(1.0, 1.0, 0.0), RobotView(3.0, 3.0, np.pi / 2)]
 
 
 @pytest.fixture(scope="module")
-def frame():
-    camera = OverheadCamera(CameraParams(), default_beacons(), 16, 16, 0.25, seed=0)
+def frame(camera):
     return camera.render(VIEWS, np.zeros((16, 16)), np.random.default_rng(0))[0]
 
 
@@ -149,14 +148,12 @@ def test_no_calibration_refuses_to_start(ros, tmp_path):
         LocalizerNode(context=ros.context, parameter_overrides=missing)
 
 
-def test_no_calibration_is_one_line_and_exit_code_2():
+def test_no_calibration_is_one_line_and_exit_code_2(domain):
     import os
     import subprocess
     import sys
 
-    from conftest import next_domain
-
-    env = dict(os.environ, ROS_DOMAIN_ID=str(next_domain()))
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
     cmd = [sys.executable, "-m", "overhead_localizer.localizer_node"]
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=60)
     assert done.returncode == 2
@@ -186,13 +183,12 @@ def test_two_robots_with_the_same_colours(ros, frame, tmp_path):
     assert not any(p.sent for p in poses)  # ... and gave no pose
 
 
-def test_a_tracked_robot_unseen_asks_for_a_retake_and_holds_the_frame(ros):
+def test_a_tracked_robot_unseen_asks_for_a_retake_and_holds_the_frame(ros, camera):
     """Frame 1 tracks both robots; frame 2 (glare over robot 1's front LED, here: hidden)
     publishes nothing and asks for the instant again; the retake shows both: its poses go out.
     With the retakes spent, the incomplete frame's poses go out as they are."""
     from std_msgs.msg import Header
 
-    camera = OverheadCamera(CameraParams(), default_beacons(), 16, 16, 0.25, seed=0)
     rng = np.random.default_rng(1)
 
     def render(hidden=frozenset()):
@@ -222,7 +218,7 @@ def test_a_tracked_robot_unseen_asks_for_a_retake_and_holds_the_frame(ros):
     assert probe.poses[0][-1].header.stamp.sec == 9
 
 
-def test_retakes_off_never_ask(ros, frame):
+def test_retakes_off_never_ask(ros, frame, camera):
     from std_msgs.msg import Header
 
     node = localizer(ros)
@@ -231,7 +227,6 @@ def test_retakes_off_never_ask(ros, frame):
     probe = Probe(ros)
     asked = []
     probe.node.create_subscription(Header, "/overhead/retake", asked.append, 10)
-    camera = OverheadCamera(CameraParams(), default_beacons(), 16, 16, 0.25, seed=0)
     probe.send(frame_to_message(frame, Image()), 7)
     assert ros.spin_until(lambda: all(probe.poses.values()))
     hidden = camera.render(VIEWS, np.zeros((16, 16)), np.random.default_rng(2), {(1, "front")})

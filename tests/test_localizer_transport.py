@@ -10,7 +10,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 
-from excavation_sim.camera import CameraParams, OverheadCamera, RobotView, default_beacons
+from excavation_sim.camera import CameraParams, RobotView
 from overhead_localizer.beacons import CONFIG_DIR
 from overhead_localizer.camera_info import camera_info_fields, with_camera_info
 from overhead_localizer.camera_model import CameraModel, load_model
@@ -30,11 +30,6 @@ TOLERANCE_M = 0.005
 """Largest position difference between a raw frame and its jpeg (quality 90), metres."""
 TOLERANCE_RAD = 0.02
 """... and of heading, radians."""
-
-
-@pytest.fixture(scope="module")
-def camera():
-    return OverheadCamera(CameraParams(), default_beacons(), 16, 16, 0.25, seed=0)
 
 
 @pytest.fixture(scope="module")

@@ -3,86 +3,16 @@
 from __future__ import annotations
 
 import numpy as np
-from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image, JointState, LaserScan
+from diagnostic_msgs.msg import DiagnosticStatus
+from helpers.rigs import LASER, MapperRig
 
 from excavation_common.messages import image_to_grid
-from excavation_common.ros import LATCHED
-from excavation_sim.laser import LaserParams, OverheadLaser
-from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT
-from terrain_mapper.mapper_node import MOUNT_TOPIC, SCAN_TOPIC, MapperNode
-
-LASER = LaserParams(sweep_scans=16)
-
-
-class Rig:
-    """A mapper node (sweeps of 16 scans, no robots) and a probe that feeds it."""
-
-    def __init__(self, ros):
-        from rclpy.node import Node
-
-        self.ros = ros
-        self.mapper = ros.add(
-            MapperNode(
-                context=ros.context,
-                parameter_overrides=[
-                    Parameter("robots", value=0),
-                    Parameter("sweep_scans", value=LASER.sweep_scans),
-                    Parameter("reliable", value=True),
-                    Parameter("diagnostics_period", value=0.1),
-                ],
-            )
-        )
-        node = self.node = ros.add(Node("probe", context=ros.context))
-        qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
-        self.scan_pub = node.create_publisher(LaserScan, SCAN_TOPIC, qos)
-        self.mount_pub = node.create_publisher(JointState, MOUNT_TOPIC, qos)
-        self.maps: list[Image] = []
-        node.create_subscription(Image, "/worksite/height_map", self.maps.append, LATCHED)
-        self.status: DiagnosticStatus | None = None
-        node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
-        ros.spin_until(
-            lambda: (
-                self.scan_pub.get_subscription_count() > 0
-                and self.mount_pub.get_subscription_count() > 0
-            ),
-            5.0,
-        )
-
-    def on_diag(self, msg):
-        for s in msg.status:
-            if s.name == "/mapper":
-                self.status = s
-
-    def send(self, sec, ranges, tilt, joints=(PAN_JOINT, TILT_JOINT), n=None):
-        stamp = Time(sec=sec, nanosec=0)
-        mount = JointState(name=list(joints), position=[0.0, tilt][: len(joints)])
-        mount.header.stamp = stamp
-        scan = LaserScan()
-        scan.header.stamp = stamp
-        scan.angle_min, scan.angle_max = LASER.angle_min, LASER.angle_max
-        scan.angle_increment = LASER.angle_increment
-        scan.range_min, scan.range_max = LASER.range_min, LASER.range_max
-        scan.ranges = [float(r) for r in ranges][:n]
-        self.mount_pub.publish(mount)
-        self.scan_pub.publish(scan)
-
-    def sweep(self, sec0, heights, rng):
-        laser = OverheadLaser(LASER, 0.25)
-        for i, (_, tilt, ranges) in enumerate(laser.sweep(heights, rng)):
-            self.send(sec0 + i, ranges, tilt)
-
-    def reported(self, level, text):
-        return lambda: (
-            self.status is not None and self.status.level == level and (text in self.status.message)
-        )
+from excavation_sim.laser import OverheadLaser
+from terrain_mapper.geometry import PAN_JOINT
 
 
 def test_a_sweep_gives_a_map_stamped_with_its_first_scan(ros):
-    rig = Rig(ros)
+    rig = MapperRig(ros)
     heights = np.random.default_rng(0).integers(-3, 4, (16, 16)) * 0.05
     rig.sweep(100, heights, np.random.default_rng(1))
     assert ros.spin_until(lambda: rig.maps)
@@ -95,7 +25,7 @@ def test_a_sweep_gives_a_map_stamped_with_its_first_scan(ros):
 
 
 def test_scans_without_valid_returns_publish_nothing(ros):
-    rig = Rig(ros)
+    rig = MapperRig(ros)
     for i, tilt in enumerate(LASER.tilts()):
         rig.send(10 + i, [np.inf] * LASER.beams, tilt)
     assert ros.spin_until(rig.reported(DiagnosticStatus.WARN, "has no valid return"))
@@ -106,7 +36,7 @@ def test_scans_without_valid_returns_publish_nothing(ros):
 
 
 def test_malformed_scan_and_mount_are_reported(ros):
-    rig = Rig(ros)
+    rig = MapperRig(ros)
     rig.send(1, [1.0] * LASER.beams, 0.0, n=10)
     assert ros.spin_until(rig.reported(DiagnosticStatus.ERROR, "ranges = '10 values'"))
     rig.send(2, [1.0] * LASER.beams, 0.0, joints=(PAN_JOINT,))
@@ -116,7 +46,7 @@ def test_malformed_scan_and_mount_are_reported(ros):
 
 
 def test_a_lost_scan_does_not_shift_later_sweeps(ros):
-    rig = Rig(ros)
+    rig = MapperRig(ros)
     laser = OverheadLaser(LASER, 0.25)
     scans = laser.sweep(np.zeros((16, 16)), np.random.default_rng(0))
     for i, (_, tilt, ranges) in enumerate(scans):

@@ -8,7 +8,6 @@ import subprocess
 import sys
 
 import pytest
-from conftest import next_domain
 
 from excavation_common.middleware import (
     LOOPBACK_PROFILES_FILE,
@@ -80,9 +79,9 @@ def test_the_profiles_files_are_installed_with_the_package():
     assert "<address>127.0.0.1</address>" in loopback and "SHM" not in loopback
 
 
-def _make_writer(env_changes: dict[str, str]) -> subprocess.CompletedProcess:
+def _make_writer(env_changes: dict[str, str], domain: int) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k not in (*PROFILE_VARIABLES, RANGE_VARIABLE)}
-    env.update(env_changes, ROS_DOMAIN_ID=str(next_domain()))
+    env.update(env_changes, ROS_DOMAIN_ID=str(domain))
     return subprocess.run(  # Fast DDS logs its parser's errors on stdout
         [sys.executable, "-c", MAKE_WRITER],
         env=env,
@@ -94,25 +93,26 @@ def _make_writer(env_changes: dict[str, str]) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.parametrize("profiles", [PROFILES_FILE, LOOPBACK_PROFILES_FILE], ids=lambda p: p.name)
-def test_fast_dds_reads_the_profiles_without_an_error(tmp_path, profiles):
-    good = _make_writer({"FASTRTPS_DEFAULT_PROFILES_FILE": str(profiles)})
+def test_fast_dds_reads_the_profiles_without_an_error(tmp_path, domains, profiles):
+    good = _make_writer({"FASTRTPS_DEFAULT_PROFILES_FILE": str(profiles)}, domains())
     assert good.returncode == 0, good.stdout
     assert "made a writer 1" in good.stdout, good.stdout
     assert "XMLPARSER" not in good.stdout, good.stdout
     # The check can fail: a misspelt element is reported by the same parser.
     bad = tmp_path / "bad.xml"
     bad.write_text(profiles.read_text().replace("heartbeatPeriod", "heartbeatPeriodX"))
-    wrong = _make_writer({"FASTRTPS_DEFAULT_PROFILES_FILE": str(bad)})
+    wrong = _make_writer({"FASTRTPS_DEFAULT_PROFILES_FILE": str(bad)}, domains())
     assert "XMLPARSER" in wrong.stdout and "heartbeatPeriodX" in wrong.stdout, wrong.stdout
 
 
-def test_no_participant_of_the_suite_maps_shared_memory_on_loopback():
+def test_no_participant_of_the_suite_maps_shared_memory_on_loopback(domains):
     env: dict[str, str] = {RANGE_VARIABLE: "LOCALHOST"}
     use_profiles(env)
-    ours = _make_writer(env)
+    ours = _make_writer(env, domains())
     assert "made a writer 1 shm: none" in ours.stdout, ours.stdout
     # The check can fail: rmw_fastrtps's own LOCALHOST setting maps Fast DDS's segments.
     rmw = _make_writer(
-        {RANGE_VARIABLE: "LOCALHOST", "FASTRTPS_DEFAULT_PROFILES_FILE": str(PROFILES_FILE)}
+        {RANGE_VARIABLE: "LOCALHOST", "FASTRTPS_DEFAULT_PROFILES_FILE": str(PROFILES_FILE)},
+        domains(),
     )
     assert "made a writer 1 shm: /dev/shm/fastrtps" in rmw.stdout, rmw.stdout

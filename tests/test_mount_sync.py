@@ -7,21 +7,17 @@ import math
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image, JointState, LaserScan
+from diagnostic_msgs.msg import DiagnosticStatus
+from helpers.rigs import LASER, MapperRig
 
 from excavation_common.messages import image_to_grid
-from excavation_common.ros import LATCHED
 from excavation_sim.laser import LaserParams, OverheadLaser, trace
 from terrain_mapper.calibrate_mount import Scan, fit_offsets, main, pair_scans
 from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, beam_directions
 from terrain_mapper.mapper import MapperParams, TerrainMapper
-from terrain_mapper.mapper_node import MOUNT_TOPIC, SCAN_TOPIC, MapperNode
+from terrain_mapper.mapper_node import MOUNT_TOPIC, SCAN_TOPIC
 from terrain_mapper.mount_sync import MISS, WAIT, MountSync
 
-LASER = LaserParams(sweep_scans=16)
 PERIOD_NS = 10_000_000  # a scan every 10 ms, the tilt moving steadily
 
 
@@ -49,58 +45,6 @@ def tilt_at(t_ns: int) -> float:
     return LASER.tilt_min + (LASER.tilt_max - LASER.tilt_min) * t_ns / span
 
 
-class Rig:
-    """A mapper node and a probe publishing scans and mount states."""
-
-    def __init__(self, ros, mount_wait=0.5):
-        from rclpy.node import Node
-
-        self.mapper = ros.add(
-            MapperNode(
-                context=ros.context,
-                parameter_overrides=[
-                    Parameter("robots", value=0),
-                    Parameter("sweep_scans", value=LASER.sweep_scans),
-                    Parameter("reliable", value=True),
-                    Parameter("diagnostics_period", value=0.1),
-                    Parameter("mount_wait", value=mount_wait),
-                ],
-            )
-        )
-        node = ros.add(Node("probe", context=ros.context))
-        qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
-        self.scan_pub = node.create_publisher(LaserScan, SCAN_TOPIC, qos)
-        self.mount_pub = node.create_publisher(JointState, MOUNT_TOPIC, qos)
-        self.maps: list[Image] = []
-        node.create_subscription(Image, "/worksite/height_map", self.maps.append, LATCHED)
-        self.status = None
-        node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
-        ros.spin_until(
-            lambda: (
-                self.scan_pub.get_subscription_count() and self.mount_pub.get_subscription_count()
-            )
-        )
-
-    def on_diag(self, msg):
-        for s in msg.status:
-            if s.name == "/mapper":
-                self.status = s
-
-    def mount(self, t_ns, tilt):
-        msg = JointState(name=[PAN_JOINT, TILT_JOINT], position=[0.0, tilt])
-        msg.header.stamp = Time(sec=100 + t_ns // 10**9, nanosec=t_ns % 10**9)
-        self.mount_pub.publish(msg)
-
-    def scan(self, t_ns, ranges):
-        msg = LaserScan()
-        msg.header.stamp = Time(sec=100 + t_ns // 10**9, nanosec=t_ns % 10**9)
-        msg.angle_min, msg.angle_max = LASER.angle_min, LASER.angle_max
-        msg.angle_increment = LASER.angle_increment
-        msg.range_min, msg.range_max = LASER.range_min, LASER.range_max
-        msg.ranges = [float(r) for r in ranges]
-        self.scan_pub.publish(msg)
-
-
 def sweep_ranges(heights, seed=1):
     laser, rng = OverheadLaser(LASER, 0.25), np.random.default_rng(seed)
     return [laser.scan(heights, tilt_at(i * PERIOD_NS), rng) for i in range(LASER.sweep_scans)]
@@ -122,7 +66,7 @@ def test_scans_and_mount_states_apart_give_the_map_of_equal_stamps(ros, lag_ms):
             tilt_at(i * PERIOD_NS),
         )
     exact.finish_sweep()
-    rig = Rig(ros)
+    rig = MapperRig(ros, mount_wait=0.5)
     lag = lag_ms * 1_000_000
     for i, ranges in enumerate(scans):
         t = i * PERIOD_NS
@@ -140,7 +84,7 @@ def test_scans_and_mount_states_apart_give_the_map_of_equal_stamps(ros, lag_ms):
 
 
 def test_unbracketed_scans_are_counted_and_warned(ros):
-    rig = Rig(ros)
+    rig = MapperRig(ros, mount_wait=0.5)
     scans = sweep_ranges(np.zeros((16, 16)))
     rig.mount(0, tilt_at(0))
     rig.mount(10**9, tilt_at(0))  # one second later: a gap in the mount's stream
@@ -177,7 +121,7 @@ def test_a_mount_state_queued_while_the_mapper_was_held_up_is_used_not_dropped(r
     # mapper gets no CPU for longer than mount_wait; when it runs again, its executor runs
     # the due timer before the subscriptions. The old mapper judged the scan's wait there
     # and dropped it (the sweep was fused only when the next began: a tick late).
-    rig = Rig(ros, mount_wait=1.0)
+    rig = MapperRig(ros, mount_wait=1.0)
     mapper = rig.mapper
     clock = [100.0]
     mapper.wall = lambda: clock[0]  # the mapper's wall clock, moved by hand
@@ -198,7 +142,7 @@ def test_a_mount_state_queued_while_the_mapper_was_held_up_is_used_not_dropped(r
 def test_a_scan_the_laser_has_gone_past_is_dropped_by_stamps_not_wall_time(ros):
     # The mount's stream stopped while the laser's went on: scans more than mount_wait of
     # stamps older than the newest scan are given up, however little wall time passed.
-    rig = Rig(ros, mount_wait=0.035)
+    rig = MapperRig(ros, mount_wait=0.035)
     mapper = rig.mapper
     mapper.wall = lambda: 100.0  # no wall time passes
     scans = sweep_ranges(np.zeros((16, 16)))

@@ -14,6 +14,7 @@ import json
 
 import numpy as np
 import pytest
+from helpers.worlds import make_world
 
 from ant_controller import layout
 from ant_controller.controller import Controller, ControllerCore
@@ -45,41 +46,19 @@ from ant_evolution.evolve import EvolveConfig, config_from_dict, run_evolution
 from ant_evolution.profiles import PROFILES, SWITCHES, assignment, resolve_switches
 from blueprint_server.blueprint import default_blueprint, resolve_blueprint
 from excavation_common.constants import EAST, NORTH, ZONE_DIG, ZONE_DUMP
-from excavation_sim.rules import PAPER_RULES, V1_RULES, WORLD_PROFILES, WorldRules
+from excavation_sim.rules import PAPER_RULES, V1_RULES, WORLD_PROFILES
 from excavation_sim.world import (
-    BLADE,
-    COL,
-    HEADING,
-    ROBOT_FIELDS,
     ROW,
     STUCK,
     World,
     place_robots,
     scenario_start,
-    seed_state,
 )
 from excavation_sim.world_reference import step_reference
 
 FORWARD = mask_of(2)
 THROTTLE = mask_of(1)
 FILL = dataclasses.replace(V1_RULES, soil_fill=True)
-
-
-def make_world(robots, rules: WorldRules = V1_RULES, size=8, heights=None):
-    """A hand-built world; ``robots`` rows are (row, col, heading, blade)."""
-    rs = np.zeros((len(robots), ROBOT_FIELDS), dtype=np.int64)
-    for k, (r, c, h, b) in enumerate(robots):
-        rs[k, [ROW, COL, HEADING, BLADE]] = (r, c, h, b)
-    shape = (size, size)
-    return World(
-        heights=np.zeros(shape, np.int32) if heights is None else heights.astype(np.int32),
-        zones=np.zeros(shape, np.uint8),
-        goal=np.zeros(shape, np.int32),
-        robots=rs,
-        active=np.ones(len(robots), dtype=np.bool_),
-        rng=seed_state(12345),
-        params=rules.as_array(),
-    )
 
 
 def step_both(w: World, mask: int) -> None:

@@ -6,7 +6,6 @@ import csv
 
 import numpy as np
 import pytest
-from conftest import next_domains
 
 from ant_controller.genome_io import load_genome
 from ant_evolution.backends import Evaluator
@@ -18,7 +17,7 @@ from blueprint_server.blueprint import default_blueprint
 
 
 @pytest.mark.system  # a trial process per genome and scenario set
-def test_trials_through_the_topics_equal_the_batched_evaluator():
+def test_trials_through_the_topics_equal_the_batched_evaluator(domains):
     best = load_genome("genomes/best.json")
     other = mutate(np.random.default_rng(3), best, GAParams())
     genomes = [best, other]
@@ -27,40 +26,38 @@ def test_trials_through_the_topics_equal_the_batched_evaluator():
         ScenarioSet.create(default_blueprint(2), 2, 1, 25, seed=12),
     ]
     expected = Evaluator(workers=1).evaluate(genomes, sets)
-    with RosEvaluator(workers=2, domain_base=next_domains(2)) as ros:
+    with RosEvaluator(workers=2, domain_base=domains(2)) as ros:
         got = ros.evaluate(genomes, sets)
     assert expected.max() > 0  # the comparison means something
     assert np.array_equal(got, expected)
 
 
-def test_what_trials_cannot_stand_for_is_refused():
+def test_what_trials_cannot_stand_for_is_refused(domain):
     best = load_genome("genomes/best.json")
     mixed = ScenarioSet.create(default_blueprint(1), [1, 4], 2, 10, seed=0)
-    with RosEvaluator(workers=1, domain_base=next_domains(1)) as ros:
+    with RosEvaluator(workers=1, domain_base=domain) as ros:
         with pytest.raises(TrialError, match="one robot count per scenario set"):
             ros.evaluate([best], [mixed])
 
 
-def test_a_failing_trial_command_is_a_clear_error():
+def test_a_failing_trial_command_is_a_clear_error(domains):
     best = load_genome("genomes/best.json")
     sets = [ScenarioSet.create(default_blueprint(1), 1, 1, 5, seed=0)]
-    with RosEvaluator(
-        workers=1, domain_base=next_domains(1), trial_command="false {genome}"
-    ) as ros:
+    with RosEvaluator(workers=1, domain_base=domains(), trial_command="false {genome}") as ros:
         with pytest.raises(TrialError, match="exited with 1"):
             ros.evaluate([best], sets)
-    with RosEvaluator(workers=1, domain_base=next_domains(1), trial_command="echo {genome}") as ros:
+    with RosEvaluator(workers=1, domain_base=domains(), trial_command="echo {genome}") as ros:
         with pytest.raises(TrialError, match="no JSON with 'fitness'"):
             ros.evaluate([best], sets)
 
 
 @pytest.mark.system  # a trial process per genome and scenario set
-def test_ant_evolve_with_the_ros_evaluator_matches_a_batched_run(tmp_path):
+def test_ant_evolve_with_the_ros_evaluator_matches_a_batched_run(tmp_path, domains):
     args = "--population 2 --generations 2 --scenarios 1 --steps 12 --robots 2 --depths 1"
     args += " --seed 4 --quiet --workers 2"
     assert evolve_main([*args.split(), "--out", str(tmp_path / "batched")]) == 0
     ros_args = [*args.split(), "--out", str(tmp_path / "ros"), "--evaluator", "ros"]
-    ros_args += ["--domain-base", str(next_domains(2))]
+    ros_args += ["--domain-base", str(domains(2))]
     assert evolve_main(ros_args) == 0
 
     def rows(run):

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import os
 import re
-import subprocess
-import sys
 import threading
 
+from helpers.operator import operator
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Bool, Header
@@ -33,17 +31,6 @@ def watch(ros, robots=2):
         for k in range(robots)
     ]
     return node
-
-
-def operator(domain, *args, timeout="5"):
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
-    return subprocess.run(
-        [sys.executable, "-m", "team_supervisor.operator", "--timeout", timeout, *args],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
 
 
 def test_heartbeat_estop_and_enables_over_ros(ros):
@@ -132,14 +119,12 @@ def test_operator_against_a_running_supervisor(ros):
     assert "no node subscribes to /robot_0/blade/commands" in results["blade"].stderr
 
 
-def test_operator_against_nothing_is_a_clear_error():
-    from conftest import next_domain
-
-    result = operator(next_domain(), "estop", timeout="1")
+def test_operator_against_nothing_is_a_clear_error(domains):
+    result = operator(domains(), "estop", timeout="1")
     assert result.returncode == 3
     assert "no supervisor answers /supervisor/estop within 1 s" in result.stderr
     assert "Traceback" not in result.stderr
-    bad = operator(next_domain(), "enable", "-1", timeout="1")
+    bad = operator(domains(), "enable", "-1", timeout="1")
     assert bad.returncode == 2
 
 

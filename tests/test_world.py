@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers.worlds import make_world
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -42,41 +43,21 @@ from ant_controller.layout import (
 )
 from ant_controller.sensing import load_code
 from blueprint_server.blueprint import default_blueprint
-from excavation_sim.rules import DEFAULT_RULES
 from excavation_sim.world import (
     BLADE,
     COL,
     HEADING,
     MEMORY,
-    ROBOT_FIELDS,
     ROW,
     STUCK,
     PlacementError,
     World,
     place_robots,
-    seed_state,
 )
 
 FORWARD = mask_of(2)
 BACKWARD = mask_of(3)
 THROTTLE = mask_of(1)
-
-
-def make_world(robots, size=8, heights=None, zones=None, goal=None):
-    """A hand-built world; ``robots`` rows are (row, col, heading, blade)."""
-    rs = np.zeros((len(robots), ROBOT_FIELDS), dtype=np.int64)
-    for k, (r, c, h, b) in enumerate(robots):
-        rs[k, [ROW, COL, HEADING, BLADE]] = (r, c, h, b)
-    shape = (size, size)
-    return World(
-        heights=np.zeros(shape, np.int32) if heights is None else heights.astype(np.int32),
-        zones=np.zeros(shape, np.uint8) if zones is None else zones.astype(np.uint8),
-        goal=np.zeros(shape, np.int32) if goal is None else goal.astype(np.int32),
-        robots=rs,
-        active=np.ones(len(robots), dtype=np.bool_),
-        rng=seed_state(12345),
-        params=DEFAULT_RULES.as_array(),
-    )
 
 
 # --- blade equations, robot at (2, 2) facing north: wheels row 3, blade row 4, next row 5 ---

@@ -9,20 +9,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers.worlds import random_masks, random_state
 
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS
 from ant_controller.memory import next_memory
 from ant_controller.sensing import sense
 from ant_controller.sensing_reference import sense_reference
-from excavation_sim.rules import WorldRules
 from excavation_sim.world import (
-    BLADE,
-    MEMORY,
-    STUCK,
     apply_all,
     blade_volume,
     is_tilted_down,
-    place_robots,
     seed_state,
     sense_all,
 )
@@ -33,31 +29,6 @@ from excavation_sim.world_reference import (
     tilted_down_reference,
     xorshift_reference,
 )
-
-
-def random_state(rng: np.random.Generator, shape=(10, 12), n_robots=4):
-    """A random world state with rough terrain and robots in every blade and bit state."""
-    heights = rng.integers(-3, 4, shape).astype(np.int32)
-    zones = rng.integers(0, 3, shape).astype(np.uint8)
-    goal = rng.integers(-3, 2, shape).astype(np.int32)
-    robots = place_robots(shape, n_robots, rng)
-    robots[:, BLADE] = rng.integers(0, 4, n_robots)
-    robots[:, MEMORY] = rng.integers(0, 2, n_robots)
-    robots[:, STUCK] = rng.integers(0, 2, n_robots)
-    active = rng.random(n_robots) < 0.85
-    params = WorldRules(
-        normal_load=int(rng.integers(4, 13)),
-        throttle_load=int(rng.integers(12, 25)),
-        soil_fill=bool(rng.integers(0, 2)),
-        h1=("relative", "absolute")[int(rng.integers(0, 2))],
-    ).as_array()
-    return heights, zones, goal, robots, active, params
-
-
-def random_masks(rng: np.random.Generator, n: int) -> np.ndarray:
-    """Masks with each behaviour firing with probability 0.3."""
-    bits = rng.random((n, N_BEHAVIOURS)) < 0.3
-    return (bits * (1 << np.arange(N_BEHAVIOURS))).sum(axis=1).astype(np.int64)
 
 
 @pytest.mark.parametrize("seed", range(60))

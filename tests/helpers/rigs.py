@@ -1,0 +1,146 @@
+"""The mapper rig: a mapper node and a probe that feeds it laser scans and mount states.
+
+Shared by the mapper node's tests and the mount synchronisation's tests; the rig takes the
+``ros`` fixture (``tests/conftest.py``) and adds both nodes to its executor.
+"""
+
+from __future__ import annotations
+
+from excavation_sim.laser import LaserParams
+
+LASER = LaserParams(sweep_scans=16)
+"""The rig's laser: the default one, sweeps of 16 scans."""
+
+EPOCH_S = 100
+"""Sim second that :meth:`MapperRig.mount` and :meth:`MapperRig.scan` count from."""
+
+
+class MapperRig:
+    """A mapper node (sweeps of 16 scans, no robots, reliable QoS, diagnostics every
+    0.1 s) and a probe node publishing scans and mount states to it.
+
+    Attributes:
+        mapper: The :class:`~terrain_mapper.mapper_node.MapperNode`.
+        node: The probe node.
+        maps: Height maps the mapper published (``/worksite/height_map``), in order.
+        status: The mapper's latest ``/diagnostics`` status (None before the first).
+    """
+
+    def __init__(self, ros, mount_wait: float | None = None, wait: float = 10.0):
+        """Start both nodes; wait (up to ``wait`` s) until the mapper subscribes to both
+        of the probe's topics.
+
+        Args:
+            ros: The ``ros`` fixture.
+            mount_wait: The mapper's ``mount_wait`` (its own default unless given).
+            wait: Longest wait for the subscriptions, seconds (not asserted on).
+        """
+        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+        from rclpy.node import Node
+        from rclpy.parameter import Parameter
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import Image, JointState, LaserScan
+
+        from excavation_common.ros import LATCHED
+        from terrain_mapper.mapper_node import MOUNT_TOPIC, SCAN_TOPIC, MapperNode
+
+        params = [
+            Parameter("robots", value=0),
+            Parameter("sweep_scans", value=LASER.sweep_scans),
+            Parameter("reliable", value=True),
+            Parameter("diagnostics_period", value=0.1),
+        ]
+        if mount_wait is not None:
+            params.append(Parameter("mount_wait", value=mount_wait))
+        self.ros = ros
+        self.mapper = ros.add(MapperNode(context=ros.context, parameter_overrides=params))
+        node = self.node = ros.add(Node("probe", context=ros.context))
+        qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
+        self.scan_pub = node.create_publisher(LaserScan, SCAN_TOPIC, qos)
+        self.mount_pub = node.create_publisher(JointState, MOUNT_TOPIC, qos)
+        self.maps: list[Image] = []
+        node.create_subscription(Image, "/worksite/height_map", self.maps.append, LATCHED)
+        self.status: DiagnosticStatus | None = None
+        node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
+        ros.spin_until(
+            lambda: (
+                self.scan_pub.get_subscription_count() > 0
+                and self.mount_pub.get_subscription_count() > 0
+            ),
+            wait,
+        )
+
+    def on_diag(self, msg) -> None:
+        """Keep the mapper's latest status."""
+        for s in msg.status:
+            if s.name == "/mapper":
+                self.status = s
+
+    @staticmethod
+    def _mount_msg(stamp, tilt: float, joints=None):
+        from sensor_msgs.msg import JointState
+
+        from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT
+
+        joints = (PAN_JOINT, TILT_JOINT) if joints is None else joints
+        msg = JointState(name=list(joints), position=[0.0, tilt][: len(joints)])
+        msg.header.stamp = stamp
+        return msg
+
+    @staticmethod
+    def _scan_msg(stamp, ranges, n: int | None = None):
+        from sensor_msgs.msg import LaserScan
+
+        msg = LaserScan()
+        msg.header.stamp = stamp
+        msg.angle_min, msg.angle_max = LASER.angle_min, LASER.angle_max
+        msg.angle_increment = LASER.angle_increment
+        msg.range_min, msg.range_max = LASER.range_min, LASER.range_max
+        msg.ranges = [float(r) for r in ranges][:n]
+        return msg
+
+    def send(self, sec: int, ranges, tilt: float, joints=None, n: int | None = None) -> None:
+        """Publish a mount state (pan 0, ``tilt``) and a scan, both stamped ``sec``.
+
+        Args:
+            sec: The stamp, whole seconds.
+            ranges: The scan's ranges.
+            tilt: The mount's tilt (rad).
+            joints: The mount state's joint names (pan and tilt unless given; with one
+                name, only the pan is sent).
+            n: Send only the first ``n`` ranges (a malformed scan).
+        """
+        from builtin_interfaces.msg import Time
+
+        stamp = Time(sec=sec, nanosec=0)
+        self.mount_pub.publish(self._mount_msg(stamp, tilt, joints))
+        self.scan_pub.publish(self._scan_msg(stamp, ranges, n))
+
+    def sweep(self, sec0: int, heights, rng) -> None:
+        """Scan ``heights`` (metres) with the rig's laser: scan ``i`` stamped ``sec0 + i``."""
+        from excavation_sim.laser import OverheadLaser
+
+        laser = OverheadLaser(LASER, 0.25)
+        for i, (_, tilt, ranges) in enumerate(laser.sweep(heights, rng)):
+            self.send(sec0 + i, ranges, tilt)
+
+    @staticmethod
+    def stamp(t_ns: int):
+        """The stamp ``t_ns`` nanoseconds after :data:`EPOCH_S`."""
+        from builtin_interfaces.msg import Time
+
+        return Time(sec=EPOCH_S + t_ns // 10**9, nanosec=t_ns % 10**9)
+
+    def mount(self, t_ns: int, tilt: float) -> None:
+        """Publish a mount state (pan 0, ``tilt``) stamped :meth:`stamp` (``t_ns``)."""
+        self.mount_pub.publish(self._mount_msg(self.stamp(t_ns), tilt))
+
+    def scan(self, t_ns: int, ranges) -> None:
+        """Publish a scan stamped :meth:`stamp` (``t_ns``)."""
+        self.scan_pub.publish(self._scan_msg(self.stamp(t_ns), ranges))
+
+    def reported(self, level, text: str):
+        """A condition: the mapper's latest status is at ``level`` and says ``text``."""
+        return lambda: (
+            self.status is not None and self.status.level == level and (text in self.status.message)
+        )
