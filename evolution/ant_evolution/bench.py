@@ -1,6 +1,6 @@
 """``ant-bench`` (``make bench``): evaluation throughput in robot-steps per second.
 
-Setting (DESIGN.md): 80-neuron ANT tissues, 4 robots, the 16 x 16 default blueprint,
+Setting (docs/benchmarks.md): 80-neuron ANT tissues, 4 robots, the 16 x 16 default blueprint,
 T = 300. Measured in one run:
 
 * the compiled evaluator in this process (1 worker) and on a 2-process pool, for a
@@ -58,7 +58,7 @@ robot sensing, deciding and acting for one timestep. Setting: 4 robots on the 16
 default blueprint, T = 300, tissues of 80 neurons (random) or the shipped evolved genome.
 "Plain Python" is the same code run with numba's JIT disabled, on 2 genomes x 2 scenarios
 of the same set, and its scores are checked equal to the compiled ones. Targets
-(DESIGN.md): 6 million robot-steps per second on both cores; for the reproduction, 1.7e7
+(the project's, docs/benchmarks.md): 6 million robot-steps per second on both cores; for the reproduction, 1.7e7
 with an evolved genome (a 5,000-generation paper-scale run in under an hour) and a NEAT
 generation at most 1.5 x an ANT generation of the same size.
 

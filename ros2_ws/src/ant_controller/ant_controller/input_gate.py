@@ -21,7 +21,7 @@ snapshot (whose stamps are the tick's, reached through slow perception), so it p
 the tick by arrival, as the unstamped stuck flag does: a tick is decided only with an IMU
 reading received since the last tick decided, and with the latest one.
 
-Disabled robots are absent (DESIGN.md "Operator oversight"): their poses are neither needed
+Disabled robots are absent (docs/operator.md): their poses are neither needed
 nor fresh-checked, and :meth:`InputGate.active` leaves them out of the sensor vector (the
 core's ``active`` mask), so one robot the localiser loses no longer freezes the team. A
 robot never heard of on ``enabled`` counts as enabled (a team without a supervisor).

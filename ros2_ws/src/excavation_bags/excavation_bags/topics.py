@@ -46,7 +46,7 @@ SUITE_TOPICS: tuple[str, ...] = (
     "/tick/*",
     "/diagnostics",
 )
-"""The node suite's topics (DESIGN.md, docs/interfaces.md); ``*`` matches a robot index
+"""The node suite's topics (docs/interfaces.md); ``*`` matches a robot index
 (``/team/*``: e-stop, heartbeat, tick, snapshot requests and their acknowledgements;
 ``/tick/*``: the snapshot the team tick republishes per tick in a continuous trial).
 

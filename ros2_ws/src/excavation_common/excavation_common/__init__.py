@@ -1,4 +1,4 @@
-"""What every ROS package of the suite shares (DESIGN.md, "Layout").
+"""What every ROS package of the suite shares (docs/architecture.md, "Packages").
 
 * :mod:`excavation_common.errors`: the base error type every loader and node raises;
 * :mod:`excavation_common.constants`: grid, zone and blade codes, ``BladeGeometry``;

@@ -1,4 +1,4 @@
-"""Continuous-motion robots on the grid world (DESIGN.md, "Field execution").
+"""Continuous-motion robots on the grid world (docs/field.md).
 
 The lockstep simulator applies a behaviour word to the grid at once; here robots drive.
 Each robot is a differential-drive body that integrates its ``cmd_vel`` (forward speed,

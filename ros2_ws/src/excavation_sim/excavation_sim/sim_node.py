@@ -42,7 +42,7 @@ tick 0 (``startup_period`` then gives it time to find the robots' topics too).
 of ``ant-trial``: the ``sensors`` node renders camera and laser from them); tick 0 then also
 waits for a subscriber of each truth pose.
 
-Oversight (``supervised``, true by default; DESIGN.md "Operator oversight"): the node
+Oversight (``supervised``, true by default; docs/operator.md): the node
 applies a tick only while the team is armed (``/team/heartbeat`` younger than the deadman
 and saying ``armed``, no e-stop latched on ``/team/estop``); otherwise it holds the tick,
 keeping the words and set-points already in, so a paused trial ends as an unpaused one

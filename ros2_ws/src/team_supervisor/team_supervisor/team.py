@@ -1,4 +1,4 @@
-"""The team's safety state as a pure state machine (no rclpy): DESIGN.md "Operator oversight".
+"""The team's safety state as a pure state machine (no rclpy); docs/operator.md.
 
 The paper (section 1) asks that ground operators keep total oversight of the robot team and
 can intervene and recover from mishaps. :class:`Team` is what the ``supervisor`` node runs:
