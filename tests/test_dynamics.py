@@ -9,7 +9,7 @@ from ant_controller.controller import Controller, ControllerCore
 from ant_controller.layout import BLADE_BELOW, MOVE_FORWARD, THROTTLE_UP, TURN_RIGHT
 from blade_driver.core import blade_setting
 from blueprint_server.blueprint import default_blueprint
-from drive_executor.core import DriveExecutorCore
+from drive_executor.core import DriveExecutorCore, ReportStatus
 from drive_executor.goals import ABORTED, LEFT, RIGHT, SUCCEEDED, DriveGoal
 from drive_executor.params import ExecutorParams
 from drive_executor.primitives import Pose2D
@@ -32,9 +32,9 @@ def drive(dyn: Dynamics, k: int, word: int, turn: int = 0, params=None, limit=40
         gate.on_heartbeat(ARMED, dyn.time)
         twist = core.on_pose(Pose2D(*dyn.measured(k)), dyn.time, dyn.time)
         for event in core.drain():
-            if event[0] == "status" and event[2] in (SUCCEEDED, ABORTED):
+            if isinstance(event, ReportStatus) and event.code in (SUCCEEDED, ABORTED):
                 dyn.command(k, 0.0, 0.0)
-                return event[2], event[3]
+                return event.code, event.stuck
         dyn.command(k, twist.linear, twist.angular)
         dyn.step()
     raise AssertionError("goal did not end")
