@@ -87,3 +87,21 @@ def test_ros2_run_lookup_runs_the_executable(install, tmp_path):
     )
     assert run.returncode == 0, run.stderr
     assert "goal depths [3]" in run.stdout
+
+
+def test_nothing_in_the_repository_points_outside_it():
+    """Code and docs speak of the project's own files: no design notes kept elsewhere."""
+    files = subprocess.run(
+        ["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True
+    ).stdout.split()
+    outside = ("DESIGN.md", "STYLE.md", "../shared")
+    found = []
+    for name in files:
+        path = ROOT / name
+        if path.suffix not in {".py", ".md", ".toml", ".cfg", ".yaml", ".xml", ".txt", ""}:
+            continue
+        if not path.is_file() or name == "tests/test_workspace.py":
+            continue
+        text = path.read_text(errors="replace")
+        found += [f"{name}: {word}" for word in outside if word in text]
+    assert found == []

@@ -21,7 +21,9 @@ class NodeKind:
     """One kind of node.
 
     Attributes:
-        name: Registry key and default node name (``controller``, ``team_tick``...).
+        name: Registry key (``controller``, ``team_tick``...); the graph's node names
+            derive from it (``controller_1``). The ROS node name is the node class's own
+            (``blueprint_server`` for ``server``, ``bag_recorder`` for ``recorder``).
         package: The ament package that installs it.
         module: The module whose ``main`` starts it (``python -m MODULE``).
         node_class: Name of the node class in ``module`` (``ControllerNode``).
