@@ -5,10 +5,6 @@ function handing out fresh ids, ``domains(n)`` the first of ``n`` consecutive on
 scoped, so a fixture of any scope can use it), or ``ros`` / ``ros_env`` (which take theirs
 from ``domains``). Shared helpers live in ``tests/helpers`` (``from helpers.worlds import
 ...``); the ``camera`` fixture is :func:`helpers.cameras.camera`, registered here.
-
-``next_domain`` and ``next_domains`` stay importable only for the modules not yet switched
-to the fixtures (``tests/faults.py`` and the trial, dome, soak and fault test modules); a
-new test asks for ``domain`` or ``domains`` instead.
 """
 
 from __future__ import annotations
@@ -61,11 +57,12 @@ def domain_in_use(domain: int, ports: set[int] | None = None) -> bool:
     return any(base + 2 * p in ports for p in range(64))
 
 
-def next_domains(count: int) -> int:
+def _take_domains(count: int) -> int:
     """The first of ``count`` consecutive ROS domains of this worker's block, all free.
 
     Takes them all: no later call of this session (or another xdist worker) hands them out
-    again before the block comes round. Raises ``RuntimeError`` when the block has no such run.
+    again before the block comes round. Skips domains a participant on this machine already
+    uses (engineers share the machine). Raises ``RuntimeError`` when the block has no such run.
     """
     if not 1 <= count <= _SPAN:
         raise ValueError(f"{count} domains asked, a worker's block holds {_SPAN}")
@@ -82,23 +79,17 @@ def next_domains(count: int) -> int:
     raise RuntimeError(f"no {count} free consecutive ROS domains in {_BLOCK}")
 
 
-def next_domain() -> int:
-    """A ROS domain id (1-100) no other test of this session or xdist worker uses, skipping
-    domains a participant on this machine already uses (engineers share the machine)."""
-    return next_domains(1)
-
-
 @pytest.fixture(scope="session")
 def domains():
     """A function handing out fresh ROS domains of this worker's block.
 
     ``domains()`` is one id, ``domains(n)`` the first of ``n`` consecutive ones (all taken);
-    every call gives ids no other call of this session gives (see :func:`next_domains`).
+    every call gives ids no other call of this session gives (see :func:`_take_domains`).
     Session scoped: fixtures of any scope may use it.
     """
 
     def take(count: int = 1) -> int:
-        return next_domains(count)
+        return _take_domains(count)
 
     return take
 

@@ -8,134 +8,30 @@ maps. A test kills a node (SIGKILL), restarts it, changes a node's parameters at
 (the synthetic sensors' fault knobs) and then reads what the system did from the watcher,
 the simulator's result and the bag. A new row of the matrix is a few lines::
 
-    with FaultTrial(tmp_path, steps=40) as trial:
-        trial.wait_tick(5)
-        trial.kill("blade_driver_1")
-        trial.wait_tick(trial.tick + 3)
-        trial.restart("blade_driver_1")
-        result = trial.result()
-    assert result["missed_blade_setpoints"]["1"] >= 1
+    def test_blade_driver_row(tmp_path, domain):
+        with FaultTrial(tmp_path, domain, steps=40) as trial:
+            trial.wait_tick(5)
+            trial.kill("blade_driver_1")
+            trial.wait_tick(trial.tick + 3)
+            trial.restart("blade_driver_1")
+            result = trial.result()
+        assert result["missed_blade_setpoints"]["1"] >= 1
+
+The watcher is :class:`helpers.watchers.FaultWatcher`; its statuses are
+:class:`helpers.watchers.Status`.
 """
 
 from __future__ import annotations
 
 import os
-import threading
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-from conftest import next_domain
+from helpers.watchers import FaultWatcher, Status
 
 from excavation_bringup.deployment import Deployment
 from excavation_bringup.graph import build
 from excavation_bringup.launch import ProcessLauncher
-
-
-@dataclass
-class Status:
-    """One ``/diagnostics`` status as the watcher heard it."""
-
-    wall: float
-    tick: int
-    name: str
-    level: int
-    message: str
-    values: dict[str, str] = field(default_factory=dict)
-
-
-class Watcher:
-    """An rclpy node on the trial's domain, spun in a background thread."""
-
-    def __init__(self, domain: int, perception: str, continuous: bool = False) -> None:
-        import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
-        from rclpy.signals import SignalHandlerOptions
-        from rosgraph_msgs.msg import Clock
-        from sensor_msgs.msg import Image
-        from std_msgs.msg import Header
-
-        from excavation_common.ros import LATCHED
-
-        self.context = Context()
-        rclpy.init(
-            context=self.context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO
-        )
-        self.node = Node("fault_watcher", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.lock = threading.Lock()
-        self.tick = -1
-        self.ticks_seen: list[int] = []
-        self.statuses: list[Status] = []
-        self.maps: dict[str, dict[tuple[int, int], np.ndarray]] = {"truth": {}, "mapped": {}}
-        if continuous:  # the team tick's tick (sim time runs on between ticks)
-            self.node.create_subscription(Header, "/team/tick", self.on_team_tick, 100)
-        else:
-            self.node.create_subscription(Clock, "/clock", self.on_clock, 100)
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 100)
-        if perception == "full":
-            for kind, topic in (
-                ("truth", "/truth/worksite/height_map"),
-                ("mapped", "/worksite/height_map"),
-            ):
-                self.node.create_subscription(
-                    Image, topic, lambda m, kind=kind: self.on_map(kind, m), LATCHED
-                )
-        self.thread = threading.Thread(target=self.spin, daemon=True)
-        self.thread.start()
-
-    def spin(self) -> None:
-        """Spin until the context shuts down."""
-        from rclpy.executors import ExternalShutdownException
-
-        try:
-            while self.context.ok():
-                self.executor.spin_once(timeout_sec=0.05)
-        except (ExternalShutdownException, RuntimeError):
-            pass
-
-    def on_clock(self, msg) -> None:
-        """The simulator's tick (sim time, 1 s per tick)."""
-        with self.lock:
-            self.tick = int(msg.clock.sec)
-            self.ticks_seen.append(self.tick)
-
-    def on_team_tick(self, msg) -> None:
-        """The continuous trial's tick (``/team/tick``, the tick in ``frame_id``)."""
-        with self.lock:
-            self.tick = int(msg.frame_id)
-            self.ticks_seen.append(self.tick)
-
-    def on_diagnostics(self, msg) -> None:
-        """Keep every status."""
-        with self.lock:
-            for s in msg.status:
-                values = {kv.key: kv.value for kv in s.values}
-                level = int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else s.level
-                self.statuses.append(
-                    Status(time.monotonic(), self.tick, s.name, int(level), s.message, values)
-                )
-
-    def on_map(self, kind: str, msg) -> None:
-        """A height map (metres) by stamp."""
-        from excavation_common.messages import image_to_grid
-
-        grid = image_to_grid(msg, "32FC1", kind)
-        with self.lock:
-            self.maps[kind][(msg.header.stamp.sec, msg.header.stamp.nanosec)] = grid
-
-    def close(self) -> None:
-        """Stop spinning and shut the context down."""
-        import rclpy
-
-        rclpy.try_shutdown(context=self.context)
-        self.thread.join(timeout=5.0)
-        self.node.destroy_node()
 
 
 class FaultTrial:
@@ -143,6 +39,7 @@ class FaultTrial:
 
     Args:
         workdir: Logs, ``result.json``, the calibration (and bags, when asked).
+        domain: The trial's ROS domain (a test's ``domain`` fixture).
         robots, steps, seed, controller, blueprint, command_timeout, blade_driver,
         perception, record: As ``ant-trial``'s options.
         start: Start every node now (else: change parameters with
@@ -155,6 +52,7 @@ class FaultTrial:
     def __init__(
         self,
         workdir: Path,
+        domain: int,
         robots: int = 2,
         steps: int = 40,
         seed: int = 3,
@@ -168,7 +66,7 @@ class FaultTrial:
         continuous: bool = False,
     ) -> None:
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-        self.domain = next_domain()
+        self.domain = domain
         self.spec = Deployment(
             controller,
             robots,
@@ -187,7 +85,7 @@ class FaultTrial:
             processes=True,
         )
         self.processes = ProcessLauncher(build(self.spec, workdir))
-        self.watcher = Watcher(self.domain, perception, continuous)
+        self.watcher = FaultWatcher(self.domain, perception, continuous)
         self.started = time.monotonic()
         if start:
             self.processes.start()

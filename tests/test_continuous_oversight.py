@@ -26,16 +26,13 @@ import time
 
 import numpy as np
 import pytest
-from conftest import next_domain
-from test_continuous_trial import offline
-from test_trial_oversight import Watcher as LockstepWatcher
+from helpers.trials import GENOME, ROBOTS, offline_trace
+from helpers.watchers import OperatorWatcher, occlude
 
 from excavation_bringup.deployment import Deployment
 from excavation_bringup.nodes import LOST_GRACE, LOST_TIMEOUT
 from excavation_common.safety import ESTOPPED, HELD
 
-GENOME = "genomes/best.json"
-ROBOTS = 4
 SEED = 3
 pytestmark = pytest.mark.system
 
@@ -110,8 +107,9 @@ class Trial:
             self.process.join(timeout=30)
 
 
-class Watcher(LockstepWatcher):
-    """The operator's side (tests/test_trial_oversight.py's, plus the continuous topics)."""
+class Watcher(OperatorWatcher):
+    """The operator's side (:class:`helpers.watchers.OperatorWatcher`, plus the continuous
+    topics)."""
 
     def __init__(self, domain: int):
         from action_msgs.msg import GoalInfo
@@ -247,8 +245,8 @@ def intervene(watch: Watcher, tick: int, service: str, state: str, hold: float):
     return moving, sent, watch.heartbeat_stamp(state, sent - 0.5)
 
 
-def test_estop_at_tick_10_stops_every_executor_within_100_ms_then_reset_and_arm_continue():
-    domain, steps = next_domain(), 16
+def test_estop_at_tick_10_stops_every_executor_within_100_ms_then_reset_and_arm_continue(domain):
+    steps = 16
     watch = Watcher(domain)
     trial = Trial(domain, steps)
     try:
@@ -291,8 +289,8 @@ def test_estop_at_tick_10_stops_every_executor_within_100_ms_then_reset_and_arm_
     assert np.array(result.commands)[held_tick + 1 :].any()  # the team carried on
 
 
-def test_pause_and_resume_mid_motion_end_as_an_unpaused_trial():
-    domain, steps = next_domain(), 14
+def test_pause_and_resume_mid_motion_end_as_an_unpaused_trial(domain):
+    steps = 14
     watch = Watcher(domain)
     trial = Trial(domain, steps)
     try:
@@ -313,14 +311,14 @@ def test_pause_and_resume_mid_motion_end_as_an_unpaused_trial():
     finally:
         trial.stop()
         watch.close()
-    heights, fitness, trace = offline(GENOME, ROBOTS, steps, SEED)
+    heights, fitness, trace = offline_trace(GENOME, ROBOTS, steps, SEED)
     assert sum(result.missed.values()) == 0 and result.robots_late == 0
     assert np.array_equal(result.heights, heights) and result.fitness == fitness
     assert result.trace == trace
 
 
-def test_supervisor_sigkilled_every_robot_stops_by_the_deadman():
-    domain, steps = next_domain(), 40
+def test_supervisor_sigkilled_every_robot_stops_by_the_deadman(domain):
+    steps = 40
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
     cmd = [sys.executable, "-m", "team_supervisor.supervisor_node", "--ros-args"]
     for name, value in (
@@ -364,23 +362,13 @@ def test_supervisor_sigkilled_every_robot_stops_by_the_deadman():
         watch.close()
 
 
-def test_robot_hidden_from_the_camera_stops_is_disabled_and_the_others_finish():
-    from rcl_interfaces.msg import Parameter as ParameterMsg
-    from rcl_interfaces.msg import ParameterType, ParameterValue
-    from rcl_interfaces.srv import SetParameters
-
-    domain, steps, hidden = next_domain(), 14, 2
+def test_robot_hidden_from_the_camera_stops_is_disabled_and_the_others_finish(domain):
+    steps, hidden = 14, 2
     watch = Watcher(domain)
     trial = Trial(domain, steps, exact=False, perception="full", timeout=900.0)
     try:
         assert watch.spin_until(lambda: watch.team_tick >= 3, 600)
-        client = watch.node.create_client(SetParameters, "/sensors/set_parameters")
-        assert client.wait_for_service(timeout_sec=60)
-        value = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="2:front,2:rear")
-        future = client.call_async(
-            SetParameters.Request(parameters=[ParameterMsg(name="occlude", value=value)])
-        )
-        assert watch.spin_until(future.done, 60) and future.result().results[0].successful
+        occlude(watch, "2:front,2:rear", timeout=60.0)
         hidden_at = watch.team_tick
         assert watch.spin_until(
             lambda: watch.enabled[hidden] and not watch.enabled[hidden][-1], 600
@@ -411,8 +399,8 @@ def test_robot_hidden_from_the_camera_stops_is_disabled_and_the_others_finish():
     assert sum(result.missed.values()) == 0 and result.robots_late == 0
 
 
-def test_disable_enable_and_drive_override_through_ant_operator():
-    domain, steps, robot = next_domain(), 30, 1
+def test_disable_enable_and_drive_override_through_ant_operator(domain):
+    steps, robot = 30, 1
     watch = Watcher(domain)
     watch.watch_pose(0)
     trial = Trial(domain, steps, time_factor=2.0)  # ant-operator streams at 10 Hz of wall time

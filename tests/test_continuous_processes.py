@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import next_domain
 
 from excavation_bags.cli import main as bag_main
 from excavation_bags.reader import open_bag
@@ -33,14 +32,14 @@ CONTINUOUS_TOPICS = {
 }
 
 
-def trial(**kw):
+def trial(domain, **kw):
     return run_trial(
         SPEC,
         ROBOTS,
         STEPS,
         SEED,
         "default:1",
-        domain=next_domain(),
+        domain=domain,
         command_timeout=30.0,
         timeout=900.0,
         **kw,
@@ -48,11 +47,11 @@ def trial(**kw):
 
 
 @pytest.mark.system  # every node its own process
-def test_processes_equal_the_composed_and_grid_trials_and_record_a_bag(tmp_path, capfd):
+def test_processes_equal_the_composed_and_grid_trials_and_record_a_bag(tmp_path, capfd, domains):
     bag = tmp_path / "bag"
-    procs = trial(drive="continuous", exact=True, processes=True, record=str(bag))
-    composed = trial(drive="continuous", exact=True)
-    grid = trial()
+    procs = trial(domains(), drive="continuous", exact=True, processes=True, record=str(bag))
+    composed = trial(domains(), drive="continuous", exact=True)
+    grid = trial(domains())
     assert sum(procs.missed.values()) == 0 and procs.robots_late == 0
     assert np.array_equal(procs.heights, composed.heights)
     assert np.array_equal(procs.heights, grid.heights)
@@ -72,9 +71,9 @@ def test_processes_equal_the_composed_and_grid_trials_and_record_a_bag(tmp_path,
     assert "/robot_1/cmd_vel" in out and "geometry_msgs/msg/TwistStamped" in out
 
 
-def test_the_composed_continuous_trial_records_a_bag(tmp_path):
+def test_the_composed_continuous_trial_records_a_bag(tmp_path, domain):
     bag = tmp_path / "bag"
-    result = trial(drive="continuous", exact=True, record=str(bag))
+    result = trial(domain, drive="continuous", exact=True, record=str(bag))
     recorded = open_bag(bag)
     assert not recorded.warnings
     assert CONTINUOUS_TOPICS <= set(recorded.topics)

@@ -11,32 +11,19 @@ import json
 
 import numpy as np
 import pytest
-from conftest import next_domain
+from helpers.trials import offline_trace
 
-from ant_controller.controller import Controller
-from ant_evolution.evaluate import ScenarioSet, advance
-from blueprint_server.blueprint import default_blueprint
 from excavation_bringup.trial import main, run_trial
 
 
-def offline(spec, robots, steps, seed):
-    ctl = Controller.hand_coded() if spec == "hand-coded" else Controller.from_file(spec)
-    world = ScenarioSet.create(default_blueprint(1), robots, 1, steps, seed).world(0)
-    trace = [world.fitness()]
-    for _ in range(steps):
-        advance(world, ctl, 1)
-        trace.append(world.fitness())
-    return world.heights, world.fitness(), trace
-
-
-def continuous(spec, robots, steps, seed, **kw):
+def continuous(domain, spec, robots, steps, seed, **kw):
     return run_trial(
         spec,
         robots,
         steps,
         seed,
         "default:1",
-        domain=next_domain(),
+        domain=domain,
         command_timeout=30.0,
         timeout=900.0,
         drive="continuous",
@@ -46,10 +33,10 @@ def continuous(spec, robots, steps, seed, **kw):
 
 @pytest.mark.parametrize("spec", ["hand-coded", "genomes/best.json"])
 @pytest.mark.parametrize(("robots", "steps"), [(1, 100), (4, 60)])
-def test_continuous_without_slip_equals_the_grid(spec, robots, steps):
+def test_continuous_without_slip_equals_the_grid(spec, robots, steps, domain):
     seed = 3
-    result = continuous(spec, robots, steps, seed, exact=True)
-    heights, fitness, trace = offline(spec, robots, steps, seed)
+    result = continuous(domain, spec, robots, steps, seed, exact=True)
+    heights, fitness, trace = offline_trace(spec, robots, steps, seed)
     assert sum(result.missed.values()) == 0 and result.robots_late == 0
     assert np.array_equal(result.heights, heights)
     assert result.fitness == fitness
@@ -58,28 +45,26 @@ def test_continuous_without_slip_equals_the_grid(spec, robots, steps):
     assert result.sim_seconds > steps  # seconds of driving per tick, not one step per tick
 
 
-def test_continuous_and_lockstep_trials_send_the_same_words():
+def test_continuous_and_lockstep_trials_send_the_same_words(domains):
     """Tick by tick the controllers see the same snapshots: every word is the grid trial's."""
     spec, robots, steps, seed = "genomes/best.json", 4, 30, 8
-    grid = run_trial(
-        spec, robots, steps, seed, "default:1", domain=next_domain(), command_timeout=30.0
-    )
-    cont = continuous(spec, robots, steps, seed, exact=True)
+    grid = run_trial(spec, robots, steps, seed, "default:1", domain=domains(), command_timeout=30.0)
+    cont = continuous(domains(), spec, robots, steps, seed, exact=True)
     assert cont.commands == grid.commands
     assert np.array_equal(cont.heights, grid.heights) and cont.trace == grid.trace
     assert cont.stuck_events == cont.primitives_aborted > 0  # stalls happen and report U1
 
 
-def test_default_slip_noise_and_full_perception_run_to_the_end():
+def test_default_slip_noise_and_full_perception_run_to_the_end(domain):
     spec, robots, steps, seed = "hand-coded", 2, 12, 1
-    result = continuous(spec, robots, steps, seed, perception="full")
-    _, fitness, _ = offline(spec, robots, steps, seed)
+    result = continuous(domain, spec, robots, steps, seed, perception="full")
+    _, fitness, _ = offline_trace(spec, robots, steps, seed)
     assert sum(result.missed.values()) == 0 and result.robots_late == 0
     assert result.fitness >= 0.9 * fitness
     assert len(result.trace) == steps + 1
 
 
-def test_cli_reports_the_continuous_figures(capfd):
+def test_cli_reports_the_continuous_figures(capfd, domain):
     code = main(
         [
             "--hand-coded",
@@ -91,7 +76,7 @@ def test_cli_reports_the_continuous_figures(capfd):
             "continuous",
             "--no-slip",
             "--domain",
-            str(next_domain()),
+            str(domain),
             "--json",
         ]
     )

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import next_domain
 
 from excavation_bringup.dome import sim_result
 from excavation_bringup.trial import run_trial
@@ -23,9 +22,9 @@ ROOT = Path(__file__).resolve().parents[1]
 SITE = ROOT / "ros2_ws/src/excavation_bringup/config/site_sim.yaml"
 
 
-def dome(tmp_path, *extra, ticks=None):
+def dome(tmp_path, domain, *extra, ticks=None):
     cmd = [sys.executable, "-m", "excavation_bringup.dome", "up", str(SITE), "--sim", "--json"]
-    cmd += ["--domain", str(next_domain()), "--run-dir", str(tmp_path / "run"), "--timeout", "900"]
+    cmd += ["--domain", str(domain), "--run-dir", str(tmp_path / "run"), "--timeout", "900"]
     if ticks:
         cmd += ["--ticks", str(ticks)]
     return subprocess.Popen(
@@ -91,7 +90,7 @@ def wait_for(condition, timeout):
 
 
 @pytest.fixture(scope="module")
-def composed():
+def composed(domains):
     """The composed trial equal to ``site_sim.yaml`` for 20 ticks (docs/dome.md): ``ant-trial
     --genome genomes/best.json --robots 2 --steps 20 --blueprint default:1 --drive continuous
     --perception full --no-slip`` (site_sim.yaml: ``sim.exact``)."""
@@ -101,7 +100,7 @@ def composed():
         20,
         0,
         "default:1",
-        domain=next_domain(),
+        domain=domains(),
         command_timeout=30.0,
         drive="continuous",
         perception="full",
@@ -122,8 +121,8 @@ def assert_same_run(tmp_path, result: dict, summary: dict, trial) -> None:
 
 @pytest.mark.system
 @pytest.mark.serial  # full perception on the continuous simulator: words equal only unloaded
-def test_dome_up_sim_runs_20_ticks_with_the_fitness_of_ant_trial(tmp_path, composed):
-    proc = dome(tmp_path, ticks=20)
+def test_dome_up_sim_runs_20_ticks_with_the_fitness_of_ant_trial(tmp_path, domain, composed):
+    proc = dome(tmp_path, domain, ticks=20)
     out, err = proc.communicate(timeout=1200)
     assert proc.returncode == 0, err + events(tmp_path)
     summary = json.loads(out.strip().splitlines()[-1])
@@ -158,7 +157,7 @@ def test_dome_up_sim_runs_20_ticks_with_the_fitness_of_ant_trial(tmp_path, compo
 
 @pytest.mark.system
 @pytest.mark.serial
-def test_a_supervisor_that_stalls_every_second_leaves_the_run_unchanged(tmp_path, composed):
+def test_a_supervisor_that_stalls_every_second_leaves_the_run_unchanged(tmp_path, domain, composed):
     """A loaded machine's hiccups: the supervisor stopped for 0.3 s of every second.
 
     Each stall is a heartbeat gap (the simulator's clock runs on at up to 20 x): blades go
@@ -170,7 +169,7 @@ def test_a_supervisor_that_stalls_every_second_leaves_the_run_unchanged(tmp_path
     yet") still did ("tick 0: team held 0.1 s; new snapshot"), so the stalls begin as soon
     as every node is up.
     """
-    proc = dome(tmp_path, ticks=20)
+    proc = dome(tmp_path, domain, ticks=20)
     stalls = 0
     try:
         assert wait_for(lambda: "all 13 nodes are up" in events(tmp_path), 600)
@@ -198,8 +197,8 @@ def test_a_supervisor_that_stalls_every_second_leaves_the_run_unchanged(tmp_path
 
 
 @pytest.mark.system
-def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
-    proc = dome(tmp_path, ticks=12)
+def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path, domain):
+    proc = dome(tmp_path, domain, ticks=12)
     try:
         assert wait_for(lambda: "all 13 nodes are up" in events(tmp_path), 600)
         assert wait_for(lambda: snapshots(tmp_path) >= 3, 600)  # a few ticks
@@ -221,12 +220,14 @@ def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path):
 
 
 @pytest.mark.system
-def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag(tmp_path):
+def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag(tmp_path, domain):
     from excavation_bags.reader import open_bag
 
     bag = tmp_path / "bag"
     port = _free_port()
-    proc = dome(tmp_path, "--record", str(bag), "--view", "--view-port", str(port), ticks=300)
+    proc = dome(
+        tmp_path, domain, "--record", str(bag), "--view", "--view-port", str(port), ticks=300
+    )
     try:
         assert wait_for(lambda: "all 15 nodes are up" in events(tmp_path), 600)
         time.sleep(5.0)

@@ -19,10 +19,9 @@ import time
 
 import numpy as np
 import pytest
-from conftest import next_domain
 from faults import FaultTrial
-from limits_helper import limited
-from test_trial import offline
+from helpers.limits import limited
+from helpers.trials import offline
 
 from excavation_bags.cli import main as bag_main
 from excavation_bags.reader import open_bag
@@ -98,12 +97,12 @@ def kill_and_restart(trial: FaultTrial, name: str, at: int = 5, down: int = 3) -
 # --- SIGKILL + restart, truth perception ---------------------------------------------------
 
 
-def test_server_killed_and_restarted(tmp_path):
+def test_server_killed_and_restarted(tmp_path, domain):
     """The blueprint is latched: controllers keep it, the trial is not disturbed at all."""
     steps, seed = 30, 3
     # a long command timeout: starting the new server's process loads the machine, and no
     # robot may miss a tick in this row (a late word is waited for, not missed)
-    with FaultTrial(tmp_path, steps=steps, seed=seed, command_timeout=30.0) as trial:
+    with FaultTrial(tmp_path, domain, steps=steps, seed=seed, command_timeout=30.0) as trial:
         kill_and_restart(trial, "server")
         result = trial.result()
     heights, fitness = offline("hand-coded", 2, steps, seed)
@@ -111,9 +110,9 @@ def test_server_killed_and_restarted(tmp_path):
     assert result["fitness"] == fitness and np.array_equal(result["heights"], heights)
 
 
-def test_controller_killed_and_restarted(tmp_path):
+def test_controller_killed_and_restarted(tmp_path, domain):
     """The robot idles (reported), its blade goes home, the restarted controller rejoins."""
-    with FaultTrial(tmp_path, steps=30) as trial:
+    with FaultTrial(tmp_path, domain, steps=30) as trial:
         killed, restarted = kill_and_restart(trial, "controller_1")
         result = trial.result()
         sim = trial.messages(SIM)
@@ -127,11 +126,11 @@ def test_controller_killed_and_restarted(tmp_path):
     assert result["commands"][-1][1] != 0 or result["commands"][-2][1] != 0  # acting again
 
 
-def test_blade_driver_killed_and_restarted(tmp_path):
+def test_blade_driver_killed_and_restarted(tmp_path, domain):
     """The robot's blade is held and the robot idles (no joint state), then rejoins."""
     # 200 ticks (some 10 s undisturbed): a rehearsal's watcher heard tick 5 so late that the
     # kill landed after the last of 30 ticks, and nothing was missed.
-    with FaultTrial(tmp_path, steps=200) as trial:
+    with FaultTrial(tmp_path, domain, steps=200) as trial:
         kill_and_restart(trial, "blade_driver_1")
         result = trial.result()
         sim = sim_messages(trial, result)
@@ -149,7 +148,7 @@ def test_blade_driver_killed_and_restarted(tmp_path):
 
 
 @pytest.mark.parametrize("blade_driver", [False, True], ids=["no-driver", "blade-driver"])
-def test_simulator_killed_and_restarted(tmp_path, blade_driver):
+def test_simulator_killed_and_restarted(tmp_path, domain, blade_driver):
     """A restarted simulator starts the trial again from tick 0: sim time jumps back.
 
     The controllers (and blade drivers) see every input go back in time together and follow
@@ -159,7 +158,7 @@ def test_simulator_killed_and_restarted(tmp_path, blade_driver):
     """
     steps, seed = 300, 3
     with FaultTrial(
-        tmp_path, steps=steps, seed=seed, blade_driver=blade_driver, start=False
+        tmp_path, domain, steps=steps, seed=seed, blade_driver=blade_driver, start=False
     ) as trial:
         for name in trial.processes.commands:
             if name != "sim":
@@ -190,7 +189,7 @@ def test_simulator_killed_and_restarted(tmp_path, blade_driver):
     assert result["fitness"] == fitness and np.array_equal(result["heights"], heights)
 
 
-def test_supervisor_killed_and_restarted(tmp_path):
+def test_supervisor_killed_and_restarted(tmp_path, domain):
     """No heartbeat: blades home, the simulator holds the tick; the restart resumes the trial.
 
     The trial's supervisor arms at start (``arm_at_start``, an unattended trial), so its
@@ -201,7 +200,7 @@ def test_supervisor_killed_and_restarted(tmp_path):
     # Long enough that the trial cannot end before the deadman stops it (truth perception
     # runs some 20 ticks a second, and the watcher may hear its first tick late).
     steps, seed = 200, 3
-    with FaultTrial(tmp_path, steps=steps, seed=seed) as trial:
+    with FaultTrial(tmp_path, domain, steps=steps, seed=seed) as trial:
         assert trial.wait_tick(5) < steps // 2
         killed = time.monotonic()
         assert trial.kill("supervisor") == -9
@@ -245,7 +244,7 @@ def recorded_ticks(bag) -> list[int]:
     return [bag.decode("/clock", raw).clock.sec for _, _, raw in bag.messages(["/clock"])]
 
 
-def test_recorder_killed_and_restarted(tmp_path, capsys):
+def test_recorder_killed_and_restarted(tmp_path, domain, capsys):
     """The killed bag is truncated and recoverable; a restart records into a new bag.
 
     The trial runs on while no recorder runs; then the test pauses the team until the new
@@ -254,7 +253,7 @@ def test_recorder_killed_and_restarted(tmp_path, capsys):
     """
     first, second = tmp_path / "bag", tmp_path / "bag2"
     steps = 300
-    with FaultTrial(tmp_path, steps=steps, record=str(first)) as trial:
+    with FaultTrial(tmp_path, domain, steps=steps, record=str(first)) as trial:
         trial.wait_tick(30)
         assert trial.kill("recorder") == -9
         # Ticks go by with no recorder: all of them are lost (the watcher may lag the
@@ -296,10 +295,10 @@ def test_recorder_killed_and_restarted(tmp_path, capsys):
     assert "/blueprint/zones" in new.topics  # latched: recorded again by the new bag
 
 
-def test_recorder_disk_full(tmp_path, capsys):
+def test_recorder_disk_full(tmp_path, domain, capsys):
     """Writes fail (RLIMIT_FSIZE): one error line, the trial goes on, the bag is recoverable."""
     bag = tmp_path / "bag"
-    with FaultTrial(tmp_path, steps=200, record=str(bag), start=False) as trial:
+    with FaultTrial(tmp_path, domain, steps=200, record=str(bag), start=False) as trial:
         for name, command in trial.processes.commands.items():
             # the limit set in the recorder's own process (no preexec_fn in this threaded one)
             small_disk = limited(command, FSIZE=300_000) if name == "recorder" else None
@@ -328,7 +327,7 @@ FULL = {"perception": "full", "command_timeout": 5.0, "steps": 30}
 
 
 @pytest.fixture(scope="module")
-def full_reference():
+def full_reference(domains):
     """Fitness of the undisturbed full-perception trial (composed: quicker, the same)."""
     return run_trial(
         "hand-coded",
@@ -336,15 +335,15 @@ def full_reference():
         FULL["steps"],
         3,
         "default:1",
-        domain=next_domain(),
+        domain=domains(),
         command_timeout=30.0,
         perception="full",
     ).fitness
 
 
-def test_localizer_killed_and_restarted(tmp_path):
+def test_localizer_killed_and_restarted(tmp_path, domain):
     """No poses: every robot idles (reported); the restarted localizer finds them again."""
-    with FaultTrial(tmp_path, **FULL) as trial:
+    with FaultTrial(tmp_path, domain, **FULL) as trial:
         killed = trial.wait_tick(5)
         assert trial.kill("localizer") == -9
         restarted = trial.wait_tick(killed + 1)  # at least one tick times out
@@ -364,10 +363,10 @@ def test_localizer_killed_and_restarted(tmp_path):
     assert result["missed"]["0"] <= restarted - killed + 2  # acting again after the restart
 
 
-def test_mapper_killed_and_restarted(tmp_path):
+def test_mapper_killed_and_restarted(tmp_path, domain):
     """No height map: every robot idles; the restarted mapper's first map is right except
     under the robots (its prior: level ground)."""
-    with FaultTrial(tmp_path, **FULL) as trial:
+    with FaultTrial(tmp_path, domain, **FULL) as trial:
         killed = trial.wait_tick(5)
         assert trial.kill("mapper") == -9
         restarted = trial.wait_tick(killed + 1)  # at least one tick times out
@@ -401,9 +400,9 @@ def test_mapper_killed_and_restarted(tmp_path):
     ],
     ids=["camera-1s", "camera-10s", "laser-10s"],
 )
-def test_sensor_stalls(tmp_path, full_reference, knob, seconds, timeout, loses_ticks):
+def test_sensor_stalls(tmp_path, domain, full_reference, knob, seconds, timeout, loses_ticks):
     """Frames or sweeps stop, then resume with the latest truth."""
-    with FaultTrial(tmp_path, **{**FULL, "command_timeout": timeout}) as trial:
+    with FaultTrial(tmp_path, domain, **{**FULL, "command_timeout": timeout}) as trial:
         trial.wait_tick(5)
         trial.set_params("/sensors", **{knob: True})
         stalled = trial.tick
@@ -437,9 +436,9 @@ def test_sensor_stalls(tmp_path, full_reference, knob, seconds, timeout, loses_t
     assert stalled >= 5
 
 
-def test_camera_at_5_hz(tmp_path, full_reference):
+def test_camera_at_5_hz(tmp_path, domain, full_reference):
     """A slow camera slows the lockstep trial down; nothing is lost."""
-    with FaultTrial(tmp_path, **{**FULL, "command_timeout": 30.0}) as trial:
+    with FaultTrial(tmp_path, domain, **{**FULL, "command_timeout": 30.0}) as trial:
         trial.set_params("/sensors", timeout=120.0, frame_period=0.2)
         result = trial.result()
         sim = sim_messages(trial, result)
@@ -556,20 +555,20 @@ def executor(k: int) -> str:
     return f"/robot_{k}/executor"
 
 
-def continuous_fault_trial(tmp_path, robots: int, steps: int) -> FaultTrial:
+def continuous_fault_trial(tmp_path, domain: int, robots: int, steps: int) -> FaultTrial:
     """A continuous process trial (truth perception) whose team tick waits 15 s for a robot."""
-    trial = FaultTrial(tmp_path, robots=robots, steps=steps, continuous=True, start=False)
+    trial = FaultTrial(tmp_path, domain, robots=robots, steps=steps, continuous=True, start=False)
     trial.processes.set_params("team_tick", motion_limit=MOTION_LIMIT)
     trial.processes.start()
     return trial
 
 
-def test_drive_executor_killed_and_restarted(tmp_path):
+def test_drive_executor_killed_and_restarted(tmp_path, domain):
     """Robot 1's executor process is SIGKILLed: its wheels stop by the base's own deadman
     (``dynamics``' ``cmd_vel_timeout``), the tick goes on without it after ``motion_limit``;
     the restarted executor takes the next ticks' goals."""
     steps = 9
-    with continuous_fault_trial(tmp_path, 2, steps) as trial:
+    with continuous_fault_trial(tmp_path, domain, 2, steps) as trial:
         killed = trial.wait_tick(3)
         assert trial.kill("executor_1") == -9
         restarted = trial.wait_tick(killed + 1)
@@ -598,12 +597,12 @@ def test_drive_executor_killed_and_restarted(tmp_path):
     assert words[restarted + 1 :, 1].any()  # robot 1's controller kept deciding
 
 
-def test_team_tick_killed_and_restarted(tmp_path):
+def test_team_tick_killed_and_restarted(tmp_path, domain):
     """The team tick's process is SIGKILLed: no snapshot, no goals, every executor finishes
     its primitive and stands; the restarted team tick begins again at tick 0 on the site as
     it is (a new trial of its own, which runs to its end)."""
     steps, robots = 6, 2
-    with continuous_fault_trial(tmp_path, robots, steps) as trial:
+    with continuous_fault_trial(tmp_path, domain, robots, steps) as trial:
         killed = trial.wait_tick(3)
         assert trial.kill("team_tick") == -9
         dead = time.monotonic()

@@ -11,7 +11,6 @@ import csv
 
 import numpy as np
 import pytest
-from conftest import next_domain
 from excavation_field.field_experiment import (
     PLANS,
     grid_heights_at,
@@ -19,10 +18,9 @@ from excavation_field.field_experiment import (
     landing_pad_site,
     main,
 )
+from helpers.trials import GENOME
 
 from ant_controller.controller import Controller
-
-GENOME = "genomes/best.json"
 
 
 def test_landing_pad_site_is_the_pad_on_training_sized_cells():
@@ -54,12 +52,12 @@ def _read(path):
 
 
 @pytest.mark.parametrize("name", ["landing-pad", "field"])
-def test_quick_experiment_writes_the_same_csvs_twice_and_resumes(tmp_path, name):
+def test_quick_experiment_writes_the_same_csvs_twice_and_resumes(tmp_path, name, domains):
     plan = PLANS[name, "quick"]
     stem = name.replace("-", "_")
     outs = [tmp_path / "a", tmp_path / "b"]
     for out in outs:
-        argv = [name, "--scale", "quick", "--domain", str(next_domain()), "--no-progress"]
+        argv = [name, "--scale", "quick", "--domain", str(domains()), "--no-progress"]
         assert main([*argv, "--out", str(out)]) == 0
     a, b = (out / name for out in outs)
     for f in (f"{stem}.csv", f"{stem}_summary.csv", "section.md", "scale.json", f"{stem}.png"):
@@ -84,7 +82,7 @@ def test_quick_experiment_writes_the_same_csvs_twice_and_resumes(tmp_path, name)
     # A second run in the same directory reads every trial back instead of running it.
     stored = {p.name: p.stat().st_mtime_ns for p in (a / "trials").iterdir()}
     assert len(stored) == trials
-    argv = [name, "--scale", "quick", "--domain", str(next_domain()), "--no-progress"]
+    argv = [name, "--scale", "quick", "--domain", str(domains()), "--no-progress"]
     assert main([*argv, "--out", str(outs[0])]) == 0
     assert {p.name: p.stat().st_mtime_ns for p in (a / "trials").iterdir()} == stored
 

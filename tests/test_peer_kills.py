@@ -20,9 +20,8 @@ import time
 
 import numpy as np
 import pytest
-from conftest import next_domain
-from test_trial import offline
-from test_trial_oversight import GENOME, ROBOTS, Watcher, finish, start_trial
+from helpers.trials import GENOME, ROBOTS, finish, offline, start_trial
+from helpers.watchers import OperatorWatcher
 
 pytestmark = pytest.mark.system  # starts a recorder process per kill
 
@@ -30,12 +29,11 @@ KILLS = 10
 STEPS = 120
 
 
-def test_recorders_killed_ten_times_cost_the_trial_nothing(tmp_path):
+def test_recorders_killed_ten_times_cost_the_trial_nothing(tmp_path, domain):
     from diagnostic_msgs.msg import DiagnosticArray
 
-    domain = next_domain()
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
-    watch = Watcher(domain)
+    watch = OperatorWatcher(domain)
     recording: list[tuple[float, int]] = []  # (wall, messages) of the recorder's statuses
 
     def on_diagnostics(msg):

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import next_domain
 
 import excavation_bringup.trial as trial
 from excavation_bringup.trial import main, run_trial
 
 
-def test_short_trial_with_full_perception_matches_truth(monkeypatch):
+def test_short_trial_with_full_perception_matches_truth(monkeypatch, domains):
     made = []
     original = trial.compose
 
@@ -28,7 +27,7 @@ def test_short_trial_with_full_perception_matches_truth(monkeypatch):
         steps,
         seed,
         "default:1",
-        domain=next_domain(),
+        domain=domains(),
         command_timeout=30.0,
         perception="full",
     )
@@ -46,7 +45,7 @@ def test_short_trial_with_full_perception_matches_truth(monkeypatch):
         steps,
         seed,
         "default:1",
-        domain=next_domain(),
+        domain=domains(),
         command_timeout=30.0,
     )
     assert np.array_equal(full.heights, truth.heights)

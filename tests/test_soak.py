@@ -7,7 +7,6 @@ import json
 import os
 
 import pytest
-from conftest import next_domain
 from excavation_field.soak import main, memory_growth, rss_mb, violations
 
 
@@ -44,7 +43,7 @@ def test_bad_arguments_are_one_line(capsys):
 
 @pytest.mark.system
 @pytest.mark.serial  # promises no missed tick on an unloaded machine (run alone)
-def test_short_soak_through_the_nodes(tmp_path, capsys):
+def test_short_soak_through_the_nodes(tmp_path, capsys, domain):
     """2 robots, 40 ticks, full perception, every node a process: sampled, nothing missed."""
     out = tmp_path / "soak.json"
     code = main(
@@ -63,7 +62,7 @@ def test_short_soak_through_the_nodes(tmp_path, capsys):
             "--max-slope",
             "10000",
             "--domain",
-            str(next_domain()),
+            str(domain),
             "--json",
             str(out),
             "--plot",

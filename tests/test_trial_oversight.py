@@ -21,190 +21,17 @@ import time
 
 import numpy as np
 import pytest
-from conftest import next_domain
-from test_supervisor_node import operator
-from test_trial import offline
+from helpers.operator import operator
+from helpers.trials import GENOME, ROBOTS, finish, offline, start_trial, stays_still
+from helpers.watchers import OperatorWatcher, occlude
 
 from excavation_bringup.nodes import LOST_GRACE, LOST_TIMEOUT
-from excavation_bringup.trial import run_trial
 from excavation_common.safety import HELD
 
-GENOME = "genomes/best.json"
-ROBOTS = 4
 
-
-class Watcher:
-    """The operator's side: its own context on the trial's domain, spun in this thread."""
-
-    def __init__(self, domain: int, robots: int = ROBOTS):
-        import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rosgraph_msgs.msg import Clock
-        from sensor_msgs.msg import JointState
-        from std_msgs.msg import Bool
-
-        from excavation_common.ros import LATCHED
-
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain)
-        self.node = rclpy.create_node("test_operator", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.tick = -1
-        self.tick_wall: list[tuple[int, float]] = []
-        self.servo = {k: [] for k in range(robots)}  # (wall, stamp sec, value, frame_id)
-        self.enabled = {k: [] for k in range(robots)}
-
-        def on_clock(msg):
-            self.tick = msg.clock.sec
-            self.tick_wall.append((self.tick, time.monotonic()))
-
-        self.node.create_subscription(Clock, "/clock", on_clock, 10)
-        self.sim_reports: list[tuple[float, str]] = []  # (wall, message) of /sim's statuses
-
-        def on_diagnostics(msg):
-            self.sim_reports += [
-                (time.monotonic(), s.message) for s in msg.status if s.name == "/sim"
-            ]
-
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
-        for k in range(robots):
-            self.node.create_subscription(
-                JointState,
-                f"/robot_{k}/blade/servo_command",
-                lambda m, k=k: self.servo[k].append(
-                    (time.monotonic(), m.header.stamp.sec, m.position[0], m.header.frame_id)
-                ),
-                50,
-            )
-            self.node.create_subscription(
-                Bool, f"/robot_{k}/enabled", lambda m, k=k: self.enabled[k].append(m.data), LATCHED
-            )
-
-    def spin_until(self, condition, timeout=120.0) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if condition():
-                return True
-            self.executor.spin_once(timeout_sec=0.02)
-        return condition()
-
-    def call(self, name: str, timeout: float = 30.0, tries: int = 1):
-        """Call a Trigger service; ``tries`` > 1 re-sends an unanswered (idempotent) request."""
-        from std_srvs.srv import Trigger
-
-        client = self.node.create_client(Trigger, name)
-        assert client.wait_for_service(timeout_sec=timeout), name
-        for _ in range(tries):
-            sent = time.monotonic()
-            future = client.call_async(Trigger.Request())
-            if self.spin_until(future.done, timeout / tries):
-                break
-        assert future.done(), f"{name}: no answer"
-        self.node.destroy_client(client)
-        return future.result(), sent
-
-    def operator(self, domain: int, *args: str):
-        """``ant-operator ARGS`` as a separate process, spinning meanwhile (no queue overflows)."""
-        done = {}
-        thread = threading.Thread(
-            target=lambda: done.setdefault("r", operator(domain, *args, timeout="30"))
-        )  # a loaded machine can take seconds to discover the services
-        thread.start()
-        assert self.spin_until(lambda: not thread.is_alive(), timeout=120)
-        thread.join()
-        return done["r"]
-
-    def held_since(self, since: float) -> dict[int, float]:
-        """Robot -> wall time of its first held (home) set-point after ``since``."""
-        out = {}
-        for k, msgs in self.servo.items():
-            for wall, _, value, frame in msgs:
-                if wall >= since and frame == HELD:
-                    assert value == pytest.approx(0.10)
-                    out[k] = wall
-                    break
-        return out
-
-    def resting_home(self, since: float, deadman: float = 0.5) -> dict[int, float]:
-        """Robot -> wall time its blade went home, for robots whose last set-point is home
-        (held), asked once the deadman has passed since ``since`` (before that they may still
-        send open set-points). A driver sends one held set-point per tick, so one sent in
-        this tick before ``since`` (a heartbeat gap on a loaded machine) is not sent again."""
-        if time.monotonic() - since <= 2 * deadman:
-            return {}
-        out = {}
-        for k, msgs in self.servo.items():
-            if not msgs or msgs[-1][3] != HELD:
-                continue
-            i = len(msgs) - 1
-            while i > 0 and msgs[i - 1][3] == HELD:
-                i -= 1
-            assert msgs[-1][2] == pytest.approx(0.10)
-            out[k] = msgs[i][0]
-        return out
-
-    def close(self):
-        import rclpy
-
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
-
-def start_trial(domain, steps, **kwargs):
-    """Run a trial in a thread; returns (thread, holder of its result or exception)."""
-    out = {}
-
-    def run():
-        try:
-            out["result"] = run_trial(
-                GENOME,
-                ROBOTS,
-                steps,
-                kwargs.pop("seed", 3),
-                "default:1",
-                domain=domain,
-                command_timeout=kwargs.pop("command_timeout", 30.0),
-                timeout=kwargs.pop("timeout", 400.0),
-                **kwargs,
-            )
-        except Exception as exc:  # reported by the test
-            out["error"] = exc
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    return thread, out
-
-
-def finish(watch, thread, out):
-    assert watch.spin_until(lambda: not thread.is_alive(), timeout=400.0)
-    thread.join()
-    assert "error" not in out, out.get("error")
-    return out["result"]
-
-
-def stays_still(watch, reports: int = 2) -> bool:
-    """No tick is applied while the simulator is live and held.
-
-    Not a fixed wait (which a slow machine passes trivially): the simulator must say
-    ``tick T held`` in ``reports`` of its periodic statuses (one a second) sent after the
-    call, so it ran its loop meanwhile; then the tick must still be T.
-    """
-    since, tick = time.monotonic(), watch.tick
-
-    def held() -> list[str]:
-        return [m for w, m in watch.sim_reports if w >= since and m.startswith(f"tick {tick} held")]
-
-    assert watch.spin_until(lambda: len(held()) >= reports, timeout=60), watch.sim_reports[-5:]
-    return watch.tick == tick
-
-
-def test_estop_at_tick_10_then_pause_resume_ends_as_an_uninterrupted_trial():
-    domain, steps = next_domain(), 30
-    watch = Watcher(domain)
+def test_estop_at_tick_10_then_pause_resume_ends_as_an_uninterrupted_trial(domain):
+    steps = 30
+    watch = OperatorWatcher(domain)
     try:
         thread, out = start_trial(domain, steps)
         assert watch.spin_until(lambda: watch.tick >= 10)
@@ -240,7 +67,7 @@ def test_estop_at_tick_10_then_pause_resume_ends_as_an_uninterrupted_trial():
 
 
 @pytest.mark.system
-def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial():
+def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial(domain):
     """``ant-operator`` disables robot 1, enables it again and overrides robot 0's blade.
 
     Each ``ant-operator`` is a new process that takes seconds to find the services on a
@@ -250,8 +77,8 @@ def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial(
     """
     from std_msgs.msg import Float64MultiArray
 
-    domain, steps = next_domain(), 200
-    watch = Watcher(domain)
+    steps = 200
+    watch = OperatorWatcher(domain)
     overrides = []
     watch.node.create_subscription(
         Float64MultiArray, "/robot_0/blade/commands", lambda m: overrides.append(m.data[0]), 10
@@ -297,9 +124,9 @@ def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial(
 
 
 @pytest.mark.system
-def test_supervisor_sigkilled_every_blade_homes_by_deadman_then_a_new_one_resumes():
+def test_supervisor_sigkilled_every_blade_homes_by_deadman_then_a_new_one_resumes(domain):
     # 200 ticks: a trial of 25 could end between the tick the test sees and the deadman.
-    domain, steps = next_domain(), 200
+    steps = 200
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
     cmd = [
         sys.executable,
@@ -313,7 +140,7 @@ def test_supervisor_sigkilled_every_blade_homes_by_deadman_then_a_new_one_resume
         "-p",
         f"lost_grace:={LOST_GRACE}",
     ]
-    watch = Watcher(domain)
+    watch = OperatorWatcher(domain)
     sup = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         thread, out = start_trial(domain, steps, supervisor="external")
@@ -351,25 +178,15 @@ def test_supervisor_sigkilled_every_blade_homes_by_deadman_then_a_new_one_resume
 
 
 @pytest.mark.system
-def test_robot_hidden_from_the_camera_stops_is_disabled_and_the_others_finish():
-    from rcl_interfaces.msg import Parameter as ParameterMsg
-    from rcl_interfaces.msg import ParameterType, ParameterValue
-    from rcl_interfaces.srv import SetParameters
-
-    domain, steps, hidden = next_domain(), 14, 2
-    watch = Watcher(domain)
+def test_robot_hidden_from_the_camera_stops_is_disabled_and_the_others_finish(domain):
+    steps, hidden = 14, 2
+    watch = OperatorWatcher(domain)
     try:
         thread, out = start_trial(
             domain, steps, perception="full", command_timeout=20.0, timeout=900.0
         )
         assert watch.spin_until(lambda: watch.tick >= 3, timeout=600)
-        client = watch.node.create_client(SetParameters, "/sensors/set_parameters")
-        assert client.wait_for_service(timeout_sec=30)
-        value = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="2:front,2:rear")
-        future = client.call_async(
-            SetParameters.Request(parameters=[ParameterMsg(name="occlude", value=value)])
-        )
-        assert watch.spin_until(future.done, 30) and future.result().results[0].successful
+        occlude(watch, "2:front,2:rear", timeout=30.0)
         hidden_at = watch.tick
         assert watch.spin_until(
             lambda: watch.enabled[hidden] and not watch.enabled[hidden][-1], 600

@@ -8,9 +8,8 @@
   and its end, watched by a :class:`helpers.watchers.OperatorWatcher`;
 * :func:`stays_still`: no tick is applied while the simulator is held.
 
-Copied from ``tests/test_trial.py`` (``offline``), ``tests/test_continuous_trial.py``
-(``offline_trace``) and ``tests/test_trial_oversight.py`` (the rest), whose importers
-switch to these.
+The single copy: the trial, oversight, peer-kill, fault and field-experiment test modules
+import these.
 """
 
 from __future__ import annotations

@@ -10,9 +10,10 @@
 * :func:`occlude`: the occlusion sequence, hiding LEDs from the synthetic camera through
   ``/sensors``' ``occlude`` parameter.
 
-:class:`OperatorWatcher` and :func:`occlude` are ``tests/test_trial_oversight.py``'s
-``Watcher`` and hidden-robot sequence (also in ``tests/test_continuous_oversight.py``),
-:class:`FaultWatcher` is ``tests/faults.py``'s ``Watcher``; those modules switch to these.
+:class:`OperatorWatcher` and :func:`occlude` serve the oversight tests
+(``tests/test_trial_oversight.py``, ``tests/test_continuous_oversight.py``, whose continuous
+watcher extends :class:`OperatorWatcher`) and ``tests/test_peer_kills.py``;
+:class:`FaultWatcher` and :class:`Status` are ``tests/faults.py``'s.
 """
 
 from __future__ import annotations
