@@ -110,7 +110,7 @@ def test_good_frame_gives_poses_with_covariance(ros, frame):
     "bad, match",
     [
         ("size", "height x width x channels = (480, 640, 3)"),
-        ("encoding", "encoding = 'yuv422': expected one of bgr8"),
+        ("encoding", "encoding = 'nv21': expected one of bgr8"),
         ("data", "data = "),
     ],
 )
@@ -122,7 +122,7 @@ def test_bad_frames_are_reported_and_give_no_pose(ros, frame, bad, match):
     else:
         msg = frame_to_message(frame, Image())
         if bad == "encoding":
-            msg.encoding = "yuv422"
+            msg.encoding = "nv21"  # YUV 4:2:0: not a camera encoding the localizer reads
         else:
             msg.data = bytes(msg.data)[:-5]
     probe.send(msg, 3)

@@ -16,6 +16,7 @@ from overhead_localizer.camera_info import camera_info_fields, with_camera_info
 from overhead_localizer.camera_model import CameraModel, load_model
 from overhead_localizer.errors import ImageError
 from overhead_localizer.images import (
+    ENCODINGS,
     frame_from_compressed,
     frame_from_message,
     frame_to_compressed,
@@ -47,19 +48,61 @@ def _mosaic(bgr: np.ndarray, pattern: str) -> np.ndarray:
     return out
 
 
+def _with_alpha(bgr: np.ndarray, order: str) -> np.ndarray:
+    """``bgra`` or ``rgba`` pixels of a BGR frame (alpha: a pattern, it must be ignored)."""
+    colour = bgr if order == "bgra" else bgr[:, :, ::-1]
+    alpha = (np.arange(bgr.shape[1]) * 7 % 256).astype(np.uint8)[None, :, None]
+    return np.concatenate([colour, np.broadcast_to(alpha, (*bgr.shape[:2], 1))], axis=2)
+
+
+def _yuv422(bgr: np.ndarray, order: str) -> np.ndarray:
+    """Packed YUV 4:2:2 as a camera sends it (BT.601, Y 16..235, U V 16..240), ``order``
+    ``yuyv`` (Y0 U Y1 V) or ``uyvy`` (U Y0 V Y1); U and V averaged over each pixel pair.
+    Written out here, not with OpenCV, so the decoder's byte order is checked on its own."""
+    b, g, r = (bgr[:, :, i].astype(np.float64) for i in range(3))
+    y = 16 + (65.481 * r + 128.553 * g + 24.966 * b) / 255
+    u = 128 + (-37.797 * r - 74.203 * g + 112.0 * b) / 255
+    v = 128 + (112.0 * r - 93.786 * g - 18.214 * b) / 255
+    u = (u[:, 0::2] + u[:, 1::2]) / 2
+    v = (v[:, 0::2] + v[:, 1::2]) / 2
+    y0, y1 = y[:, 0::2], y[:, 1::2]
+    quads = [y0, u, y1, v] if order == "yuyv" else [u, y0, v, y1]
+    packed = np.stack(quads, axis=2).reshape(bgr.shape[0], bgr.shape[1] * 2)
+    return np.clip(np.rint(packed), 0, 255).astype(np.uint8)
+
+
+YUV_ORDER = {"yuv422": "uyvy", "uyvy": "uyvy", "yuv422_yuy2": "yuyv", "yuyv": "yuyv"}
+"""sensor_msgs/image_encodings.hpp: yuv422 is UYVY (deprecated name of uyvy), yuv422_yuy2
+is YUYV (deprecated name of yuyv; what usb_cam sends for pixel_format yuyv)."""
+
+
+def _raw(bgr: np.ndarray, encoding: str) -> Image:
+    """An Image message of a BGR frame in ``encoding`` (bgra8, rgba8 or YUV 4:2:2)."""
+    if encoding in YUV_ORDER:
+        data = _yuv422(bgr, YUV_ORDER[encoding])
+    else:
+        data = _with_alpha(bgr, encoding[:4])
+    msg = Image(height=bgr.shape[0], width=bgr.shape[1], encoding=encoding)
+    msg.step, msg.data = data.size // bgr.shape[0], data.tobytes()
+    return msg
+
+
 @pytest.mark.parametrize(
-    "encoding", ["rgb8", "bayer_rggb8", "bayer_bggr8", "bayer_gbrg8", "bayer_grbg8"]
+    "encoding",
+    ["rgb8", "bgra8", "rgba8", "bayer_rggb8", "bayer_bggr8", "bayer_gbrg8", "bayer_grbg8"],
 )
 def test_encodings_decode_to_the_bgr_frame(frame, encoding):
     msg = Image(height=frame.shape[0], width=frame.shape[1], encoding=encoding)
     if encoding == "rgb8":
         msg.step, msg.data = frame.shape[1] * 3, frame[:, :, ::-1].tobytes()
+    elif encoding in ("bgra8", "rgba8"):
+        msg = _raw(frame, encoding)
     else:
         plane = _mosaic(frame, encoding[6:10])
         msg.step, msg.data = frame.shape[1], plane.tobytes()
     got = frame_from_message(msg)
     assert got.shape == frame.shape
-    if encoding == "rgb8":
+    if encoding in ("rgb8", "bgra8", "rgba8"):
         assert np.array_equal(got, frame)
     else:  # demosaicing blurs edges; flat areas and the colour of big patches survive
         flat = np.full((8, 8, 3), (30, 90, 200), dtype=np.uint8)
@@ -67,6 +110,37 @@ def test_encodings_decode_to_the_bgr_frame(frame, encoding):
         patch.data = _mosaic(flat, encoding[6:10]).tobytes()
         centre = frame_from_message(patch)[2:6, 2:6].reshape(-1, 3)
         assert np.abs(centre.astype(int) - (30, 90, 200)).max() <= 2
+
+
+@pytest.mark.parametrize("encoding", list(YUV_ORDER))
+def test_yuv422_decodes_in_its_byte_order_and_gives_the_poses(frame, encoding):
+    """usb_cam's yuyv (yuv422_yuy2), and UYVY (yuv422, uyvy): colours survive the 4:2:2
+    chroma, and the localizer places every robot where the bgr8 frame puts it."""
+    from excavation_sim.camera import default_beacons
+    from overhead_localizer.localize import Localizer
+
+    flat = np.full((8, 8, 3), (30, 90, 200), dtype=np.uint8)
+    assert np.abs(frame_from_message(_raw(flat, encoding)).astype(int) - flat).max() <= 2
+    got = frame_from_message(_raw(frame, encoding))
+    assert got.shape == frame.shape and got.dtype == np.uint8
+    model = load_model(CALIBRATION)
+    want = Localizer(model, default_beacons(), len(VIEWS)).update(frame)
+    seen = Localizer(model, default_beacons(), len(VIEWS)).update(got)
+    for a, b in zip(want, seen, strict=True):
+        assert a.reportable and b.reportable
+        assert np.hypot(a.x - b.x, a.y - b.y) < TOLERANCE_M
+        assert abs((a.yaw - b.yaw + np.pi) % (2 * np.pi) - np.pi) < TOLERANCE_RAD
+    odd = _raw(frame[:, :-2], encoding)
+    odd.width, odd.step = odd.width - 1, odd.step - 2
+    odd.data = np.frombuffer(bytes(odd.data), np.uint8).reshape(odd.height, -1)[:, :-2].tobytes()
+    with pytest.raises(ImageError, match="needs an even width"):
+        frame_from_message(odd)
+
+
+def test_site_files_accept_every_encoding_the_localizer_decodes():
+    from excavation_bringup.site import RAW_ENCODINGS
+
+    assert sorted(RAW_ENCODINGS) == sorted(ENCODINGS)
 
 
 def test_mono8_decodes_and_unknown_encodings_are_refused(frame):

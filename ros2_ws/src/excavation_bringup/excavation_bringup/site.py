@@ -33,11 +33,17 @@ FORMAT = "ant-site/1"
 RAW_ENCODINGS = (
     "bgr8",
     "rgb8",
+    "bgra8",
+    "rgba8",
     "mono8",
     "bayer_rggb8",
     "bayer_bggr8",
     "bayer_gbrg8",
     "bayer_grbg8",
+    "yuv422",
+    "uyvy",
+    "yuv422_yuy2",
+    "yuyv",
 )
 """``sensor_msgs/Image`` encodings the localizer decodes."""
 

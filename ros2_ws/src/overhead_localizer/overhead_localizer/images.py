@@ -1,8 +1,9 @@
 """Camera frames as messages <-> BGR arrays (no ``rclpy``; messages duck-typed).
 
 :func:`frame_from_message` decodes a ``sensor_msgs/Image`` in any of the encodings a
-camera driver commonly sends (``bgr8``, ``rgb8``, ``mono8`` and the four 8-bit Bayer
-mosaics, demosaiced as ``cv_bridge`` does); :func:`frame_from_compressed` decodes a
+camera driver commonly sends (``bgr8``, ``rgb8``, ``bgra8``, ``rgba8``, ``mono8``, the four
+8-bit Bayer mosaics, demosaiced as ``cv_bridge`` does, and packed YUV 4:2:2, converted as
+``cv_bridge`` does with OpenCV's BT.601 conversion); :func:`frame_from_compressed` decodes a
 ``sensor_msgs/CompressedImage`` (``jpeg`` or ``png``, as ``image_transport``'s compressed
 plugin sends it: ``format`` such as ``"bgr8; jpeg compressed bgr8"``). Both give the
 ``uint8 [height, width, 3]`` BGR array the localizer works on. A ``mono8`` frame carries
@@ -23,7 +24,29 @@ _BAYER = {  # ROS encoding -> OpenCV code (OpenCV names the pattern from the sec
     "bayer_gbrg8": cv2.COLOR_BayerGR2BGR,
     "bayer_grbg8": cv2.COLOR_BayerGB2BGR,
 }
-_CHANNELS = {"bgr8": 3, "rgb8": 3, "mono8": 1, **{name: 1 for name in _BAYER}}
+_YUV422 = {  # ROS encoding -> OpenCV code (sensor_msgs/image_encodings.hpp names both orders)
+    "yuv422": cv2.COLOR_YUV2BGR_UYVY,  # U Y0 V Y1 (deprecated name of uyvy)
+    "uyvy": cv2.COLOR_YUV2BGR_UYVY,
+    "yuv422_yuy2": cv2.COLOR_YUV2BGR_YUY2,  # Y0 U Y1 V (deprecated name of yuyv; usb_cam's yuyv)
+    "yuyv": cv2.COLOR_YUV2BGR_YUY2,
+}
+_CONVERT = {  # ROS encoding -> OpenCV code to BGR; bgr8 is used as it is
+    "rgb8": cv2.COLOR_RGB2BGR,
+    "bgra8": cv2.COLOR_BGRA2BGR,
+    "rgba8": cv2.COLOR_RGBA2BGR,
+    "mono8": cv2.COLOR_GRAY2BGR,
+    **_BAYER,
+    **_YUV422,
+}
+_CHANNELS = {  # bytes per pixel (a YUV 4:2:2 pair of pixels shares its U and V)
+    "bgr8": 3,
+    "rgb8": 3,
+    "bgra8": 4,
+    "rgba8": 4,
+    "mono8": 1,
+    **{name: 1 for name in _BAYER},
+    **{name: 2 for name in _YUV422},
+}
 
 ENCODINGS = tuple(_CHANNELS)
 """Encodings :func:`frame_from_message` decodes."""
@@ -44,6 +67,8 @@ def frame_from_message(msg, topic: str = "/overhead/image_raw") -> np.ndarray:
     channels = _CHANNELS.get(msg.encoding)
     if channels is None:
         raise ImageError(topic, "encoding", msg.encoding, f"expected one of {', '.join(ENCODINGS)}")
+    if msg.encoding in _YUV422 and msg.width % 2:
+        raise ImageError(topic, "width", msg.width, f"{msg.encoding} needs an even width")
     if msg.step != msg.width * channels:
         raise ImageError(
             topic, "step", msg.step, f"expected width x {channels} = {msg.width * channels}"
@@ -56,13 +81,12 @@ def frame_from_message(msg, topic: str = "/overhead/image_raw") -> np.ndarray:
             f"expected height x step = {msg.height * msg.step}",
         )
     raw = np.frombuffer(bytes(msg.data), dtype=np.uint8)
-    if channels == 3:
-        image = raw.reshape(msg.height, msg.width, 3)
-        return np.ascontiguousarray(image[:, :, ::-1]) if msg.encoding == "rgb8" else image
-    plane = raw.reshape(msg.height, msg.width)
-    if msg.encoding == "mono8":
-        return cv2.cvtColor(plane, cv2.COLOR_GRAY2BGR)
-    return cv2.cvtColor(plane, _BAYER[msg.encoding])
+    image = raw.reshape(msg.height, msg.width, channels)
+    if msg.encoding == "bgr8":
+        return image
+    if channels == 1:
+        image = image[:, :, 0]
+    return cv2.cvtColor(image, _CONVERT[msg.encoding])
 
 
 def frame_from_compressed(msg, topic: str = "/overhead/image_raw/compressed") -> np.ndarray:
