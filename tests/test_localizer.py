@@ -73,6 +73,49 @@ def test_calibrate_command(camera, tmp_path, capsys):
     assert "marks.yaml: points = 1: expected a list of at least 6" in capsys.readouterr().err
 
 
+def test_calibrate_with_a_drivers_camera_info_fits_the_pose_alone(camera, tmp_path, capsys):
+    """``calibrate --camera-info``: the driver's K and D held fixed, the pose fitted under
+    them, the file records it; localizing with them is as good as with the true camera."""
+    from overhead_localizer.camera_info import camera_info_yaml
+    from overhead_localizer.camera_model import FROM_CAMERA_INFO, FROM_MARKS, CameraModel
+
+    p = CameraParams()
+    truth = CameraModel(p.width, p.height, p.camera_matrix(), p.dist_coeffs(), *p.extrinsics())
+    marks = tmp_path / "marks.yaml"
+    marks.write_text(marks_yaml(camera, *calibration_marks(camera, np.random.default_rng(2))))
+    info = tmp_path / "ost.yaml"  # as camera_calibration_parsers writes it
+    info.write_text(camera_info_yaml(truth))
+    out = tmp_path / "camera.yaml"
+    assert calibrate_main([str(marks), "--out", str(out), "--camera-info", str(info)]) == 0
+    assert "(the driver's, from" in capsys.readouterr().out
+    fitted = load_model(out)
+    assert fitted.intrinsics == FROM_CAMERA_INFO and fitted.intrinsics_file == str(info.resolve())
+    assert np.array_equal(fitted.camera_matrix, truth.camera_matrix)
+    assert np.array_equal(fitted.dist_coeffs, truth.dist_coeffs)
+    assert fitted.rms_px < 0.6 and np.allclose(fitted.centre, p.position, atol=0.01)
+    pts = np.array([[x, y, 0.15] for x in np.linspace(0.2, 3.8, 8) for y in (0.2, 2.0, 3.8)])
+    err = np.hypot(*(fitted.to_map(truth.project(pts), 0.15) - pts[:, :2]).T)
+    assert err.max() < 0.003  # metres, over the whole site
+    assert calibrate_main([str(marks), "--out", str(out)]) == 0  # without: fitted to marks
+    assert load_model(out).intrinsics == FROM_MARKS
+
+    # what an uncalibrated driver wrote, another image size, fixed and fitted at once
+    zero = camera_info_yaml(truth).replace("data: [1050.0, 0.0, 639.5", "data: [0.0, 0.0, 0.0")
+    zero = zero.replace("0.0, 1050.0, 359.5, 0.0, 0.0, 1.0]", "0.0, 0.0, 0.0, 0.0, 0.0, 0.0]")
+    info.write_text(zero)
+    assert calibrate_main([str(marks), "--out", str(out), "--camera-info", str(info)]) == 2
+    assert "camera_matrix = " in (err_text := capsys.readouterr().err)
+    assert "is zero: the camera has no calibration" in err_text
+    info.write_text(camera_info_yaml(truth).replace("image_width: 1280", "image_width: 640"))
+    assert calibrate_main([str(marks), "--out", str(out), "--camera-info", str(info)]) == 2
+    assert "differs from the marks' 1280 x 720" in capsys.readouterr().err
+    info.write_text(camera_info_yaml(truth).replace("  cols: 5\n", "  cols: 4\n"))
+    assert calibrate_main([str(marks), "--out", str(out), "--camera-info", str(info)]) == 2
+    assert "distortion_coefficients = " in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        calibrate_main([str(marks), "--out", str(out), "--camera-info", str(info), "--focal", "9"])
+
+
 def test_accuracy_over_varied_scenes(camera, model):
     """p95 position error under a quarter cell and every cardinal heading right."""
     rng = np.random.default_rng(0)

@@ -1,10 +1,16 @@
-"""The localizer on what real camera drivers send: encodings, CompressedImage, CameraInfo."""
+"""The localizer on what real camera drivers send: encodings, CompressedImage, CameraInfo.
+
+Day-one drivers (usb_cam, v4l2_camera, camera_ros): an uncalibrated one sends K = 0, a
+calibrated one intrinsics other than those the calibration file's pose was fitted with,
+and frames in bgra8, rgba8 or packed YUV 4:2:2.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -12,8 +18,19 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 
 from excavation_sim.camera import CameraParams, RobotView
 from overhead_localizer.beacons import CONFIG_DIR
-from overhead_localizer.camera_info import camera_info_fields, with_camera_info
-from overhead_localizer.camera_model import CameraModel, load_model
+from overhead_localizer.camera_info import (
+    ZERO_K,
+    camera_info_fields,
+    choose_model,
+    with_camera_info,
+)
+from overhead_localizer.camera_model import (
+    FROM_CAMERA_INFO,
+    CameraModel,
+    fit_pose,
+    load_model,
+    save_model,
+)
 from overhead_localizer.errors import ImageError
 from overhead_localizer.images import (
     ENCODINGS,
@@ -211,28 +228,42 @@ class Probe:
         self.node.create_subscription(
             CompressedImage, "/overhead/image_annotated", self.annotated.append, 10
         )
+        self.status: dict[str, DiagnosticStatus] = {}
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
         self.ros = ros
 
+    def on_diag(self, msg):
+        for s in msg.status:
+            self.status[s.name] = s
 
-def run_localizer(ros, frame, compressed: str | None, camera_info: bool):
+    def camera(self, level) -> DiagnosticStatus | None:
+        """The localizer's camera status once it is at ``level``."""
+        s = self.status.get("/localizer")
+        return s if s is not None and s.level == level else None
+
+
+def run_localizer(ros, frame, compressed: str | None, info: CameraInfo | None, calibration=None):
+    """Start a localizer; with ``info``, show that frames wait for it, then send it; then
+    one frame. Returns the first pose of each robot, the node and the probe."""
     params = [
-        Parameter("calibration", value=str(CALIBRATION)),
+        Parameter("calibration", value=str(calibration or CALIBRATION)),
         Parameter("robots", value=len(VIEWS)),
         Parameter("reliable", value=True),
         Parameter("use_height_map", value=False),
         Parameter("annotated_period", value=0.01),
+        Parameter("diagnostics_period", value=0.1),
     ]
     if compressed:
         params += [
             Parameter("compressed", value=True),
             Parameter("image_topic", value="/overhead/image_raw/compressed"),
         ]
-    if camera_info:
+    if info is not None:
         params.append(Parameter("camera_info_topic", value="/overhead/camera_info"))
     node = ros.add(LocalizerNode(context=ros.context, parameter_overrides=params))
     probe = Probe(ros, bool(compressed))
     ros.spin_until(lambda: probe.pub.get_subscription_count() > 0)
-    if camera_info:
+    if info is not None:
         msg = frame_to_message(frame, Image(), stamp=Time(sec=5))
         probe.pub.publish(
             msg if not compressed else frame_to_compressed(frame, CompressedImage(), compressed)
@@ -240,7 +271,6 @@ def run_localizer(ros, frame, compressed: str | None, camera_info: bool):
         ros.spin_until(lambda: node.image_error is not None)
         assert "waiting for /overhead/camera_info" in node.image_error  # no model yet
         ros.spin_until(lambda: probe.info_pub.get_subscription_count() > 0)
-        info = CameraInfo(**camera_info_fields(load_model(CALIBRATION)))
         probe.info_pub.publish(info)
         assert ros.spin_until(lambda: node.info_received)
     if compressed:
@@ -249,7 +279,14 @@ def run_localizer(ros, frame, compressed: str | None, camera_info: bool):
         out = frame_to_message(frame, Image(), stamp=Time(sec=6))
     probe.pub.publish(out)
     assert ros.spin_until(lambda: all(probe.poses.values()) and probe.annotated)
-    return [p[0].pose.pose for _, p in sorted(probe.poses.items())]
+    return [p[0].pose.pose for _, p in sorted(probe.poses.items())], node, probe
+
+
+def restart(ros) -> None:
+    """Take every node of the context down (the next run starts fresh)."""
+    for node in list(ros.executor.get_nodes()):
+        ros.executor.remove_node(node)
+        node.destroy_node()
 
 
 def _xy_yaw(pose):
@@ -259,11 +296,11 @@ def _xy_yaw(pose):
 
 @pytest.mark.parametrize("compressed", ["png", "jpeg"])
 def test_camera_info_and_compressed_frames_give_the_raw_poses(ros, frame, compressed):
-    raw = run_localizer(ros, frame, None, camera_info=False)
-    for node in list(ros.executor.get_nodes()):
-        ros.executor.remove_node(node)
-        node.destroy_node()
-    got = run_localizer(ros, frame, compressed, camera_info=True)
+    raw, _, _ = run_localizer(ros, frame, None, None)
+    restart(ros)
+    info = CameraInfo(**camera_info_fields(load_model(CALIBRATION)))
+    got, _, probe = run_localizer(ros, frame, compressed, info)
+    assert ros.spin_until(lambda: probe.camera(DiagnosticStatus.OK))  # the same intrinsics
     for a, b in zip(raw, got, strict=True):
         (pa, ya), (pb, yb) = _xy_yaw(a), _xy_yaw(b)
         if compressed == "png":  # lossless, and the same intrinsics: the same poses
@@ -271,3 +308,96 @@ def test_camera_info_and_compressed_frames_give_the_raw_poses(ros, frame, compre
         else:
             assert np.abs(pa - pb).max() < TOLERANCE_M
             assert abs((ya - yb + np.pi) % (2 * np.pi) - np.pi) < TOLERANCE_RAD
+
+
+def _same_poses(a, b) -> None:
+    for pa, pb in zip(a, b, strict=True):
+        (xa, ya), (xb, yb) = _xy_yaw(pa), _xy_yaw(pb)
+        assert np.array_equal(xa, xb) and ya == yb
+
+
+def test_uncalibrated_driver_k_zero_uses_the_file_and_warns(ros, frame):
+    """usb_cam, v4l2_camera and camera_ros without a calibration send K = 0: the file's
+    intrinsics are used (WARN, named once), and every frame gives poses."""
+    raw, _, _ = run_localizer(ros, frame, None, None)
+    restart(ros)
+    zero = CameraInfo(width=1280, height=720, distortion_model="plumb_bob", d=[0.0] * 5)
+    got, node, probe = run_localizer(ros, frame, None, zero)
+    _same_poses(raw, got)
+    assert ros.spin_until(lambda: probe.camera(DiagnosticStatus.WARN))
+    assert probe.camera(DiagnosticStatus.WARN).message == ZERO_K
+    assert ZERO_K == (
+        "camera_info K is zero (uncalibrated driver): using the calibration file's intrinsics"
+    )
+    # the driver sends it again with the next frame: still poses, still the one warning
+    probe.info_pub.publish(zero)
+    probe.pub.publish(frame_to_message(frame, Image(), stamp=Time(sec=7)))
+    assert ros.spin_until(lambda: all(len(p) == 2 for p in probe.poses.values()))
+    assert node.image_error is None and node.camera_warning == ZERO_K
+
+
+def test_calibrated_driver_with_other_intrinsics_warns_and_keeps_the_file(ros, frame):
+    """A pose fitted under the file's intrinsics (from marks) with a driver's other K and
+    D would be biased (up to 9 mm here): the file's are kept, and the WARN says so."""
+    raw, _, _ = run_localizer(ros, frame, None, None)
+    restart(ros)
+    driver = CameraInfo(**camera_info_fields(CameraParams_model()))  # the lens's true K, D
+    got, node, probe = run_localizer(ros, frame, None, driver)
+    _same_poses(raw, got)
+    assert ros.spin_until(lambda: probe.camera(DiagnosticStatus.WARN))
+    message = probe.camera(DiagnosticStatus.WARN).message
+    assert "camera_info K/D differ from the calibration file's by up to" in message
+    assert "using the calibration file's intrinsics" in message
+    assert "calibrate --camera-info" in message
+    assert node.localizer.model is node.file_model
+
+
+def test_calibration_fitted_with_the_driver_intrinsics_uses_them(ros, frame, camera, tmp_path):
+    """``calibrate --camera-info``: the pose is fitted under the driver's K and D, so its
+    CameraInfo agrees with the file: no warning, the driver's intrinsics, accurate poses."""
+    from excavation_sim.camera import calibration_marks
+
+    truth = CameraParams_model()
+    pixels, points = calibration_marks(camera, np.random.default_rng(1))
+    size = (truth.width, truth.height)
+    fitted = fit_pose(pixels, points, size, truth.camera_matrix, truth.dist_coeffs, "ost.yaml")
+    path = tmp_path / "camera.yaml"
+    save_model(fitted, path)
+    driver = CameraInfo(**camera_info_fields(truth))
+    got, node, probe = run_localizer(ros, frame, None, driver, calibration=path)
+    assert ros.spin_until(lambda: probe.camera(DiagnosticStatus.OK))
+    assert node.camera_warning is None and node.file_model.intrinsics == FROM_CAMERA_INFO
+    assert np.array_equal(node.localizer.model.camera_matrix, truth.camera_matrix)
+    for pose, view in zip(got, VIEWS, strict=True):
+        xy, _ = _xy_yaw(pose)
+        assert np.hypot(xy[0] - view.x, xy[1] - view.y) < 0.04
+
+
+def test_choose_model_takes_the_driver_intrinsics_only_when_they_agree(camera):
+    from excavation_sim.camera import calibration_marks
+
+    marks_file = load_model(CALIBRATION)  # intrinsics fitted to the marks
+    truth = CameraParams_model()
+    model, warning = choose_model(marks_file, CameraInfo(width=1280, height=720))
+    assert model is marks_file and warning == ZERO_K
+    fisheye = CameraInfo(**camera_info_fields(truth))
+    fisheye.distortion_model = "fisheye"
+    model, warning = choose_model(marks_file, fisheye)
+    assert model is marks_file and "distortion_model = 'fisheye'" in warning
+    assert warning.endswith("using the calibration file's intrinsics")
+    small = CameraInfo(**camera_info_fields(truth))
+    small.width, small.height = 640, 360
+    model, warning = choose_model(marks_file, small)
+    assert model is marks_file and "640 x 360 images" in warning
+    model, warning = choose_model(marks_file, CameraInfo(**camera_info_fields(truth)))
+    assert model is marks_file and "differ from the calibration file's" in warning
+    same = CameraInfo(**camera_info_fields(marks_file))
+    model, warning = choose_model(marks_file, same)
+    assert warning is None and np.array_equal(model.camera_matrix, marks_file.camera_matrix)
+    # fitted with the driver's K, D: they agree; a driver calibrated again afterwards does not
+    pixels, points = calibration_marks(camera, np.random.default_rng(1))
+    fitted = fit_pose(pixels, points, (1280, 720), truth.camera_matrix, truth.dist_coeffs)
+    model, warning = choose_model(fitted, CameraInfo(**camera_info_fields(truth)))
+    assert warning is None and model.intrinsics == FROM_CAMERA_INFO
+    model, warning = choose_model(fitted, same)
+    assert model is fitted and "changed since `calibrate --camera-info`" in warning

@@ -1,20 +1,23 @@
 """``ros2 run overhead_localizer localizer``: robot poses from the overhead camera's LEDs.
 
-Subscribes ``image_topic`` (``/overhead/image_raw``: sensor_msgs/Image in bgr8, rgb8, mono8
-or an 8-bit Bayer encoding; with ``compressed``, sensor_msgs/CompressedImage jpeg or png,
-conventionally ``/overhead/image_raw/compressed``) with queue depth 1 (the newest frame
-only), with ``camera_info_topic`` the driver's sensor_msgs/CameraInfo (its K and D replace
-the calibration file's intrinsics; frames wait for the first one), and, with
+Subscribes ``image_topic`` (``/overhead/image_raw``: sensor_msgs/Image in bgr8, rgb8,
+bgra8, rgba8, mono8, packed YUV 4:2:2 (yuv422/uyvy, yuv422_yuy2/yuyv) or an 8-bit Bayer
+encoding; with ``compressed``, sensor_msgs/CompressedImage jpeg or png, conventionally
+``/overhead/image_raw/compressed``) with queue depth 1 (the newest frame only), with
+``camera_info_topic`` the driver's sensor_msgs/CameraInfo (frames wait for the first one;
+its K and D are used when they agree with the calibration file's, which its camera pose
+was fitted with; otherwise, or when K is zero, as an uncalibrated driver sends it, the
+file's are used and the camera's status is WARN saying why), and, with
 ``use_height_map``, ``/worksite/height_map`` + ``/worksite/map_info`` (the soil height under
 a robot sets the plane of its LEDs). Publishes for every robot k < ``robots`` it is sure of
 ``/robot_k/pose`` (PoseWithCovarianceStamped in ``map``, stamped with the frame's stamp,
 covariance from the detection); with ``annotated_period`` > 0,
 ``/overhead/image_annotated`` (CompressedImage jpeg: detected LEDs and poses drawn); and,
 every ``diagnostics_period``, ``/diagnostics``: the camera's status, named after the node
-(``/localizer``; ERROR on a frame of the wrong encoding or size, a bad CameraInfo, or
-colourless mono8 frames), and one per robot (``/localizer: robot_k``; OK seen, WARN
-coasting / lost / ambiguous, ERROR when two robots share LED colours). Bad input never
-stops the node and never produces a pose.
+(``/localizer``; ERROR on a frame of the wrong encoding or size, or colourless mono8
+frames; WARN while the CameraInfo's intrinsics are not used), and one per robot
+(``/localizer: robot_k``; OK seen, WARN coasting / lost / ambiguous, ERROR when two
+robots share LED colours). Bad input never stops the node and never produces a pose.
 
 With ``retakes`` > 0, a frame in which a robot the node was tracking is not seen (a glare
 spot washing out one of its LEDs) publishes nothing yet: the node asks for another frame of
@@ -52,7 +55,7 @@ from excavation_common.params import ParameterError
 from excavation_common.ros import LATCHED, LATEST_FRAME, declare_params, diagnostics, spin_node
 from overhead_localizer.annotate import annotate
 from overhead_localizer.beacons import CONFIG_DIR, load_beacons
-from overhead_localizer.camera_info import with_camera_info
+from overhead_localizer.camera_info import choose_model
 from overhead_localizer.camera_model import load_model
 from overhead_localizer.errors import LocalizerConfigError
 from overhead_localizer.images import (
@@ -129,7 +132,8 @@ class LocalizerNode(Node):
                 c.beacons or "beacons.yaml", "robots", self.n, str(exc)
             ) from None
 
-        self.camera_error: str | None = None
+        self.camera_warning: str | None = None
+        self.info_key: tuple | None = None
         self.image_error: str | None = None
         self.estimates: list[RobotEstimate] = []
         self.blobs: list = []
@@ -173,14 +177,20 @@ class LocalizerNode(Node):
         self.create_timer(c.diagnostics_period, self.publish_diagnostics)
 
     def on_camera_info(self, msg: CameraInfo) -> None:
-        """The driver's intrinsics replace the file's (the file keeps the camera's pose)."""
-        try:
-            model = with_camera_info(self.file_model, msg, self.config.camera_info_topic)
-        except FieldError as exc:
-            self.camera_error = str(exc)
-            self.get_logger().warning(self.camera_error, throttle_duration_sec=5.0)
+        """The driver's intrinsics, when they agree with the file's; else the file's (WARN).
+
+        A driver sends the same CameraInfo with every frame: only a changed one is looked
+        at, and a warning is logged once, when it first appears (``/diagnostics`` carries
+        it while it holds).
+        """
+        key = (msg.width, msg.height, msg.distortion_model, tuple(msg.k), tuple(msg.d))
+        if key == self.info_key:
             return
-        self.camera_error = None
+        self.info_key = key
+        model, warning = choose_model(self.file_model, msg, self.config.camera_info_topic)
+        if warning is not None and warning != self.camera_warning:
+            self.get_logger().warning(warning)
+        self.camera_warning = warning
         self.info_received = True
         self.localizer.model = model
 
@@ -262,13 +272,15 @@ class LocalizerNode(Node):
 
     def camera_status(self) -> tuple[bytes, str]:
         """The camera's level and message."""
-        if self.camera_error or self.image_error:
-            return DiagnosticStatus.ERROR, self.camera_error or self.image_error
+        if self.image_error:
+            return DiagnosticStatus.ERROR, self.image_error
         if self.encoding in COLOURLESS:
             return DiagnosticStatus.ERROR, (
                 f"{self.encoding} frames carry no colour: the LED pairs cannot be told apart "
                 "(set the camera to a colour or Bayer encoding)"
             )
+        if self.camera_warning:
+            return DiagnosticStatus.WARN, self.camera_warning
         return DiagnosticStatus.OK, f"{self.frames} frames"
 
     def robot_statuses(self) -> list[DiagnosticStatus]:

@@ -27,8 +27,11 @@ class LocalizerNodeParams:
         image_topic: Camera frames (``sensor_msgs/Image``; with ``compressed``,
             ``sensor_msgs/CompressedImage``, conventionally ``<image>/compressed``).
         compressed: Frames arrive as jpeg or png ``CompressedImage``.
-        camera_info_topic: ``sensor_msgs/CameraInfo`` whose K and D replace the calibration
-            file's intrinsics (the file still gives the camera's pose); empty: none.
+        camera_info_topic: The camera driver's ``sensor_msgs/CameraInfo``; empty: none.
+            Frames wait for the first one. Its K and D are used when they agree with the
+            calibration file's (a file fitted with ``calibrate --camera-info``); otherwise
+            (K zero: an uncalibrated driver; other intrinsics than the ones the file's pose
+            was fitted with) the file's are, and the camera's status is WARN saying why.
         use_height_map: The LED planes follow the soil under each robot.
         reliable: Reliable QoS (the lockstep trial); else best effort. Depth 1 either way.
         annotated_period: Seconds between annotated frames on ``/overhead/image_annotated``
@@ -48,7 +51,9 @@ class LocalizerNodeParams:
     beacons: str = param("", "LED table YAML; empty: the package's config/beacons.yaml")
     image_topic: str = param("/overhead/image_raw", "camera frames")
     compressed: bool = param(False, "frames are sensor_msgs/CompressedImage (jpeg, png)")
-    camera_info_topic: str = param("", "CameraInfo whose K, D replace the file's; empty: none")
+    camera_info_topic: str = param(
+        "", "CameraInfo; its K, D are used if they agree with the file's; empty: none"
+    )
     use_height_map: bool = param(True, "LED planes follow the soil under each robot")
     reliable: bool = param(False, "reliable QoS for frames (else best effort); depth 1")
     annotated_period: float = param(
