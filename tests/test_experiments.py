@@ -7,9 +7,20 @@ import dataclasses
 
 import pytest
 
+from ant_controller.controller import Controller
+from ant_evolution.errors import ConfigError
 from ant_evolution.evolve import run_evolution
-from ant_evolution.experiments import cli
-from ant_evolution.experiments.behaviours import behaviours
+from ant_evolution.experiments import (
+    antagonism,
+    behaviours,
+    cli,
+    coarse_coding,
+    compare,
+    evolve_robots,
+    long_run,
+    scaleup,
+    training,
+)
 from ant_evolution.experiments.core import (
     SCALES,
     Context,
@@ -18,7 +29,10 @@ from ant_evolution.experiments.core import (
     run_dir,
     train_config,
 )
+from ant_evolution.experiments.grids import four_robot_controller
+from ant_evolution.experiments.sections import table
 from ant_evolution.experiments.suite import EXPERIMENTS
+from ant_evolution.profiles import add_profile_options, switches_of
 
 TINY = dataclasses.replace(
     SCALES["quick"], population=6, generations=2, scenarios=2, steps=25, eval_scenarios=2,
@@ -47,7 +61,7 @@ def done(tmp_path_factory):
     cfg = train_config(ctx, "ant", 2, 0)
     run_evolution(cfg, run_dir(ctx, "ant", 2, 0), workers=1, stop_after=1)
     for name in FILES:
-        run = behaviours if name == "behaviours" else EXPERIMENTS[name]
+        run = behaviours.run if name == "behaviours" else EXPERIMENTS[name]
         run(ctx)
     return ctx
 
@@ -281,12 +295,143 @@ def test_hours_left_goes_by_the_finished_runs_pace(tmp_path):
 
 
 def test_compare_sentence_says_when_neat_solved_nothing():
-    from ant_evolution.experiments.suite import _compare_sentence
-
-    assert _compare_sentence(0.04, float("inf"), 0.8) == (
+    assert compare.sentence(0.04, float("inf"), 0.8) == (
         "ANT's mean maximum fitness is +4% against the best conventional network; "
         "no NEAT run reached 0.9, against 0.80 of ANT's runs."
     )
-    assert _compare_sentence(float("nan"), 2.0, 0.8) == (
+    assert compare.sentence(float("nan"), 2.0, 0.8) == (
         "its probability of a solution is 2.00 times NEAT's."
     )
+    gain, p_ratio = compare.ratios({"ant": (0.8, 0.1, 0.5, 2), "neat": (0.4, 0.1, 0.0, 2)})
+    assert gain == pytest.approx(1.0) and p_ratio == float("inf")
+    assert compare.summary({"ant": (0.8, 0.1, 0.5, 2)})["p_solution_ratio_ant_neat"] is None
+
+
+# --- the shared --profile / --set helper ------------------------------------------------------
+
+
+def test_profile_helper_rejects_a_bad_set_naming_the_switch_and_the_value():
+    import argparse
+
+    p = argparse.ArgumentParser()
+    add_profile_options(p)
+    args = p.parse_args(["--profile", "paper", "--set", "soil_fill=false"])
+    assert (args.profile, args.assignments) == ("paper", [("soil_fill", False)])
+    switches = switches_of(args)
+    assert switches["soil_fill"] is False and switches["placement"] == "worksite"
+    with pytest.raises(ConfigError) as bad:
+        switches_of(p.parse_args(["--set", "soil_fill=3"]))
+    assert str(bad.value) == "<command line>: soil_fill = 3: must be like False"
+    with pytest.raises(ConfigError, match="placement = 'nowhere': must be one of"):
+        switches_of(p.parse_args(["--set", "placement=nowhere"]))
+    with pytest.raises(SystemExit):
+        p.parse_args(["--set", "soil_fil=true"])  # not a switch: argparse says which
+    without = argparse.ArgumentParser()
+    add_profile_options(without, default=None)  # ant-evolve: the config file's profile
+    assert without.parse_args([]).profile is None
+
+
+def test_every_command_with_a_profile_rejects_a_bad_set_alike(tmp_path, capsys):
+    """ant-experiment, ant-eval, ant-sweep and ant-evolve share the helper: the same message."""
+    from ant_evolution.cli_eval import main as ant_eval
+    from ant_evolution.cli_evolve import main as ant_evolve
+    from ant_evolution.sweep import main as ant_sweep
+
+    bad = ["--set", "soil_fill=3"]
+    commands = {
+        "ant-experiment": lambda: cli.main(["depth", "--out", str(tmp_path / "e"), *bad]),
+        "ant-eval": lambda: ant_eval(["--hand-coded", *bad]),
+        "ant-sweep": lambda: ant_sweep(["--hand-coded", "--out", str(tmp_path / "s"), *bad]),
+        "ant-evolve": lambda: ant_evolve(["--out", str(tmp_path / "v"), *bad]),
+    }
+    for name, run in commands.items():
+        capsys.readouterr()
+        assert run() == 2, name
+        assert capsys.readouterr().err == (
+            f"{name}: error: <command line>: soil_fill = 3: must be like False\n"
+        )
+    assert not any(tmp_path.iterdir())  # refused before writing anything
+
+
+# --- compute steps: pure (same inputs, same rows; no files, no output) ------------------------
+
+
+def _history(n: int, best: float, robots_hist: str = "") -> list[dict]:
+    return [
+        {"generation": g, "evaluations": 12 * (g + 1), "best": best + 0.01 * g,
+         "best_ever": best + 0.01 * g, "robots_hist": robots_hist}
+        for g in range(n)
+    ]  # fmt: skip
+
+
+def _pure(compute, *args):
+    """``compute(*args)`` twice: the same rows, the inputs untouched."""
+    before = repr(args)
+    rows = compute(*args)
+    assert rows and compute(*args) == rows
+    assert repr(args) == before
+    return rows
+
+
+def test_history_computes_are_pure(capsys):
+    runs = {("ant", 1): [_history(3, 0.2), _history(4, 0.3)], ("ant", 2): [_history(3, 0.5)]}
+    rows = _pure(training.compute, runs, (1, 2))
+    assert len(rows) == 3 + 4 + 3 and rows[0] == {
+        "robots": 1, "run": 0, "generation": 0, "evaluations": 12, "best": 0.2, "best_ever": 0.2
+    }  # fmt: skip
+    assert training.curves(rows, 1, "best").shape == (2, 3)  # cut to the shortest run
+    both = {(m, n): [_history(3, 0.4 + 0.1 * i)] for i, m in enumerate(compare.METHODS)
+            for n in (2,)}  # fmt: skip
+    rows = _pure(compare.compute, both, 2)
+    assert [r["method"] for r in rows] == ["ant"] * 3 + ["fixed"] * 3 + ["neat"] * 3
+    cc = {(m, n): [_history(2, 0.3)] for m in coarse_coding.METHODS for n in (1, 2)}
+    cc[("ant-nocc", 2)] = []  # --finished: a setting without a finished run is left out
+    rows = _pure(coarse_coding.compute, cc, (1, 2))
+    assert [(r["method"], r["robots"]) for r in rows] == [("ant", 1), ("ant", 2), ("ant-nocc", 1)]
+    hists = [_history(5, 0.1, "1:2;3:6"), _history(5, 0.1, "2:8")]
+    rows = _pure(evolve_robots.compute, hists, [3, 3], (1, 3))
+    assert [r["best_genomes"] for r in rows] == [0, 0, 2]
+    assert sum(r["population_share"] for r in rows) == pytest.approx(1.0)
+    assert capsys.readouterr() == ("", "")
+
+
+def test_scoring_computes_are_pure(tmp_path, capsys):
+    """The scoring computes read and write nothing: the context's directory is never made."""
+    ctx = Context(tmp_path / "never", TINY, runs=1)
+    hand = Controller.hand_coded()
+    _pure(antagonism.compute, hand, ctx, lambda: None)
+    _pure(scaleup.compute, ctx, [("hand-coded", hand)], lambda: None)
+    # depth and area are one sweep of long runs, one compute over either's cells
+    assert EXPERIMENTS["depth"] is long_run.depth and EXPERIMENTS["area"] is long_run.area
+    for name, sweep in long_run.SWEEPS.items():
+        rows = _pure(long_run.compute, hand, ctx, sweep, lambda: None)
+        keys = TINY.depths if name == "depth" else TINY.area_sizes
+        assert [(r[sweep.key_label], r["robots"]) for r in rows] == [
+            (k, n) for k in keys for n in TINY.eval_robots
+        ]
+    assert not (tmp_path / "never").exists()
+    assert capsys.readouterr() == ("", "")
+
+
+def test_long_run_commands_write_their_computes_rows(done):
+    """depth.csv and area.csv are long_run.compute's rows for the 4-robot controller."""
+    ctl, _ = four_robot_controller(done)
+    for name, sweep in long_run.SWEEPS.items():
+        rows = long_run.compute(ctl, done, sweep, lambda: None)
+        with open(done.out / name / f"{name}.csv", newline="") as f:
+            written = list(csv.DictReader(f))
+        assert written == [{k: str(v) for k, v in r.items()} for r in rows]
+
+
+def test_behaviours_compute_is_pure(done):
+    ctl, _ = four_robot_controller(done)
+    found = behaviours.activity(ctl)
+    rows = behaviours.compute(found, ctl.tissue.decision_genes)
+    assert repr(rows) == repr(behaviours.compute(found, ctl.tissue.decision_genes))  # NaN rates
+    assert len(rows) == ctl.tissue.n_decision * len(found["detected"])
+
+
+def test_section_table():
+    assert table(["a", "b"], "lr", [["x", "1"]]) == "| a | b |\n|---|---:|\n| x | 1 |"
+    with pytest.raises(ValueError):
+        table(["a", "b"], "l", [])

@@ -34,7 +34,7 @@ from ant_evolution.evaluate import (
     scenario_worlds,
 )
 from ant_evolution.limits import MAX_DEPTH_UNITS, MAX_STEPS, check_workload, option
-from ant_evolution.profiles import PROFILES, assignment, resolve_switches, world_rules_of
+from ant_evolution.profiles import add_profile_options, switches_of, world_rules_of
 from blueprint_server.blueprint import resolve_blueprint
 from blueprint_server.errors import BlueprintError
 from excavation_common.limits import int_in
@@ -89,21 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"timesteps per scenario (default {DEFAULT_STEPS})",
     )
     p.add_argument("--seed", type=option("seed"), default=0, help="scenario seed (default 0)")
-    p.add_argument(
-        "--profile",
-        choices=tuple(PROFILES),
-        default="v1",
-        help="readings of the paper: v1 (default) or paper",
-    )
-    p.add_argument(
-        "--set",
-        dest="assignments",
-        action="append",
-        type=assignment,
-        default=[],
-        metavar="KEY=VALUE",
-        help="override one switch of the profile (repeatable)",
-    )
+    add_profile_options(p)
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--snapshots", metavar="DIR", help="write terrain PNGs of scenario 0 here")
     p.add_argument(
@@ -164,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ant-eval``."""
     args = build_parser().parse_args(argv)
     try:
-        switches = resolve_switches(args.profile, args.assignments)
+        switches = switches_of(args)
         rules = world_rules_of(switches)
         controller = (
             Controller.hand_coded(switches["hand_coded"])

@@ -37,7 +37,7 @@ from ant_evolution.limits import (
     int_list,
     option,
 )
-from ant_evolution.profiles import PROFILES, apply_assignments, assignment
+from ant_evolution.profiles import add_profile_options, apply_assignments
 from ant_evolution.ros_evaluator import TrialError
 from blueprint_server.errors import BlueprintError
 from excavation_common.limits import int_in
@@ -48,20 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The command-line interface."""
     p = argparse.ArgumentParser(prog="ant-evolve", description=__doc__.split("\n\n")[0])
     p.add_argument("--config", metavar="FILE", help="YAML run configuration")
-    p.add_argument(
-        "--profile",
-        choices=tuple(PROFILES),
-        help="readings of the paper: v1 (the first, default) or paper (literal)",
-    )
-    p.add_argument(
-        "--set",
-        dest="assignments",
-        action="append",
-        type=assignment,
-        default=[],
-        metavar="KEY=VALUE",
-        help="override one switch of the profile (repeatable), e.g. soil_fill=false",
-    )
+    add_profile_options(p, default=None)
     p.add_argument("--out", required=True, metavar="DIR", help="run directory")
     p.add_argument("--population", type=option("population"), help="P (default 100)")
     p.add_argument("--generations", type=option("generations"), help="generations (default 100)")

@@ -189,3 +189,43 @@ def resolve_switches(
         ConfigError: An unknown profile or switch, or a bad value.
     """
     return apply_assignments(profile_switches(profile, label), assignments, label)
+
+
+def add_profile_options(parser: argparse.ArgumentParser, default: str | None = "v1") -> None:
+    """Declare ``--profile NAME`` and ``--set KEY=VALUE`` (repeatable), the same on every command.
+
+    They land in ``args.profile`` and ``args.assignments``; :func:`switches_of` resolves them.
+
+    Args:
+        parser: The command's parser.
+        default: The profile without ``--profile``; ``None`` leaves it to a configuration
+            file (``ant-evolve --config``, else ``v1``).
+    """
+    fallback = "v1" if default is None else default
+    where = "" if default is not None else "the configuration file's, else "
+    parser.add_argument(
+        "--profile",
+        choices=tuple(PROFILES),
+        default=default,
+        help=f"readings of the paper (docs/evolution.md, 'Profiles'): {' or '.join(PROFILES)}; "
+        f"default {where}{fallback}",
+    )
+    parser.add_argument(
+        "--set",
+        dest="assignments",
+        action="append",
+        type=assignment,
+        default=[],
+        metavar="KEY=VALUE",
+        help="override one switch of the profile (repeatable), e.g. soil_fill=false",
+    )
+
+
+def switches_of(args: argparse.Namespace, label: str = "<command line>") -> dict:
+    """Every switch of ``--profile`` with the ``--set`` overrides (:func:`add_profile_options`).
+
+    Raises:
+        ConfigError: A value of the wrong type or out of range; the message names the
+            switch and the value (``<command line>: soil_fill = 3: must be like False``).
+    """
+    return resolve_switches(args.profile, args.assignments, label)

@@ -26,7 +26,7 @@ from ant_controller.errors import GenomeFormatError
 from ant_evolution.errors import ConfigError
 from ant_evolution.evaluate import DEFAULT_STEPS, evaluate
 from ant_evolution.limits import MAX_DEPTH_UNITS, MAX_ROBOTS, check_workload, option
-from ant_evolution.profiles import PROFILES, assignment, resolve_switches, world_rules_of
+from ant_evolution.profiles import add_profile_options, switches_of, world_rules_of
 
 
 def _int_list(high: int):
@@ -61,17 +61,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenarios", type=option("scenarios"), default=100)
     p.add_argument("--steps", type=option("steps"), default=DEFAULT_STEPS)
     p.add_argument("--seed", type=option("seed"), default=0)
-    p.add_argument("--profile", choices=tuple(PROFILES), default="v1")
-    p.add_argument(
-        "--set", dest="assignments", action="append", type=assignment, default=[],
-        metavar="KEY=VALUE", help="override one switch of the profile (repeatable)",
-    )  # fmt: skip
+    add_profile_options(p)
     p.add_argument("--out", required=True, type=Path)
     args = p.parse_args(argv)
     from blueprint_server.blueprint import default_blueprint
 
     try:
-        switches = resolve_switches(args.profile, args.assignments)
+        switches = switches_of(args)
         rules = world_rules_of(switches)
         check_workload("<command line>", 16 * 16, args.scenarios, args.steps)
         ctl = (

@@ -16,6 +16,10 @@ Two parts (paper, section 5.1 "Evolution of Behaviors through Task Decomposition
    neuron's state, how many motor neurons coarse coding selects, and the detectors. The
    table gives, for each decision neuron and detector, the firing rate of the neuron at
    timesteps where the detector holds against where it does not.
+
+:func:`run` replays the run (the rows of ``behaviours.csv``; the replay checkpoints, so it
+resumes) and writes both parts; the neuronal part is :func:`activity` (the trace of one
+scenario) and :func:`compute` (the rows of ``neurons.csv``), both pure.
 """
 
 from __future__ import annotations
@@ -38,14 +42,14 @@ from ant_evolution.experiments.core import (
     EVAL_SEED,
     Context,
     compare_robots,
-    pyplot,
     read_history,
     run_dir,
     site,
     train_config,
     write_csv,
-    write_section,
 )
+from ant_evolution.experiments.figures import figure
+from ant_evolution.experiments.sections import figure_link, section, table, write_section
 from ant_evolution.loop import (
     Generation,
     RunState,
@@ -56,6 +60,7 @@ from ant_evolution.loop import (
 from excavation_sim.detectors import DETECTOR_TITLES, DETECTORS, detect, random_turn_direction
 from excavation_sim.world import HEADING
 
+NAME = "behaviours"
 TRACE_POINTS = 20
 """Generations traced per run (evenly spaced, first and last included)."""
 
@@ -185,27 +190,65 @@ def _replay(ctx: Context, out) -> tuple[list[dict], object]:
     return rows, hist_path.parent
 
 
-def behaviours(ctx: Context) -> None:
+def activity(controller: Controller) -> dict:
+    """Robot 0's neurons and detectors in one 4-robot scenario (8 x 8, depth 1, 250 steps).
+
+    Returns:
+        :func:`trace`'s answer with ``neurons=True``.
+    """
+    batch = ScenarioSet.create(site(8, 1), 4, 1, 250, EVAL_SEED + 11)
+    return trace(controller, batch, neurons=True)
+
+
+def compute(found: dict, decision_genes) -> list[dict]:
+    """Each decision neuron's firing rate when each detector holds and when it does not.
+
+    Args:
+        found: :func:`activity`'s answer.
+        decision_genes: The gene of each decision neuron.
+
+    Returns:
+        The rows of ``neurons.csv``: one per decision neuron and detector (rates are NaN
+        where the detector never or always holds).
+    """
+    dec, det = found["decision"], found["detected"]
+    rows = []
+    for d in range(dec.shape[1]):
+        for name in DETECTORS:
+            on = det[name]
+            rows.append(
+                {
+                    "decision_neuron": d,
+                    "gene": decision_genes[d],
+                    "detector": name,
+                    "events": int(on.sum()),
+                    "rate_when_detected": float(dec[on, d].mean()) if on.any() else float("nan"),
+                    "rate_otherwise": float(dec[~on, d].mean()) if (~on).any() else float("nan"),
+                }
+            )
+    return rows
+
+
+def run(ctx: Context) -> None:
     """Detector counts over a training run, and the neuronal activity of a 4-robot tissue."""
-    out = ctx.dir("behaviours")
+    out = ctx.dir(NAME)
     rows, replayed = _replay(ctx, out)
     write_csv(out / "behaviours.csv", rows)
-    plt = pyplot()
-    fig, axes = plt.subplots(2, 3, figsize=(11, 6), dpi=100, sharex=True)
-    gens = [r["generation"] for r in rows]
-    axes[0, 0].plot(gens, [r["best"] for r in rows], marker="o", ms=3)
-    axes[0, 0].set(title="best fitness", ylim=(0, 1))
-    for ax, name in zip(axes.flat[1:], DETECTORS, strict=True):
-        ax.plot(gens, [r[name] / max(1, r["robot_steps"]) for r in rows], marker="o", ms=3)
-        ax.set(title=DETECTOR_TITLES[name] + " (per robot-step)")
-    for ax in axes.flat:
-        ax.grid(alpha=0.3)
-    for ax in axes[1]:
-        ax.set_xlabel("generation")
-    fig.suptitle("Table 3 detectors for the best genome of each generation", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(out / "behaviours.png")
-    plt.close(fig)
+    with figure(out / "behaviours.png", 2, 3, figsize=(11, 6), dpi=100, sharex=True) as (
+        fig,
+        axes,
+    ):
+        gens = [r["generation"] for r in rows]
+        axes[0, 0].plot(gens, [r["best"] for r in rows], marker="o", ms=3)
+        axes[0, 0].set(title="best fitness", ylim=(0, 1))
+        for ax, name in zip(axes.flat[1:], DETECTORS, strict=True):
+            ax.plot(gens, [r[name] / max(1, r["robot_steps"]) for r in rows], marker="o", ms=3)
+            ax.set(title=DETECTOR_TITLES[name] + " (per robot-step)")
+        for ax in axes.flat:
+            ax.grid(alpha=0.3)
+        for ax in axes[1]:
+            ax.set_xlabel("generation")
+        fig.suptitle("Table 3 detectors for the best genome of each generation", fontsize=9)
 
     robots = compare_robots(ctx.scale)
     # the tissue of the replayed run (its best genome), unless --genome names another
@@ -218,82 +261,62 @@ def behaviours(ctx: Context) -> None:
         genome_path = run_dir(ctx, "ant", robots, 0) / "best.json"
     genome: Genome = load_genome(genome_path)
     ctl = Controller.from_genome(genome)
-    batch = ScenarioSet.create(site(8, 1), 4, 1, 250, EVAL_SEED + 11)
-    res = trace(ctl, batch, neurons=True)
-    dec, det = res["decision"], res["detected"]
-    lines = []
-    corr_rows = []
-    for d in range(dec.shape[1]):
-        cells = []
-        for name in DETECTORS:
-            on = det[name]
-            rate_on = float(dec[on, d].mean()) if on.any() else float("nan")
-            rate_off = float(dec[~on, d].mean()) if (~on).any() else float("nan")
-            corr_rows.append(
-                {
-                    "decision_neuron": d,
-                    "gene": ctl.tissue.decision_genes[d],
-                    "detector": name,
-                    "events": int(on.sum()),
-                    "rate_when_detected": rate_on,
-                    "rate_otherwise": rate_off,
-                }
-            )
-            cells.append(f"{rate_on:.2f} / {rate_off:.2f}" if on.any() else "-")
-        lines.append(f"| {d} (gene {ctl.tissue.decision_genes[d]}) | " + " | ".join(cells) + " |")
+    found = activity(ctl)
+    corr_rows = compute(found, ctl.tissue.decision_genes)
     if corr_rows:
         write_csv(out / "neurons.csv", corr_rows)
+    dec, det = found["decision"], found["detected"]
     t = np.arange(dec.shape[0])
-    fig, (a1, a2, a3) = plt.subplots(
-        3, 1, figsize=(10, 2 + 0.3 * (dec.shape[1] + len(DETECTORS))), dpi=100, sharex=True,
+    with figure(
+        out / "neurons.png", 3, 1, figsize=(10, 2 + 0.3 * (dec.shape[1] + len(DETECTORS))),
+        dpi=100, sharex=True,
         gridspec_kw={"height_ratios": [max(1, dec.shape[1]), 1, len(DETECTORS)]},
-    )  # fmt: skip
-    if dec.shape[1]:
-        a1.imshow(dec.T, aspect="auto", interpolation="nearest", cmap="Greys")
-    a1.set(ylabel="decision\nneuron", title=f"robot 0, one 4-robot scenario: {genome_path}")
-    a2.plot(t, res["selected"], drawstyle="steps-mid")
-    a2.set(ylabel="motor\nselected")
-    a3.imshow(
-        np.array([det[n] for n in DETECTORS], dtype=float), aspect="auto",
-        interpolation="nearest", cmap="Blues",
-    )  # fmt: skip
-    a3.set_yticks(range(len(DETECTORS)), [DETECTOR_TITLES[n] for n in DETECTORS], fontsize=7)
-    a3.set_xlabel("timestep")
-    fig.tight_layout()
-    fig.savefig(out / "neurons.png")
-    plt.close(fig)
+    ) as (_, (a1, a2, a3)):  # fmt: skip
+        if dec.shape[1]:
+            a1.imshow(dec.T, aspect="auto", interpolation="nearest", cmap="Greys")
+        a1.set(ylabel="decision\nneuron", title=f"robot 0, one 4-robot scenario: {genome_path}")
+        a2.plot(t, found["selected"], drawstyle="steps-mid")
+        a2.set(ylabel="motor\nselected")
+        a3.imshow(
+            np.array([det[n] for n in DETECTORS], dtype=float), aspect="auto",
+            interpolation="nearest", cmap="Blues",
+        )  # fmt: skip
+        a3.set_yticks(range(len(DETECTORS)), [DETECTOR_TITLES[n] for n in DETECTORS], fontsize=7)
+        a3.set_xlabel("timestep")
     counts = ", ".join(f"{DETECTOR_TITLES[n]} {int(det[n].sum())}" for n in DETECTORS)
     first, last = rows[0], rows[-1]
-    table = "\n".join(
-        f"| {DETECTOR_TITLES[n]} | {first[n] / max(1, first['robot_steps']):.3f} | "
-        f"{last[n] / max(1, last['robot_steps']):.3f} |"
+    hits = [
+        [DETECTOR_TITLES[n], f"{first[n] / max(1, first['robot_steps']):.3f}",
+         f"{last[n] / max(1, last['robot_steps']):.3f}"]
         for n in DETECTORS
-    )
+    ]  # fmt: skip
+    cell = {(r["decision_neuron"], r["detector"]): r for r in corr_rows}
+    rates = [
+        [f"{d} (gene {ctl.tissue.decision_genes[d]})"]
+        + [
+            f"{c['rate_when_detected']:.2f} / {c['rate_otherwise']:.2f}" if c["events"] else "-"
+            for c in (cell[(d, n)] for n in DETECTORS)
+        ]
+        for d in range(dec.shape[1])
+    ]
+    titles = [DETECTOR_TITLES[n] for n in DETECTORS]
     write_section(
         ctx,
-        "behaviours",
-        f"""### Behaviours during training and in the tissue
-
-Detectors of Table 3 for the best genome of {len(rows)} generations of the run
+        NAME,
+        section(
+            "Behaviours during training and in the tissue",
+            f"""Detectors of Table 3 for the best genome of {len(rows)} generations of the run
 `{replayed}` (replayed exactly), each on 8 x 8, depth 1 scenarios;
 hits per robot-step at the first and the last traced generation
-({first["generation"]}: fitness {first["best"]:.3f}; {last["generation"]}: {last["best"]:.3f}):
-
-| detector | first | last |
-|---|---:|---:|
-{table}
-
-![behaviours](figures/behaviours/behaviours.png)
-
-Neuronal activity of `{genome_path}` ({ctl.tissue.n_decision} living decision neurons,
+({first["generation"]}: fitness {first["best"]:.3f}; {last["generation"]}: {last["best"]:.3f}):""",
+            table(["detector", "first", "last"], "lrr", hits),
+            figure_link(NAME, "behaviours.png", "behaviours"),
+            f"Neuronal activity of `{genome_path}` ({ctl.tissue.n_decision} living decision "
+            f"""neurons,
 {ctl.tissue.n_motor} living motor neurons), robot 0 of one 4-robot scenario, 250 steps.
 Detector events of that robot: {counts}. Firing rate of each decision neuron when a
-detector holds / when it does not:
-
-| decision neuron | {" | ".join(DETECTOR_TITLES[n] for n in DETECTORS)} |
-|---|{"---:|" * len(DETECTORS)}
-{chr(10).join(lines)}
-
-![neurons](figures/behaviours/neurons.png)
-""",
+detector holds / when it does not:""",
+            table(["decision neuron", *titles], "l" + "r" * len(titles), rates),
+            figure_link(NAME, "neurons.png", "neurons"),
+        ),
     )

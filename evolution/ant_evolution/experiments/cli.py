@@ -34,21 +34,8 @@ from ant_evolution.experiments.core import (
     training_jobs,
 )
 from ant_evolution.limits import MAX_WORKERS, option
-from ant_evolution.profiles import PROFILES, assignment, resolve_switches
+from ant_evolution.profiles import add_profile_options, switches_of
 from excavation_common.limits import int_in
-
-
-def _experiments() -> dict:
-    from ant_evolution.experiments.suite import EXPERIMENTS
-
-    out = dict(EXPERIMENTS)
-    try:
-        from ant_evolution.experiments.behaviours import behaviours
-    except ImportError:  # the Table 3 detectors are not installed
-        return out
-    out["behaviours"] = behaviours
-    return out
-
 
 NAMES = (
     "training",
@@ -88,21 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="behaviours: replay only this many generations",
     )
-    p.add_argument(
-        "--profile",
-        choices=tuple(PROFILES),
-        default="v1",
-        help="readings of the paper for training and scoring: v1 (default) or paper",
-    )
-    p.add_argument(
-        "--set",
-        dest="assignments",
-        action="append",
-        type=assignment,
-        default=[],
-        metavar="KEY=VALUE",
-        help="override one switch of the profile (repeatable)",
-    )
+    add_profile_options(p)
     p.add_argument(
         "--method",
         dest="methods",
@@ -166,14 +139,17 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--genome {args.genome}: no such file")
     if args.write is not None and args.name != "status":
         p.error("--write is an option of status")
-    experiments = _experiments()
+    # status needs none of the experiment modules
+    from ant_evolution.experiments.suite import experiments as runnable
+
+    experiments = runnable()
     if args.name not in experiments and args.name != "status":
         print(f"ant-experiment: error: {args.name} needs excavation_sim.detectors", file=sys.stderr)
         return 2
     if args.replay is not None and not (args.replay / "config.yaml").is_file():
         p.error(f"--replay {args.replay}: no config.yaml there")
     try:
-        switches = resolve_switches(args.profile, args.assignments)
+        switches = switches_of(args)
     except ConfigError as exc:
         print(f"ant-experiment: error: {exc}", file=sys.stderr)
         return 2

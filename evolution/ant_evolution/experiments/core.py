@@ -1,4 +1,4 @@
-"""Shared machinery of the section-5 experiments: scales, training runs, scoring, plots.
+"""Shared machinery of the section-5 experiments: scales, training runs, scoring, outputs.
 
 A *training run* is one evolution (ANT, ANT without coarse coding, fixed network or NEAT)
 with one robot setting and one seed, in ``OUT/runs/<scale>/<method>-<setting>-r<k>/``.
@@ -401,6 +401,12 @@ def read_history(path: Path) -> list[dict]:
     return rows
 
 
+def history_columns(histories: list[list[dict]], key: str) -> np.ndarray:
+    """``[runs, generations]`` of one history column (runs cut to the shortest)."""
+    g = min(len(h) for h in histories)
+    return np.array([[r[key] for r in h[:g]] for h in histories])
+
+
 # --- evolved controllers -------------------------------------------------------------------
 
 
@@ -465,19 +471,39 @@ def score(
     return ScenarioSet.create(blueprint, robots, scenarios, steps, seed, rules).score(controller)
 
 
+def depth_split(scale: Scale, robots: int) -> list[tuple[int, int, int]]:
+    """``(depth, scenarios, seed)`` of each goal depth: ``eval_scenarios`` split as in training.
+
+    The seeds (from :data:`EVAL_SEED` on, never used in training) depend on the robot count,
+    so every cell of a robot-count grid has its own scenarios.
+    """
+    n = len(scale.depths)
+    return [
+        (d, scale.eval_scenarios // n + (i < scale.eval_scenarios % n), EVAL_SEED + 97 * i + robots)
+        for i, d in enumerate(scale.depths)
+    ]
+
+
+def score_parts(
+    controller,
+    pit: int,
+    parts: Sequence[tuple[int, int, int]],
+    robots: int,
+    steps: int,
+    rules: WorldRules = DEFAULT_RULES,
+) -> np.ndarray:
+    """Final fitness per scenario over ``parts`` (``(depth, scenarios, seed)``) of one pit."""
+    return np.concatenate([
+        score(controller, site(pit, d, rules.fitted_site), robots, k, steps, seed, rules)
+        for d, k, seed in parts
+        if k
+    ])  # fmt: skip
+
+
 def score_depths(controller, ctx: Context, robots: int, steps: int | None = None, size: int = 8):
     """Fitness over ``eval_scenarios`` scenarios split over the goal depths, as in training."""
-    s = ctx.scale
-    steps = steps or s.steps
-    n = len(s.depths)
-    scores = []
-    for i, d in enumerate(s.depths):
-        k = s.eval_scenarios // n + (i < s.eval_scenarios % n)
-        if k:
-            bp = site(size, d, ctx.rules.fitted_site)
-            seed = EVAL_SEED + 97 * i + robots
-            scores.append(score(controller, bp, robots, k, steps, seed, ctx.rules))
-    return np.concatenate(scores)
+    parts = depth_split(ctx.scale, robots)
+    return score_parts(controller, size, parts, robots, steps or ctx.scale.steps, ctx.rules)
 
 
 def site(pit: int, depth: int, fitted: bool = False) -> Blueprint:
@@ -508,39 +534,6 @@ def pyplot():
     import matplotlib.pyplot as plt
 
     return plt
-
-
-def scale_note(ctx: Context, runs: dict | None = None) -> str:
-    """The scale an experiment ran at; with ``--finished``, how many runs each setting has.
-
-    Args:
-        ctx: The context.
-        runs: ``train_all``'s answer (``{(method, robots): [history, ...]}``), for the
-            in-part note.
-    """
-    s = ctx.scale
-    note = (
-        f"Scale `{s.name}`: {ctx.runs} runs per setting, P = {s.population}, "
-        f"{s.generations} generations, {s.scenarios} scenarios of {s.steps} steps per "
-        f"generation (goal depths {', '.join(map(str, s.depths))}); evaluations on "
-        f"{s.eval_scenarios} unseen scenarios per setting."
-    )
-    if ctx.finished_only and runs is not None:
-        have = ", ".join(
-            f"{METHOD_LABELS[m]} {setting_label(r)} {len(h)}" for (m, r), h in runs.items()
-        )
-        note += (
-            f"\n\n**In part** (`--finished`): only the runs finished so far, of {ctx.runs} per "
-            f"setting: {have}. Settings without a finished run are left out."
-        )
-    return note
-
-
-def write_section(ctx: Context, name: str, text: str) -> Path:
-    """Write ``section.md`` of experiment ``name``."""
-    path = ctx.dir(name) / "section.md"
-    path.write_text(text.rstrip() + "\n", encoding="utf-8")
-    return path
 
 
 def scale_dict(scale: Scale) -> dict:
