@@ -1,6 +1,6 @@
 """Profiles: every contested reading of the paper as a named switch, set together.
 
-DESIGN.md, "The paper profile": the first world model and GA took readings of the paper
+The first world model and GA took readings of the paper
 that a careful reader contests. Each reading is one switch of a run's configuration
 (:class:`ant_evolution.evolve.EvolveConfig`, ``config.yaml``) and of ``ant-eval`` /
 ``ant-sweep`` / ``ant-experiment`` (``--profile``, ``--set KEY=VALUE``):
