@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from excavation_sim.laser import LaserParams, OverheadLaser, surface_with_robots
-from terrain_mapper.geometry import beam_directions, mount_rotation
+from terrain_mapper.geometry import beam_directions, beam_rays, mount_rotation, tilting_rotation
 
 
 def test_mount_axes():
@@ -69,3 +69,88 @@ def test_noise_dropouts_and_determinism():
 def test_out_of_range_is_inf():
     laser = OverheadLaser(LaserParams(range_max=3.0, range_noise=0.0, dropout=0.0), 0.25)
     assert np.isinf(laser.scan(np.zeros((16, 16)), 0.0, np.random.default_rng(0))).all()
+
+
+# --- a real scanner: lever arm, upside down, beams taken while the mount nods -------------
+
+
+def test_lever_arm_turns_with_the_joints():
+    lever = (0.0, 0.0, -0.1)  # hanging 10 cm under the tilt axis
+    origin, dirs = beam_rays(0.0, 0.0, [0.0], lever=lever)
+    assert np.allclose(origin, lever) and np.allclose(dirs, [[0, 0, -1]])
+    origin, _ = beam_rays(0.0, 0.3, [0.0], lever=lever)
+    assert np.allclose(origin, [0.0, 0.1 * np.sin(0.3), -0.1 * np.cos(0.3)])  # swings north
+    offsets = (0.1, 0.02, -0.03)
+    origin, _ = beam_rays(0.4, -0.2, [0.0], offsets, lever=(0.05, 0.0, 0.0))
+    assert np.allclose(origin, tilting_rotation(0.4, -0.2, offsets) @ [0.05, 0.0, 0.0])
+    # the tilting frame is the laser frame turned back to map axes at pan = tilt = 0
+    assert np.allclose(
+        tilting_rotation(0.4, -0.2, offsets),
+        mount_rotation(0.4, -0.2, offsets) @ mount_rotation(0, 0).T,
+    )
+
+
+def test_upside_down_scanner_mirrors_its_beams():
+    angles = np.array([-0.4, 0.0, 0.25])
+    _, flipped = beam_rays(0.2, 0.1, angles, flip=True)
+    assert np.allclose(flipped, beam_directions(0.2, 0.1, -angles))
+    (east,) = beam_directions(0.0, 0.0, [np.pi / 2], flip=True)
+    assert np.allclose(east, [-1, 0, 0])  # its "+y" beam looks west
+
+
+def test_per_beam_angles_match_one_pair_per_scan():
+    angles = np.linspace(-0.5, 0.5, 7)
+    offsets = (0.01, -0.02, 0.03)
+    pans, tilts = np.full(7, 0.3), np.linspace(-0.2, 0.4, 7)
+    origins, dirs = beam_rays(pans, tilts, angles, offsets, lever=(0.02, -0.01, -0.07), flip=True)
+    for i in range(7):
+        o, d = beam_rays(0.3, tilts[i], angles[i : i + 1], offsets, (0.02, -0.01, -0.07), True)
+        assert np.allclose(origins[i], o) and np.allclose(dirs[i], d[0])
+    # one pair, no lever, no flip: exactly the directions of before, a zero origin
+    o, d = beam_rays(0.3, 0.1, angles, offsets)
+    assert not o.any() and np.array_equal(d, beam_directions(0.3, 0.1, angles, offsets))
+
+
+def test_flipped_scanner_sees_the_upright_scan_reversed():
+    surface = np.random.default_rng(4).integers(-3, 5, (16, 16)) * 0.05
+    upright = noiseless().scan(surface, 0.1, np.random.default_rng(0))
+    flipped = noiseless(flip=True).scan(surface, 0.1, np.random.default_rng(0))
+    assert np.allclose(flipped, upright[::-1], atol=1e-6)  # symmetric angles: mirrored
+
+
+def test_lever_arm_shortens_the_ranges_to_the_floor():
+    ranges = noiseless(lever=(0.0, 0.0, -0.12)).scan(
+        np.zeros((16, 16)), 0.0, np.random.default_rng(0)
+    )
+    a = LaserParams().angles()
+    assert np.allclose(ranges, 3.88 / np.cos(a), atol=1e-5)
+
+
+def test_nodding_mount_tilts_beam_by_beam():
+    ti = 2**-15
+    params = LaserParams(range_noise=0.0, dropout=0.0, time_increment=ti)
+    tilts = params.beam_tilts(0.1)
+    assert tilts[0] == 0.1 and np.allclose(np.diff(tilts), params.tilt_rate * ti)
+    assert params.tilt_at(params.scan_period) == pytest.approx(params.tilts()[1])
+    ranges = OverheadLaser(params, 0.25).scan(np.zeros((16, 16)), 0.1, np.random.default_rng(0))
+    dirs = np.array(
+        [beam_directions(0.0, t, [a])[0] for t, a in zip(tilts, params.angles(), strict=True)]
+    )
+    assert np.allclose(ranges, 4.0 / -dirs[:, 2], atol=1e-5)
+    assert LaserParams().beam_tilts(0.1) == 0.1  # time_increment 0: one tilt per scan
+
+
+def test_default_options_render_exactly_as_before():
+    surface = surface_with_robots(np.zeros((16, 16)), np.array([[3, 4]]), 0.2)
+    laser = OverheadLaser(LaserParams(), 0.25)
+    got = laser.scan(surface, 0.2, np.random.default_rng(7))
+    from excavation_sim.laser import trace
+
+    dirs = beam_directions(0.0, 0.2, LaserParams().angles())
+    want = np.empty(len(dirs))
+    trace(surface, 0.25, np.array([2.0, 2.0, 4.0]), dirs, 8.0, want)
+    rng = np.random.default_rng(7)
+    want = want + rng.normal(0.0, 0.008, len(want))
+    lost, nan = rng.random(len(want)) < 0.01, rng.random(len(want)) < 0.5
+    want[lost & nan], want[lost & ~nan] = np.nan, np.inf
+    assert np.array_equal(got, want.astype(np.float32), equal_nan=True)

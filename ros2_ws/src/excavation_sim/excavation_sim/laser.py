@@ -13,6 +13,13 @@ Noise: Gaussian range noise (``range_noise``); a share ``dropout`` of beams retu
 half of them reported as NaN (no echo measured) and half as +inf (out of range, the
 LaserScan convention); beams that hit nothing within ``range_max`` are +inf. All random
 draws come from the ``numpy.random.Generator`` passed in. Pure module (numpy, numba).
+
+A real scanner on a real mount, on demand (the defaults are the ideal scanner above): a
+lever arm (``lever``: the optical centre off the pan/tilt centre, in the tilting frame),
+a scanner mounted upside down (``flip``), beams taken one after the other while the mount
+keeps nodding (``time_increment`` seconds between beams, the tilt moving steadily by one
+scan's step every ``scan_period``), and other names of the mount's joints (``pan_joint``,
+``tilt_joint``, for whoever publishes its JointState).
 """
 
 from __future__ import annotations
@@ -23,7 +30,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from terrain_mapper.geometry import beam_directions
+from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, beam_directions, beam_rays
 
 
 @dataclass(frozen=True)
@@ -44,6 +51,14 @@ class LaserParams:
         range_noise: Range noise, standard deviation, metres.
         dropout: Share of beams without a return.
         robot_height: Height of a robot's body above its footprint's highest soil, metres.
+        lever: The optical centre off the pan/tilt centre ``(x, y, z)`` in the tilting
+            frame (``map`` axes at pan = tilt = 0), metres.
+        flip: The scanner is mounted upside down (beam ``a`` goes where ``-a`` would).
+        time_increment: Seconds between neighbouring beams of a scan (0: all at once).
+        scan_period: Seconds between the scans of a sweep: the tilt moves steadily from
+            one scan's tilt to the next in this time (matters with ``time_increment``).
+        pan_joint: Name of the mount's pan joint in its JointState.
+        tilt_joint: Name of the mount's tilt joint.
     """
 
     mount: tuple[float, float, float] = (2.0, 2.0, 4.0)
@@ -59,6 +74,12 @@ class LaserParams:
     range_noise: float = 0.008
     dropout: float = 0.01
     robot_height: float = 0.2
+    lever: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    flip: bool = False
+    time_increment: float = 0.0
+    scan_period: float = 0.01
+    pan_joint: str = PAN_JOINT
+    tilt_joint: str = TILT_JOINT
 
     @classmethod
     def for_site(cls, rows: int, cols: int, cell_size: float, **kwargs) -> LaserParams:
@@ -82,8 +103,27 @@ class LaserParams:
         return self.angle_min + self.angle_increment * np.arange(self.beams)
 
     def tilts(self) -> np.ndarray:
-        """Tilt of every scan of a sweep."""
+        """Tilt of every scan of a sweep (at the scan's stamp, its first beam)."""
         return np.linspace(self.tilt_min, self.tilt_max, self.sweep_scans)
+
+    @property
+    def tilt_rate(self) -> float:
+        """How fast the mount tilts during a sweep, radians per second."""
+        return (self.tilt_max - self.tilt_min) / ((self.sweep_scans - 1) * self.scan_period)
+
+    def tilt_at(self, t: float) -> float:
+        """The mount's tilt ``t`` seconds after the sweep's first scan (steady motion)."""
+        return self.tilt_min + self.tilt_rate * t
+
+    def beam_tilts(self, tilt: float) -> float | np.ndarray:
+        """Tilt of every beam of the scan whose first beam is at ``tilt``.
+
+        The one ``tilt`` when ``time_increment`` is 0; else ``[beams]``, beam ``i`` taken
+        ``i * time_increment`` later while the mount moves at :attr:`tilt_rate`.
+        """
+        if self.time_increment == 0.0:
+            return tilt
+        return tilt + self.tilt_rate * self.time_increment * np.arange(self.beams)
 
 
 @numba.njit(cache=True)
@@ -140,6 +180,13 @@ def trace(surface, cell, origin, dirs, range_max, out):  # pragma: no cover - nu
             out[i] = np.inf
 
 
+@numba.njit(cache=True)
+def trace_rays(surface, cell, origins, dirs, range_max, out):  # pragma: no cover - numba
+    """:func:`trace` for beams each with its own origin (``origins[i]``, ``[n, 3]``)."""
+    for i in range(dirs.shape[0]):
+        trace(surface, cell, origins[i], dirs[i : i + 1], range_max, out[i : i + 1])
+
+
 def surface_with_robots(
     heights_m: np.ndarray, anchors: np.ndarray, robot_height: float
 ) -> np.ndarray:
@@ -167,18 +214,25 @@ class OverheadLaser:
         self._angles = self.params.angles()
 
     def scan(self, surface: np.ndarray, tilt: float, rng: np.random.Generator) -> np.ndarray:
-        """Ranges (``float32 [beams]``) of one scan at ``tilt`` over ``surface``."""
+        """Ranges (``float32 [beams]``) of one scan at ``tilt`` over ``surface``.
+
+        ``tilt`` is the mount's tilt at the scan's first beam; with ``time_increment`` the
+        later beams see the mount further on (:meth:`LaserParams.beam_tilts`).
+        """
         p = self.params
-        dirs = beam_directions(p.pan, tilt, self._angles)
-        ranges = np.empty(len(dirs))
-        trace(
-            np.ascontiguousarray(surface, dtype=np.float64),
-            self.cell_size,
-            np.asarray(p.mount, dtype=np.float64),
-            dirs,
-            p.range_max,
-            ranges,
-        )
+        surface = np.ascontiguousarray(surface, dtype=np.float64)
+        mount = np.asarray(p.mount, dtype=np.float64)
+        if p.time_increment == 0.0 and not any(p.lever) and not p.flip:
+            dirs = beam_directions(p.pan, tilt, self._angles)
+            ranges = np.empty(len(dirs))
+            trace(surface, self.cell_size, mount, dirs, p.range_max, ranges)
+        else:
+            origins, dirs = beam_rays(
+                p.pan, p.beam_tilts(tilt), self._angles, lever=p.lever, flip=p.flip
+            )
+            origins = np.ascontiguousarray(np.broadcast_to(mount + origins, dirs.shape))
+            ranges = np.empty(len(dirs))
+            trace_rays(surface, self.cell_size, origins, dirs, p.range_max, ranges)
         ranges = ranges + rng.normal(0.0, p.range_noise, len(ranges))
         lost = rng.random(len(ranges)) < p.dropout
         nan = rng.random(len(ranges)) < 0.5
