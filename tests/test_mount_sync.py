@@ -39,6 +39,29 @@ def test_sync_interpolates_waits_and_misses():
     assert sync.out_of_order == 1
 
 
+def test_sync_answers_every_beam_of_a_scan():
+    sync = MountSync(max_gap_ns=50_000_000)
+    beams = np.array([0, 2_500_000, 5_000_000, 7_500_000], dtype=np.int64)  # 2.5 ms apart
+    assert sync.lookup_beams(beams).status == WAIT
+    sync.add(0, 0.0, 0.0)
+    sync.add(5_000_000, 0.05, 0.1)
+    assert sync.lookup_beams(beams).status == WAIT  # its last beams' state has not come
+    sync.add(10_000_000, 0.0, 0.3)
+    found = sync.lookup_beams(beams)
+    assert found.status == "ok"
+    assert np.allclose(found.pan, [0.0, 0.025, 0.05, 0.025])
+    assert np.allclose(found.tilt, [0.0, 0.05, 0.1, 0.2])
+    assert found.tilt[2] == 0.1  # an exact stamp is used as it is
+    for t in (2_500_000, 7_500_000):  # each beam as a single stamp would be answered
+        one = sync.lookup(t)
+        assert math.isclose(one.tilt, found.tilt[t // 2_500_000])
+    assert sync.lookup_beams(beams - 1_000_000).status == MISS  # its first beam: too old
+    sync.add(200_000_000, 0.0, 0.0)  # a gap in the mount's stream
+    gap = sync.lookup_beams(beams + 100_000_000)
+    assert gap.status == MISS and "0.190 s apart" in gap.reason
+    assert sync.lookup_beams(beams + 300_000_000).status == WAIT
+
+
 def tilt_at(t_ns: int) -> float:
     """The mount's tilt, sweeping steadily from tilt_min to tilt_max over the sweep."""
     span = (LASER.sweep_scans - 1) * PERIOD_NS
@@ -91,17 +114,17 @@ def test_unbracketed_scans_are_counted_and_warned(ros):
     for i, ranges in enumerate(scans[1:], start=1):
         rig.scan(i * PERIOD_NS, ranges)
 
-    def warned():
+    def warned():  # every scan taken (a loaded machine takes them over several reports)
         s = rig.status
         return (
             s is not None
             and s.level == DiagnosticStatus.WARN
             and "no mount state brackets their stamp" in s.message
+            and {kv.key: kv.value for kv in s.values}["unbracketed_scans"] == "15"
         )
 
     assert ros.spin_until(warned)
     assert rig.mapper.unbracketed == LASER.sweep_scans - 1
-    assert {kv.key: kv.value for kv in rig.status.values}["unbracketed_scans"] == "15"
     assert not rig.maps
 
 

@@ -14,6 +14,12 @@ keeps the recent mount states (stamp, pan, tilt) and answers for a scan stamp:
 
 Stamps are integer nanoseconds. States must arrive in stamp order; one older than the
 newest is ignored (and counted in :attr:`MountSync.out_of_order`).
+
+A scan whose beams are taken one after the other (``LaserScan.time_increment`` > 0) while
+the mount moves asks :meth:`MountSync.lookup_beams` for the angles at every beam's time
+``stamp + i * time_increment``: each beam is answered as a single stamp would be, and the
+scan is ``ok`` only when every beam is (a miss of any beam misses the scan; otherwise it
+waits while any beam waits).
 """
 
 from __future__ import annotations
@@ -21,17 +27,22 @@ from __future__ import annotations
 import bisect
 from dataclasses import dataclass
 
+import numpy as np
+
 WAIT = "wait"
 MISS = "miss"
 
 
 @dataclass(frozen=True)
 class Lookup:
-    """The answer for one scan stamp: ``status`` ok / wait / miss, the angles, why missed."""
+    """The answer for one scan stamp: ``status`` ok / wait / miss, the angles, why missed.
+
+    From :meth:`MountSync.lookup_beams`, ``pan`` and ``tilt`` are arrays, one per beam.
+    """
 
     status: str
-    pan: float = 0.0
-    tilt: float = 0.0
+    pan: float | np.ndarray = 0.0
+    tilt: float | np.ndarray = 0.0
     reason: str = ""
 
 
@@ -80,3 +91,35 @@ class MountSync:
         w = (stamp_ns - t0) / (t1 - t0)
         (p0, a0), (p1, a1) = self.angles[i - 1], self.angles[i]
         return Lookup("ok", p0 + w * (p1 - p0), a0 + w * (a1 - a0))
+
+    def lookup_beams(self, times_ns: np.ndarray) -> Lookup:
+        """The mount's angles at every beam's time (``int64 [n]`` ns, any order).
+
+        Each time is answered as :meth:`lookup` answers a stamp; the angles are arrays.
+        Any beam missed: :data:`MISS`; else any beam waiting: :data:`WAIT`.
+        """
+        t = np.asarray(times_ns, dtype=np.int64)
+        if not self.stamps or len(t) == 0:
+            return Lookup(WAIT)
+        s = np.asarray(self.stamps, dtype=np.int64)
+        ang = np.asarray(self.angles, dtype=np.float64)
+        n = len(s)
+        i = np.searchsorted(s, t, side="left")
+        prev, nxt = np.clip(i - 1, 0, n - 1), np.clip(i, 0, n - 1)
+        exact_prev = (i > 0) & (np.abs(s[prev] - t) <= self.exact)
+        exact_next = (i < n) & (np.abs(s[nxt] - t) <= self.exact)
+        exact = exact_prev | exact_next
+        if ((i == 0) & ~exact).any():
+            return Lookup(MISS, reason="older than every mount state kept")
+        gaps = np.where(exact | (i == n), 0, s[nxt] - s[prev])
+        if (gaps > self.max_gap).any():
+            gap = int(gaps.max()) * 1e-9
+            return Lookup(MISS, reason=f"the mount states around it are {gap:.3f} s apart")
+        if ((i == n) & ~exact).any():
+            return Lookup(WAIT)
+        span = np.where(exact, 1, s[nxt] - s[prev])
+        w = np.where(exact, 0.0, (t - s[prev]) / span)[:, None]
+        out = ang[prev] + w * (ang[nxt] - ang[prev])
+        out = np.where(exact_next[:, None], ang[nxt], out)
+        out = np.where(exact_prev[:, None], ang[prev], out)
+        return Lookup("ok", out[:, 0], out[:, 1])
