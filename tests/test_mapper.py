@@ -22,7 +22,8 @@ def terrain(seed: int) -> np.ndarray:
     return rng.integers(-3, 5, (16, 16)) * UNIT
 
 
-def sweep_into(mapper, heights, anchors=(), rng=None, laser=LASER):
+def sweep_into(mapper, heights, anchors=(), rng=None, laser=LASER, per_beam=True):
+    """One sweep of ``laser`` into ``mapper``; with ``per_beam`` each beam's own tilt."""
     scanner = OverheadLaser(laser, CELL)
     surface = surface_with_robots(heights, np.array(anchors, dtype=int).reshape(-1, 2), 0.2)
     for pan, tilt, ranges in scanner.sweep(surface, rng or np.random.default_rng(0)):
@@ -33,7 +34,7 @@ def sweep_into(mapper, heights, anchors=(), rng=None, laser=LASER):
             laser.range_min,
             laser.range_max,
             pan,
-            tilt,
+            laser.beam_tilts(tilt) if per_beam else tilt,
         )
     poses = [(*robot_center(r, c, CELL), 0.0) for r, c in anchors]
     return mapper.finish_sweep(poses)
@@ -146,3 +147,42 @@ def test_body_height_stands_in_for_the_cells_under_a_robot():
     blind = TerrainMapper(MapperParams(prior_known=True, prior_height=0.0))
     sweep_into(blind, heights, [(7, 7)])
     assert np.all(blind.height_map()[7:9, 7:9] == 0.0)
+
+
+# --- a real scanner: lever arm, upside down, beams taken while the mount nods -------------
+
+EXACT = dict(range_noise=0.0, dropout=0.0)
+LEVER = (0.03, -0.05, -0.12)
+
+
+def max_error(mapper, heights) -> float:
+    est = mapper.height_map()
+    known = np.isfinite(est)
+    assert known.mean() > 0.95
+    return float(np.abs(est[known] - heights[known]).max())
+
+
+@pytest.mark.parametrize("lever, flip", [(LEVER, False), ((0.0, 0.0, 0.0), True), (LEVER, True)])
+def test_lever_arm_and_upside_down_scanner_are_mapped_back(lever, flip):
+    """A scanner off the tilt axis, upside down, panned: with both set, the true heights."""
+    laser = LaserParams(lever=lever, flip=flip, pan=0.2, **EXACT)
+    heights = terrain(11)
+    x, y, z = lever
+    params = MapperParams(laser_offset_x=x, laser_offset_y=y, laser_offset_z=z, scanner_flip=flip)
+    mapper = TerrainMapper(params)
+    sweep_into(mapper, heights, laser=laser)
+    assert max_error(mapper, heights) < 1e-3
+    naive = TerrainMapper()  # today's mapper: the beams from the axis, upright
+    sweep_into(naive, heights, laser=laser)
+    assert max_error(naive, heights) > 0.1
+
+
+def test_beams_taken_while_the_mount_nods_are_mapped_with_their_own_tilt():
+    laser = LaserParams(time_increment=2**-15, **EXACT)  # 241 beams in 7.4 ms of a 10 ms scan
+    heights = terrain(12)
+    mapper = TerrainMapper()
+    sweep_into(mapper, heights, laser=laser)
+    assert max_error(mapper, heights) < 1e-3
+    one_tilt = TerrainMapper()  # every beam at the tilt of the scan's stamp
+    sweep_into(one_tilt, heights, laser=laser, per_beam=False)
+    assert max_error(one_tilt, heights) > 0.02

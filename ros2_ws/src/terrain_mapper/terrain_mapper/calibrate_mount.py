@@ -15,6 +15,11 @@ The sweep comes from a bag (``--bag DIR``: the laser's ``LaserScan`` and the mou
 mapper does) or live (``--live --scans N``). The result is printed as the ``laser:`` lines of
 a site file (``docs/dome.md``) and, with ``--out``, written as YAML.
 
+A real scanner is described as the mapper's parameters describe it: ``--pan-joint`` /
+``--tilt-joint`` (the mount's joint names), ``--laser-offset X Y Z`` (the lever arm),
+``--flip`` (upside down), ``--stamp-offset`` (seconds added to the scans' stamps); a scan
+with ``time_increment`` gets the mount's angles beam by beam.
+
 Examples::
 
     ros2 run terrain_mapper calibrate_mount --bag floor_sweep --mount 2.0 2.0 4.0
@@ -35,16 +40,20 @@ import yaml
 from excavation_common.errors import FieldError
 from excavation_common.files import write_text_atomic
 from terrain_mapper.errors import MapperError
-from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, beam_directions
+from terrain_mapper.geometry import NO_LEVER, PAN_JOINT, TILT_JOINT, beam_rays
+from terrain_mapper.mapper import scan_timing_check
 from terrain_mapper.mount_sync import MountSync
 
 
 @dataclass(frozen=True)
 class Scan:
-    """One scan with the mount angles at its stamp: ranges and their scan angles."""
+    """One scan with the mount angles at its stamp: ranges and their scan angles.
 
-    pan: float
-    tilt: float
+    ``pan`` and ``tilt`` are one pair for the scan or one per beam (arrays).
+    """
+
+    pan: float | np.ndarray
+    tilt: float | np.ndarray
     angles: np.ndarray
     ranges: np.ndarray
 
@@ -72,12 +81,14 @@ class MountFit:
     dropped: int
 
 
-def _points(scans, mount, offsets) -> np.ndarray:
+def _points(scans, mount, offsets, lever=NO_LEVER, flip=False) -> np.ndarray:
     out = []
     for s in scans:
         ok = np.isfinite(s.ranges)
-        dirs = beam_directions(s.pan, s.tilt, s.angles[ok], offsets)
-        out.append(np.asarray(mount) + s.ranges[ok, None] * dirs)
+        pan = np.broadcast_to(s.pan, ok.shape)[ok] if np.ndim(s.pan) else s.pan
+        tilt = np.broadcast_to(s.tilt, ok.shape)[ok] if np.ndim(s.tilt) else s.tilt
+        origins, dirs = beam_rays(pan, tilt, s.angles[ok], offsets, lever, flip)
+        out.append(np.asarray(mount) + origins + s.ranges[ok, None] * dirs)
     return np.concatenate(out) if out else np.zeros((0, 3))
 
 
@@ -100,6 +111,8 @@ def fit_offsets(
     outlier: float = 0.05,
     range_min: float = 0.0,
     range_max: float = math.inf,
+    lever: tuple[float, float, float] = NO_LEVER,
+    flip: bool = False,
 ) -> MountFit:
     """Tilt and roll offsets (and the height) that put a flat floor's returns at ``floor``.
 
@@ -113,6 +126,9 @@ def fit_offsets(
         outlier: Returns further than this (metres) from the floor once fitted are dropped.
         range_min: Shorter returns are dropped.
         range_max: Longer returns are dropped.
+        lever: The scanner's lever arm in the tilting frame (the mapper's
+            ``laser_offset_*``), metres.
+        flip: The scanner is upside down (the mapper's ``scanner_flip``).
 
     Raises:
         ValueError: Fewer than 10 usable returns, or a fit that does not converge.
@@ -123,7 +139,7 @@ def fit_offsets(
     free = [0, 1, 2] if fit_height else [0, 1]
 
     def residual(t: np.ndarray, keep=None) -> np.ndarray:
-        pts = _points(scans, (x, y, t[2]), (pan_offset, t[0], t[1]))
+        pts = _points(scans, (x, y, t[2]), (pan_offset, t[0], t[1]), lever, flip)
         res = pts[:, 2] - floor
         return res if keep is None else res[keep]
 
@@ -165,23 +181,45 @@ def _stamp_ns(stamp) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
-def pair_scans(scan_msgs, mount_msgs, max_gap: float = 0.2) -> tuple[list[Scan], int]:
+def pair_scans(
+    scan_msgs,
+    mount_msgs,
+    max_gap: float = 0.2,
+    joints: tuple[str, str] = (PAN_JOINT, TILT_JOINT),
+    stamp_offset: float = 0.0,
+) -> tuple[list[Scan], int]:
     """Scans with the mount angles interpolated to their stamps; and how many had none.
 
-    ``scan_msgs`` and ``mount_msgs`` are LaserScan and JointState messages (duck-typed).
+    ``scan_msgs`` and ``mount_msgs`` are LaserScan and JointState messages (duck-typed);
+    ``joints`` names the mount's pan and tilt joints; ``stamp_offset`` seconds are added to
+    every scan's stamp. A scan with ``time_increment`` gets the angles beam by beam; one
+    whose beam timing is malformed counts as missed.
     """
+    pan_joint, tilt_joint = joints
     sync = MountSync(int(max_gap * 1e9), keep=10**7)
     for m in sorted(mount_msgs, key=lambda m: _stamp_ns(m.header.stamp)):
         names = list(m.name)
-        if PAN_JOINT in names and TILT_JOINT in names:
+        if pan_joint in names and tilt_joint in names:
             sync.add(
                 _stamp_ns(m.header.stamp),
-                float(m.position[names.index(PAN_JOINT)]),
-                float(m.position[names.index(TILT_JOINT)]),
+                float(m.position[names.index(pan_joint)]),
+                float(m.position[names.index(tilt_joint)]),
             )
+    offset = int(round(stamp_offset * 1e9))
     out, missed = [], 0
     for s in scan_msgs:
-        found = sync.lookup(_stamp_ns(s.header.stamp))
+        stamp = _stamp_ns(s.header.stamp) + offset
+        try:
+            beams = scan_timing_check(
+                len(s.ranges),
+                float(getattr(s, "time_increment", 0.0)),
+                float(getattr(s, "scan_time", 0.0)),
+                "scan",
+            )
+        except MapperError:
+            missed += 1
+            continue
+        found = sync.lookup(stamp) if beams is None else sync.lookup_beams(stamp + beams)
         if found.status != "ok":
             missed += 1
             continue
@@ -221,8 +259,13 @@ def read_bag(path: str, scan_topic: str, mount_topic: str) -> tuple[list, list]:
     return scans, mounts
 
 
-def read_live(scan_topic: str, mount_topic: str, n_scans: int, timeout: float) -> tuple[list, list]:
+def read_live(
+    scan_topic: str, mount_topic: str, n_scans: int, timeout: float, stamp_offset: float = 0.0
+) -> tuple[list, list]:
     """``n_scans`` scans and the mount states around them, from the running laser.
+
+    It waits for a mount state after the last scan's last beam (its stamp plus
+    ``stamp_offset`` plus its beams' time).
 
     Raises:
         MapperError: Fewer scans arrived within ``timeout`` seconds.
@@ -242,11 +285,16 @@ def read_live(scan_topic: str, mount_topic: str, n_scans: int, timeout: float) -
         node.create_subscription(LaserScan, scan_topic, scans.append, SENSOR_DATA)
         node.create_subscription(JointState, mount_topic, mounts.append, SENSOR_DATA)
         deadline = time.monotonic() + timeout
+
+        def last_beam(s) -> int:
+            span = abs(s.time_increment) * max(len(s.ranges) - 1, 0)
+            return _stamp_ns(s.header.stamp) + int(round((stamp_offset + span) * 1e9))
+
         # one mount state more than the last scan, so the last scan is bracketed
         while time.monotonic() < deadline and not (
             len(scans) >= n_scans
             and mounts
-            and _stamp_ns(mounts[-1].header.stamp) >= _stamp_ns(scans[n_scans - 1].header.stamp)
+            and _stamp_ns(mounts[-1].header.stamp) >= last_beam(scans[n_scans - 1])
         ):
             rclpy.spin_once(node, timeout_sec=0.05)
         node.destroy_node()
@@ -282,6 +330,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--mount", nargs=3, type=float, required=True, metavar=("X", "Y", "Z"))
     p.add_argument("--scan-topic", default="/worksite/scan")
     p.add_argument("--mount-topic", default="/worksite/laser_mount/joint_states")
+    p.add_argument("--pan-joint", default=PAN_JOINT, help="the mount's pan joint")
+    p.add_argument("--tilt-joint", default=TILT_JOINT, help="the mount's tilt joint")
+    p.add_argument(
+        "--laser-offset",
+        nargs=3,
+        type=float,
+        default=list(NO_LEVER),
+        metavar=("X", "Y", "Z"),
+        help="the scanner's lever arm in the tilting frame, m (laser_offset_x/y/z)",
+    )
+    p.add_argument("--flip", action="store_true", help="the scanner is upside down")
+    p.add_argument("--stamp-offset", type=float, default=0.0, help="s added to every scan's stamp")
     p.add_argument("--scans", type=int, default=64, help="--live: scans to record (a sweep)")
     p.add_argument("--timeout", type=float, default=30.0, help="--live: seconds to wait")
     p.add_argument("--floor", type=float, default=0.0, help="the floor's height in map, m")
@@ -295,11 +355,23 @@ def main(argv: list[str] | None = None) -> int:
             scan_msgs, mount_msgs = read_bag(args.bag, args.scan_topic, args.mount_topic)
         else:
             scan_msgs, mount_msgs = read_live(
-                args.scan_topic, args.mount_topic, args.scans, args.timeout
+                args.scan_topic, args.mount_topic, args.scans, args.timeout, args.stamp_offset
             )
-        scans, missed = pair_scans(scan_msgs, mount_msgs)
+        scans, missed = pair_scans(
+            scan_msgs,
+            mount_msgs,
+            joints=(args.pan_joint, args.tilt_joint),
+            stamp_offset=args.stamp_offset,
+        )
         fit = fit_offsets(
-            scans, tuple(args.mount), args.floor, args.pan_offset, args.fit_height, args.outlier
+            scans,
+            tuple(args.mount),
+            args.floor,
+            args.pan_offset,
+            args.fit_height,
+            args.outlier,
+            lever=tuple(args.laser_offset),
+            flip=args.flip,
         )
     except (FieldError, ValueError, OSError) as exc:
         print(f"calibrate_mount: error: {exc}", file=sys.stderr)

@@ -4,9 +4,11 @@
 read (one value per cell, metres, NaN unknown):
 
 1. **Project** (:meth:`TerrainMapper.add_scan`): every finite return within the scan's
-   ``[range_min, range_max]`` becomes a ``map`` point ``mount + range * direction``
-   (:mod:`terrain_mapper.geometry`); NaN, inf and out-of-range returns are dropped and
-   counted.
+   ``[range_min, range_max]`` becomes a ``map`` point ``mount + origin + range *
+   direction`` (:mod:`terrain_mapper.geometry`: the lever arm ``laser_offset_*`` gives the
+   beam's origin, ``scanner_flip`` mirrors an upside-down scanner's beams; the pan and tilt
+   are one pair for the scan or one per beam, for a mount that moves during the scan); NaN,
+   inf and out-of-range returns are dropped and counted.
 2. **Bin** (:meth:`TerrainMapper.finish_sweep`): points within ``robot_margin`` of a
    robot's footprint (known poses) are dropped, and so are points closer than
    ``edge_margin`` (a fraction of a cell) to a cell border, where a beam may have hit the
@@ -35,7 +37,7 @@ import numpy as np
 
 from excavation_common.params import param
 from terrain_mapper.errors import MapperError
-from terrain_mapper.geometry import beam_directions
+from terrain_mapper.geometry import beam_rays
 
 
 @dataclass(frozen=True)
@@ -74,6 +76,16 @@ class MapperParams:
     pan_offset: float = param(0.0, "mount yaw error, rad", low=-0.5, high=0.5)
     tilt_offset: float = param(0.0, "mount pitch error (about east), rad", low=-0.5, high=0.5)
     roll_offset: float = param(0.0, "mount roll error (about north), rad", low=-0.5, high=0.5)
+    laser_offset_x: float = param(
+        0.0, "m, optical centre from the pan/tilt centre, tilting frame x", low=-2.0, high=2.0
+    )
+    laser_offset_y: float = param(
+        0.0, "m, optical centre from the pan/tilt centre, tilting frame y", low=-2.0, high=2.0
+    )
+    laser_offset_z: float = param(
+        0.0, "m, optical centre from the pan/tilt centre, tilting frame z", low=-2.0, high=2.0
+    )
+    scanner_flip: bool = param(False, "scanner mounted upside down (beam angles mirrored)")
     edge_margin: float = param(
         0.12, "fraction of a cell: returns nearer a border are dropped", low=0.0, high=0.49
     )
@@ -94,6 +106,11 @@ class MapperParams:
     def offsets(self) -> tuple[float, float, float]:
         """``(pan_offset, tilt_offset, roll_offset)``."""
         return (self.pan_offset, self.tilt_offset, self.roll_offset)
+
+    @property
+    def lever(self) -> tuple[float, float, float]:
+        """``(laser_offset_x, laser_offset_y, laser_offset_z)``: the lever arm."""
+        return (self.laser_offset_x, self.laser_offset_y, self.laser_offset_z)
 
 
 @dataclass(frozen=True)
@@ -119,6 +136,36 @@ def scan_ranges_check(
         raise MapperError(source, "ranges", f"{n} values", f"angles give {expected} beams")
 
 
+def scan_timing_check(
+    n: int, time_increment: float, scan_time: float, source: str
+) -> np.ndarray | None:
+    """Each beam's time after the scan's stamp, integer ns (None: all at the stamp).
+
+    ``time_increment`` (``sensor_msgs/LaserScan``) is the time between neighbouring beams:
+    beam ``i`` is taken ``i * time_increment`` after the stamp (0: every beam at the
+    stamp, one mount pose for the scan; negative: the beams were taken last to first).
+    ``scan_time`` is the time from one scan to the next; when it is given (> 0) the scan's
+    beams must fit into it, ``|time_increment| * (n - 1) <= scan_time``.
+
+    Raises:
+        MapperError: A ``time_increment`` that is not finite, or beams spanning more time
+            than ``scan_time``.
+    """
+    if time_increment == 0.0:
+        return None
+    if not math.isfinite(time_increment):
+        raise MapperError(source, "time_increment", time_increment, "must be finite")
+    span = abs(time_increment) * max(n - 1, 0)
+    if math.isfinite(scan_time) and scan_time > 0 and span > scan_time * (1 + 1e-3) + 1e-6:
+        raise MapperError(
+            source,
+            "time_increment",
+            time_increment,
+            f"{n} beams span {span:.6g} s, longer than scan_time {scan_time:.6g} s",
+        )
+    return np.round(np.arange(n) * (time_increment * 1e9)).astype(np.int64)
+
+
 class TerrainMapper:
     """Scans in, fused height map out (see the module docstring)."""
 
@@ -139,10 +186,20 @@ class TerrainMapper:
         angle_increment: float,
         range_min: float,
         range_max: float,
-        pan: float,
-        tilt: float,
+        pan: float | np.ndarray,
+        tilt: float | np.ndarray,
     ) -> int:
         """Project one scan's valid returns into the current sweep.
+
+        Args:
+            ranges: The scan's ranges, metres.
+            angle_min: Scan angle of the first beam, radians.
+            angle_increment: Scan angle between beams, radians.
+            range_min: Shorter returns are invalid.
+            range_max: Longer returns are invalid.
+            pan: The mount's pan, radians: one for the scan, or one per beam (``[n]``,
+                a mount that moved while the scan was taken).
+            tilt: The mount's tilt, radians: one, or one per beam.
 
         Returns:
             The number of valid returns (0 for a scan with none).
@@ -155,8 +212,14 @@ class TerrainMapper:
         self.invalid += int(len(r) - ok.sum())
         self.scans += 1
         if ok.any():
-            dirs = beam_directions(pan, tilt, angles[ok], p.offsets)
-            self._points.append(self.mount + r[ok, None] * dirs)
+            if np.ndim(pan) or np.ndim(tilt):  # per beam
+                pan = np.broadcast_to(pan, r.shape)[ok]
+                tilt = np.broadcast_to(tilt, r.shape)[ok]
+            origins, dirs = beam_rays(pan, tilt, angles[ok], p.offsets, p.lever, p.scanner_flip)
+            if np.ndim(origins) == 1 and not origins.any():
+                self._points.append(self.mount + r[ok, None] * dirs)
+            else:
+                self._points.append(self.mount + origins + r[ok, None] * dirs)
         return int(ok.sum())
 
     def finish_sweep(self, robots: list[tuple[float, float, float]] = ()) -> SweepStats:

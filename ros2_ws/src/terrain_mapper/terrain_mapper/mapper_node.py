@@ -1,13 +1,19 @@
 """``ros2 run terrain_mapper mapper``: the worksite height map from the overhead laser.
 
 Subscribes ``scan_topic`` (``/worksite/scan``, sensor_msgs/LaserScan), ``mount_topic``
-(``/worksite/laser_mount/joint_states``, sensor_msgs/JointState with joints ``laser_pan``,
-``laser_tilt``, radians) and every robot's ``/robot_k/pose`` (k < ``robots``; their
-footprints are masked). Each scan is projected with the mount's angles at the scan's own
-stamp, interpolated between the mount states that bracket it
+(``/worksite/laser_mount/joint_states``, sensor_msgs/JointState with joints ``pan_joint``
+and ``tilt_joint``, by default ``laser_pan``, ``laser_tilt``, radians; a state without
+them is an ERROR on ``/diagnostics`` naming the joint) and every robot's ``/robot_k/pose``
+(k < ``robots``; their footprints are masked). Each scan is projected with the mount's
+angles at the scan's own stamp (plus ``scan_stamp_offset``, the scanner's clock against
+the mount's), interpolated between the mount states that bracket it
 (:class:`terrain_mapper.mount_sync.MountSync`): the laser and the mount are separate
-drivers and never stamp alike. A scan waits for a later mount state; a scan no pair of
-states brackets (or across a gap wider than ``mount_max_gap``) is dropped, counted
+drivers and never stamp alike. A scan with ``time_increment`` (seconds between beams) is
+projected beam by beam, each with the mount's angles at ``stamp + i * time_increment``
+(a nodding mount moves while the scan is taken; ``scan_time``, the time from one scan to
+the next, must hold all its beams). A scan waits for a later mount state (that of its last
+beam); a scan no pair of states brackets (or across a gap wider than ``mount_max_gap``) is
+dropped, counted
 (``unbracketed_scans``) and reported as a WARN on ``/diagnostics``. A scan still waiting is
 given up for want of a mount state only once the node has taken every scan and mount state
 already queued for it, and then only when the laser's own stream has gone on more than
@@ -15,13 +21,15 @@ already queued for it, and then only when the laser's own stream has gone on mor
 with both streams quiet: a mapper held up by a loaded machine takes the mount state that
 came meanwhile instead of dropping the scan it describes. The mount's
 orientation errors (``pan_offset``, ``tilt_offset``, ``roll_offset``; fitted by
-``calibrate_mount``) are applied to every beam.
+``calibrate_mount``), the scanner's lever arm (``laser_offset_x/y/z``) and an upside-down
+scanner (``scanner_flip``) are applied to every beam.
 
 Every ``sweep_scans`` scans it bins and fuses the sweep
 (:class:`terrain_mapper.mapper.TerrainMapper`) and publishes ``/worksite/height_map``
 (sensor_msgs/Image 32FC1, one pixel per cell, metres, NaN unknown, latched QoS) stamped
-with the sweep's first scan. ``/worksite/map_info`` is the blueprint server's: the mapper
-publishes it only with ``publish_map_info`` (off by default; for a mapper run alone).
+with the sweep's first scan (its stamp plus ``scan_stamp_offset``). ``/worksite/map_info``
+is the blueprint server's: the mapper publishes it only with ``publish_map_info`` (off by
+default; for a mapper run alone).
 
 A scan that turns the tilt back against the sweep's direction ends a sweep early (one of
 its scans was lost), so the count never drifts out of step. A sweep is fused once every
@@ -46,6 +54,8 @@ import math
 import sys
 import time
 
+import numpy as np
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
@@ -55,11 +65,17 @@ from sensor_msgs.msg import Image, JointState, LaserScan
 from std_msgs.msg import Bool
 
 from excavation_common.messages import grid_to_image, map_info
+from excavation_common.params import ParameterError
 from excavation_common.ros import LATCHED, SENSOR_DATA, declare_params, diagnostics, spin_node
 from excavation_common.safety import ENABLED_TOPIC
 from terrain_mapper.errors import MapperError
 from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, yaw_of
-from terrain_mapper.mapper import MapperParams, TerrainMapper, scan_ranges_check
+from terrain_mapper.mapper import (
+    MapperParams,
+    TerrainMapper,
+    scan_ranges_check,
+    scan_timing_check,
+)
 from terrain_mapper.mount_sync import MISS, WAIT, Lookup, MountSync
 from terrain_mapper.params import MapperNodeParams
 
@@ -67,17 +83,19 @@ SCAN_TOPIC = MapperNodeParams().scan_topic
 MOUNT_TOPIC = MapperNodeParams().mount_topic
 
 
-def mount_angles(msg: JointState, topic: str = MOUNT_TOPIC) -> tuple[float, float]:
-    """``(pan, tilt)`` from the mount's joint state.
+def mount_angles(
+    msg: JointState, topic: str = MOUNT_TOPIC, joints: tuple[str, str] = (PAN_JOINT, TILT_JOINT)
+) -> tuple[float, float]:
+    """``(pan, tilt)`` from the mount's joint state, joints named ``joints`` (pan, tilt).
 
     Raises:
         MapperError: A joint is missing or its position is not finite.
     """
     names = list(msg.name)
     out = []
-    for joint in (PAN_JOINT, TILT_JOINT):
+    for joint, param in zip(joints, ("pan_joint", "tilt_joint"), strict=True):
         if joint not in names:
-            raise MapperError(topic, "name", names, f"has no {joint!r} joint")
+            raise MapperError(topic, "name", names, f"has no {joint!r} joint (the {param})")
         i = names.index(joint)
         if i >= len(msg.position) or not math.isfinite(msg.position[i]):
             shown = msg.position[i] if i < len(msg.position) else None
@@ -92,6 +110,10 @@ def _key(stamp) -> tuple[int, int]:
 
 def _ns(stamp) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def _stamp(ns: int) -> Time:
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 class MapperNode(Node):
@@ -109,10 +131,19 @@ class MapperNode(Node):
         self.sweep_scans = c.sweep_scans
         self.pose_wait = c.pose_wait
         self.scan_topic = c.scan_topic
+        name = self.get_fully_qualified_name()
+        for key in ("pan_joint", "tilt_joint"):
+            if not getattr(c, key):
+                raise ParameterError(name, key, "", "names no joint")
+        if c.pan_joint == c.tilt_joint:
+            raise ParameterError(name, "tilt_joint", c.tilt_joint, "is also the pan_joint")
+        self.joints = (c.pan_joint, c.tilt_joint)
+        self.stamp_offset_ns = int(round(c.scan_stamp_offset * 1e9))
 
         self.core = TerrainMapper(self.params)
         self.sync = MountSync(int(c.mount_max_gap * 1e9), keep=max(8 * c.sweep_scans, 64))
-        self.scans: list[tuple[int, float, LaserScan]] = []  # (stamp ns, arrival, scan)
+        # (stamp ns + scan_stamp_offset, arrival, scan, beam times after the stamp or None)
+        self.scans: list[tuple[int, float, LaserScan, np.ndarray | None]] = []
         self.newest_scan: int | None = None  # stamp (ns) of the newest scan taken
         self.mount_wait_ns = int(round(c.mount_wait * 1e9))
         self.unbracketed = 0
@@ -175,7 +206,7 @@ class MapperNode(Node):
     def add_mount(self, msg: JointState) -> None:
         """Keep a mount state for interpolation."""
         try:
-            pan, tilt = mount_angles(msg, self.config.mount_topic)
+            pan, tilt = mount_angles(msg, self.config.mount_topic, self.joints)
         except MapperError as exc:
             self.problem("mount", DiagnosticStatus.ERROR, str(exc))
             return
@@ -188,9 +219,20 @@ class MapperNode(Node):
         self.match()
 
     def add_scan(self, msg: LaserScan) -> None:
-        """Keep a scan, in stamp order, with the wall time it came."""
-        stamp = _ns(msg.header.stamp)
-        bisect.insort(self.scans, (stamp, self.wall(), msg), key=lambda e: e[0])
+        """Keep a scan, in stamp order, with the wall time it came.
+
+        Its stamp is corrected by ``scan_stamp_offset``; a scan whose beam timing is
+        malformed (:func:`terrain_mapper.mapper.scan_timing_check`) is reported and dropped.
+        """
+        try:
+            beams = scan_timing_check(
+                len(msg.ranges), msg.time_increment, msg.scan_time, self.scan_topic
+            )
+        except MapperError as exc:
+            self.problem("scan", DiagnosticStatus.ERROR, str(exc))
+            return
+        stamp = _ns(msg.header.stamp) + self.stamp_offset_ns
+        bisect.insort(self.scans, (stamp, self.wall(), msg, beams), key=lambda e: e[0])
         if self.newest_scan is None or stamp > self.newest_scan:
             self.newest_scan = stamp
 
@@ -254,8 +296,11 @@ class MapperNode(Node):
         """
         now = self.wall()
         while self.scans:
-            stamp, arrived, msg = self.scans[0]
-            found = self.sync.lookup(stamp)
+            stamp, arrived, msg, beams = self.scans[0]
+            if beams is None:
+                found = self.sync.lookup(stamp)
+            else:
+                found = self.sync.lookup_beams(stamp + beams)
             if found.status == WAIT:
                 behind = self.newest_scan - stamp > self.mount_wait_ns
                 if not behind and not (quiet and now - arrived >= self.config.mount_wait):
@@ -274,10 +319,20 @@ class MapperNode(Node):
                     f"(last: {found.reason})",
                 )
                 continue
-            self.integrate(msg, found.pan, found.tilt)
+            self.integrate(msg, found.pan, found.tilt, stamp)
 
-    def integrate(self, msg: LaserScan, pan: float, tilt: float) -> None:
-        """Project one scan; after ``sweep_scans`` scans, the sweep waits for poses."""
+    def integrate(
+        self,
+        msg: LaserScan,
+        pan: float | np.ndarray,
+        tilt: float | np.ndarray,
+        stamp_ns: int | None = None,
+    ) -> None:
+        """Project one scan; after ``sweep_scans`` scans, the sweep waits for poses.
+
+        ``pan`` and ``tilt`` are the mount's angles for the scan, or per beam (arrays);
+        ``stamp_ns`` is the scan's corrected stamp (its own stamp when None).
+        """
         if self.pending is not None:
             self.fuse()  # a new sweep began: the last one goes with the poses there are
         try:
@@ -295,6 +350,9 @@ class MapperNode(Node):
         except MapperError as exc:
             self.problem("scan", DiagnosticStatus.ERROR, str(exc))
             return
+        pan_tilt = (pan, tilt)
+        if np.ndim(tilt):  # per beam: the sweep follows the scan's mean tilt
+            tilt = float(np.mean(tilt))
         step = tilt - self.last_tilt if self.last_tilt is not None else 0.0
         if self.in_sweep >= 2 and step * self.sweep_direction < 0:
             # the tilt turned back: a new sweep began before this one had all its scans
@@ -312,15 +370,15 @@ class MapperNode(Node):
             self.sweep_direction = 1.0 if step >= 0 else -1.0
         self.last_tilt = tilt
         if self.in_sweep == 0:
-            self.sweep_stamp = msg.header.stamp
+            corrected = stamp_ns is not None and stamp_ns != _ns(msg.header.stamp)
+            self.sweep_stamp = _stamp(stamp_ns) if corrected else msg.header.stamp
         valid = self.core.add_scan(
             msg.ranges,
             msg.angle_min,
             msg.angle_increment,
             msg.range_min,
             msg.range_max,
-            pan,
-            tilt,
+            *pan_tilt,
         )
         if valid == 0:
             self.problem(

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from excavation_common.params import param
+from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT
 
 
 @dataclass(frozen=True)
@@ -23,6 +24,11 @@ class MapperNodeParams:
         pose_wait: Seconds a finished sweep waits for poses as new as its first scan.
         scan_topic: ``sensor_msgs/LaserScan`` of the overhead laser.
         mount_topic: ``sensor_msgs/JointState`` of its pan/tilt mount.
+        pan_joint: The pan joint's name in the mount's JointState.
+        tilt_joint: The tilt joint's name in the mount's JointState.
+        scan_stamp_offset: Seconds added to every scan's stamp before it is matched to
+            the mount states (the scanner's clock behind the mount's: positive); the
+            map's stamp is the corrected one.
         mount_max_gap: Seconds between two mount states across which the angles are still
             interpolated (a longer gap: the scans in it are dropped and counted).
         mount_wait: Seconds a scan waits for a mount state after its stamp: it is given up
@@ -40,6 +46,11 @@ class MapperNodeParams:
     pose_wait: float = param(0.5, "s a sweep waits for current poses", low=0.0, high=60.0)
     scan_topic: str = param("/worksite/scan", "LaserScan topic")
     mount_topic: str = param("/worksite/laser_mount/joint_states", "mount JointState topic")
+    pan_joint: str = param(PAN_JOINT, "pan joint's name in the mount JointState")
+    tilt_joint: str = param(TILT_JOINT, "tilt joint's name in the mount JointState")
+    scan_stamp_offset: float = param(
+        0.0, "s added to a scan's stamp before it is matched to mount states"
+    )
     mount_max_gap: float = param(0.2, "s: widest gap between mount states interpolated", low=0.0)
     mount_wait: float = param(
         1.0, "s a scan waits for a later mount state (stamps; wall if nothing queued)", low=0.0
