@@ -217,6 +217,33 @@ def test_stale_pose_gives_zero_twist_at_once_and_aborts():
     assert codes(core.drain()) == [EXECUTING, ABORTED]
 
 
+def test_a_pose_from_the_future_is_stale_within_a_small_tolerance():
+    """A pose stamped ahead of the node's clock by more than ``future_tolerance`` (its clock
+    runs ahead: a localiser that stopped would look fresh for as long) stops the wheels and
+    aborts the goal, as an old one does; within the tolerance it drives."""
+    gate = armed_gate()
+    params = ExecutorParams()
+    core = DriveExecutorCore(params, gate)
+    plant = Plant(*robot_center(4, 4, CELL), heading_to_yaw(0))
+    core.submit(DriveGoal(0, 1 << MOVE_FORWARD), 0.0)
+    ahead = params.future_tolerance * 0.8
+    t = 0.0
+    for _ in range(10):
+        gate.on_heartbeat(ARMED, t)
+        twist = core.on_pose(plant.pose(), t + ahead, t)
+        plant.apply(twist)
+        t += DT
+    assert twist.linear > 0 and core.busy
+    core.drain()
+    ahead = params.future_tolerance + 0.01
+    gate.on_heartbeat(ARMED, t)
+    assert core.on_pose(plant.pose(), t + ahead, t) == Twist2D()
+    assert codes(core.drain()) == [ABORTED] and not core.busy
+    assert "pose from the future" in core.counters.last_failure
+    # the safety loop says the same while no newer pose comes
+    assert core.check(t) == Twist2D()
+
+
 @pytest.mark.parametrize("stop", ["estop", "heartbeat", "disable", "inactive"])
 def test_gate_stops_at_once_and_nothing_moves_before_armed_again(stop):
     gate = armed_gate()

@@ -1,15 +1,23 @@
-"""The executor node: lifecycle, the team gate over real topics, the override, diagnostics."""
+"""The executor node: lifecycle, the team gate over real topics, the override, diagnostics,
+the stamp and type of ``cmd_vel``, the final stop."""
 
 from __future__ import annotations
 
 import math
+import os
+import signal
+import subprocess
+import sys
 import time
 
 import pytest
 from action_msgs.msg import GoalInfo, GoalStatus
-from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.time import Time
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Header
 
 from ant_controller.layout import MOVE_FORWARD
@@ -211,3 +219,143 @@ def test_bad_parameter_is_one_clear_error(ros):
 
     with pytest.raises(ParameterError, match="max_speed"):
         ExecutorNode(context=ros.context, parameter_overrides=[Parameter("max_speed", value=-1.0)])
+
+
+def test_the_last_command_is_a_stop_when_the_node_is_destroyed(rig):
+    """Destroyed while driving (its process ends): a zero twist is its last ``cmd_vel``."""
+    ros, base, node = rig
+    node.trigger_configure()
+    node.trigger_activate()
+    wait_matched(ros, base, node)
+    send_goal(base, 0)
+    assert ros.spin_until(base.moving, 5)
+    ros.executor.remove_node(node)
+    node.destroy_node()
+    assert ros.spin_until(lambda: base.twists[-1][1].twist.linear.x == 0.0, 5)
+    count = len(base.twists)
+    ros.spin_until(lambda: len(base.twists) > count, 0.5)  # nothing comes after it
+    assert len(base.twists) == count
+
+
+def test_sigint_to_the_executor_program_sends_a_stop_before_it_exits(rig):
+    """``ros2 run drive_executor executor`` stopped with Ctrl-C (the dome's shutdown) while its
+    robot drives: its last ``cmd_vel`` is a stop, sent while ROS is still up."""
+    ros, base, _ = rig  # the rig's in-process executor stays unconfigured: silent
+    diagnostics: list[DiagnosticStatus] = []
+    base.create_subscription(
+        DiagnosticArray, "/diagnostics", lambda m: diagnostics.extend(m.status), 10
+    )
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros.domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    cmd = [sys.executable, "-m", "drive_executor.executor_node", "--ros-args"]
+    cmd += ["-r", "__ns:=/robot_0", "-r", "__node:=program", "-p", "progress_window:=5.0"]
+    proc = subprocess.Popen(cmd, env=env, stderr=subprocess.PIPE, text=True)
+    try:
+        # ready: active, armed, enabled and on fresh poses (it says so once a second)
+        assert ros.spin_until(
+            lambda: any(d.name == "/robot_0/program" and d.message == "ready" for d in diagnostics),
+            60,
+        ), diagnostics[-3:]
+        send_goal(base, 0)
+        assert ros.spin_until(base.moving, 10)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 0, proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert ros.spin_until(lambda: base.twists[-1][1].twist.linear.x == 0.0, 5)
+
+
+class Clocked(Node):
+    """The node clock in the test's hand (``/clock``), poses, and what the executor sends."""
+
+    def __init__(self, context, cmd_type=TwistStamped):
+        super().__init__("clocked", context=context)
+        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "/robot_0/pose", 10)
+        self.cmds: list = []
+        self.diagnostics: list[DiagnosticStatus] = []
+        self.create_subscription(cmd_type, "/robot_0/cmd_vel", self.cmds.append, 10)
+        self.create_subscription(
+            DiagnosticArray, "/diagnostics", lambda m: self.diagnostics.extend(m.status), 10
+        )
+
+    def pose(self, seconds: float) -> None:
+        msg = PoseWithCovarianceStamped()
+        msg.header.stamp = Time(seconds=seconds).to_msg()
+        msg.header.frame_id = "map"
+        msg.pose.pose.position.x, msg.pose.pose.position.y = robot_center(4, 4, 0.25)
+        msg.pose.pose.orientation.w = 1.0
+        self.pose_pub.publish(msg)
+
+
+NOW = 100.0
+
+
+def clocked_executor(ros, cmd_type=TwistStamped, **params):
+    """An active executor whose clock reads :data:`NOW` and stands still.
+
+    Its safety loop is created at ``NOW`` and never comes due, so every ``cmd_vel`` it
+    sends answers a pose the test sent.
+    """
+    probe = ros.add(Clocked(ros.context, cmd_type))
+    overrides = [Parameter("use_sim_time", value=True)]
+    overrides += [Parameter(k, value=v) for k, v in params.items()]
+    node = ros.add(
+        ExecutorNode(context=ros.context, namespace="/robot_0", parameter_overrides=overrides)
+    )
+    assert ros.spin_until(lambda: probe.clock_pub.get_subscription_count() > 0, 5)
+    probe.clock_pub.publish(Clock(clock=Time(seconds=NOW).to_msg()))
+    assert ros.spin_until(lambda: node._now() == NOW, 5)
+    node.trigger_configure()
+    node.trigger_activate()
+    assert ros.spin_until(
+        lambda: (
+            probe.pose_pub.get_subscription_count() > 0
+            and node.cmd_pub.get_subscription_count() > 0
+        ),
+        5,
+    )
+    return probe, node
+
+
+def test_cmd_vel_is_stamped_when_sent_not_with_the_pose_it_answers(ros):
+    """A pose 0.2 s old (camera, localiser) is answered by a command stamped now: a base's
+    ``cmd_vel_timeout`` (diff_drive_controller) must not count the pose's latency."""
+    probe, node = clocked_executor(ros)
+    probe.pose(NOW - 0.2)
+    assert ros.spin_until(lambda: probe.cmds, 5)
+    assert node.core.counters.cycles == 1
+    assert Time.from_msg(probe.cmds[0].header.stamp).nanoseconds == Time(seconds=NOW).nanoseconds
+    assert probe.cmds[0].header.frame_id == "robot_0/base_link"
+
+
+def test_the_simulators_lockstep_keeps_the_pose_stamp(ros):
+    """``cmd_vel_stamp: pose`` (simulated runs): the step answered, ahead of ``/clock``."""
+    probe, _ = clocked_executor(ros, cmd_vel_stamp="pose")
+    probe.pose(NOW + 0.05)  # the step's /clock not taken yet
+    assert ros.spin_until(lambda: probe.cmds, 5)
+    stamp = Time.from_msg(probe.cmds[0].header.stamp)
+    assert stamp.nanoseconds == Time(seconds=NOW + 0.05).nanoseconds
+
+
+def test_drive_type_twist_publishes_a_plain_twist(ros):
+    probe, node = clocked_executor(ros, Twist, drive_type="twist")
+    probe.pose(NOW)
+    assert ros.spin_until(lambda: probe.cmds, 5)
+    assert isinstance(probe.cmds[0], Twist) and probe.cmds[0].linear.x == 0.0
+
+
+def test_a_pose_clock_ahead_is_reported_with_its_offset(ros):
+    """Poses stamped 30 ms ahead of the node's clock: WARN on /diagnostics naming 0.030 s."""
+    probe, node = clocked_executor(ros)
+    name = node.get_fully_qualified_name()
+
+    def warned():
+        probe.pose(NOW + 0.03)
+        return any(d.name == name and "0.030 s ahead" in d.message for d in probe.diagnostics)
+
+    assert ros.spin_until(warned, 5), [d.message for d in probe.diagnostics]
+    status = next(d for d in probe.diagnostics if "0.030 s ahead" in d.message)
+    assert status.level == DiagnosticStatus.WARN and "pose clock offset" in status.message
+    assert {v.key: v.value for v in status.values}["pose_clock_ahead"] == "0.030"

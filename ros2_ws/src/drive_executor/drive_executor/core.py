@@ -20,8 +20,9 @@ model goes on after a refused move. The goal then ends ``ABORTED`` and the robot
 
 Safety (docs/architecture.md, "Operator oversight and safety"): every twist passes
 :class:`excavation_common.safety.MotionGate`; a closed gate (not active, e-stop, pause,
-disable, heartbeat lost) or a pose older than ``pose_timeout`` by its stamp gives a zero
-twist at once and aborts the goal; nothing moves until a new goal arrives with the gate
+disable, heartbeat lost) or a pose older than ``pose_timeout`` by its stamp (or stamped more
+than ``future_tolerance`` ahead of the node's clock) gives a zero twist at once and aborts
+the goal; nothing moves until a new goal arrives with the gate
 open. A pause alone *suspends* the goal instead: the robot stops at once, the goal stays
 executing, and on resume the running primitive carries on toward its target with its time
 allowance and progress window moved on by the time paused (a paused and resumed trial
@@ -334,12 +335,20 @@ class DriveExecutorCore:
     # --- helpers ------------------------------------------------------------------------------
 
     def stale(self, now: float) -> str | None:
-        """Why the pose cannot be used at ``now`` (none yet, or older than the limit)."""
+        """Why the pose cannot be used at ``now``.
+
+        None yet; older than ``pose_timeout``; or stamped more than ``future_tolerance``
+        ahead of ``now`` (the pose's clock runs ahead of this node's: its age would read
+        young for as long as the offset lasts, so a localiser that stopped would not be
+        noticed in time).
+        """
         if self.pose_stamp is None:
             return "no pose yet"
         age = now - self.pose_stamp
         if age > self.params.pose_timeout:
             return f"pose stale ({age:.2f} s old)"
+        if -age > self.params.future_tolerance:
+            return f"pose from the future ({-age:.3f} s ahead of this node's clock)"
         return None
 
     def clamp(self, twist: Twist2D) -> Twist2D:

@@ -13,30 +13,40 @@ pose runs one control step and is answered by one ``cmd_vel``; ``drive/goal``
 operator's drive); ``/team/estop`` (Bool, latched), ``/team/heartbeat`` (Header, team state in
 ``frame_id``), ``enabled`` (Bool, latched).
 
-Publishes: ``cmd_vel`` (geometry_msgs/TwistStamped, frame ``robot_k/base_link``, stamped
-with the pose it answers), ``drive/status`` (action_msgs/GoalStatus, the goal's tick
-stamp), ``stuck`` (std_msgs/Bool, U1, once per goal), ``drive/throttle`` (Bool, latched:
-the power mode of the running goal, for the base) and ``/diagnostics`` (every wall second,
-also while a simulator's clock stands still).
+Publishes: ``cmd_vel`` (parameter ``drive_type``: geometry_msgs/TwistStamped, frame
+``robot_k/base_link``, as Jazzy's diff_drive_controller takes it, or geometry_msgs/Twist),
+stamped with the node clock when it is sent (``cmd_vel_stamp: now``: a base's
+``cmd_vel_timeout`` then counts from the command, not from the camera frame behind it; the
+continuous simulator's lockstep takes ``pose``, the stamp of the pose answered),
+``drive/status`` (action_msgs/GoalStatus, the goal's tick stamp), ``stuck`` (std_msgs/Bool,
+U1, once per goal), ``drive/throttle`` (Bool, latched: the power mode of the running goal,
+for the base) and ``/diagnostics`` (every wall second, also while a simulator's clock stands
+still; WARN when poses come stamped more than ``clock_offset_limit`` ahead of the node's
+clock, naming the offset).
 
 Lifecycle (ros2/demos ``lifecycle_py``): ``on_configure`` builds the core, publishers,
 subscriptions and timers; ``on_activate`` opens the gate's ``active`` input and starts
 publishing; ``on_deactivate`` sends a zero twist, aborts the goal and stops publishing.
 The safety loop (``rate`` Hz on the node clock) and every e-stop, heartbeat, enable and
 override message run :meth:`DriveExecutorCore.check` at once, so a stop reaches
-``cmd_vel`` without waiting for the next pose.
+``cmd_vel`` without waiting for the next pose. The last ``cmd_vel`` an executor sends is a
+stop: on deactivation, on shutdown, when the node is destroyed, and when its program gets
+SIGINT or SIGTERM (it handles both itself, so that ROS is still up to send the stop).
 """
 
 from __future__ import annotations
 
 import math
+import signal
 import sys
 from typing import assert_never
 
+import rclpy
 from action_msgs.msg import GoalInfo, GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from std_msgs.msg import Bool, Header, UInt16
 
@@ -45,10 +55,14 @@ from drive_executor.errors import GoalError
 from drive_executor.goals import TERMINAL, goal_from_message, status_message
 from drive_executor.params import ExecutorParams
 from drive_executor.primitives import Pose2D, Twist2D
-from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
+from excavation_common.errors import FieldError
+from excavation_common.ros import LATCHED, declare_params, diagnostics, init_rclpy
 from excavation_common.safety import ENABLED_TOPIC, ESTOP_TOPIC, HEARTBEAT_TOPIC, MotionGate
 
 STEADY = ClockType.STEADY_TIME
+
+STOP_DELIVERY = Duration(seconds=1.0)
+"""Longest wait, at shutdown, for the base to acknowledge the final zero twist."""
 
 
 def _seconds(stamp) -> float:
@@ -80,6 +94,8 @@ class ExecutorNode(LifecycleNode):
         self.errors: dict[str, str] = {}
         self._entities: list = []
         self.cmd_pub = None
+        self.pose_lead: float | None = None  # most any pose was ahead of our clock (window)
+        self.stamped = self.params.drive_type == "twist_stamped"
 
     # --- lifecycle --------------------------------------------------------------------------
 
@@ -87,7 +103,7 @@ class ExecutorNode(LifecycleNode):
         """Allocate publishers, subscriptions and timers (nothing is published yet)."""
         self.core = DriveExecutorCore(self.params, self.gate)
         lp = self.create_lifecycle_publisher
-        self.cmd_pub = lp(TwistStamped, "cmd_vel", 10)
+        self.cmd_pub = lp(TwistStamped if self.stamped else Twist, "cmd_vel", 10)
         self.status_pub = lp(GoalStatus, "drive/status", 10)
         self.stuck_pub = lp(Bool, "stuck", 10)
         self.throttle_pub = lp(Bool, "drive/throttle", LATCHED)
@@ -128,12 +144,28 @@ class ExecutorNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Stop and release everything."""
-        self.gate.active = False
-        if self.cmd_pub is not None:
-            self.enforce()
+        """Stop (a zero twist, delivered) and release everything."""
+        self.stop_base()
         self._release()
         return TransitionCallbackReturn.SUCCESS
+
+    def stop_base(self) -> None:
+        """While ``cmd_vel`` is live: close the gate, send the zero twist, wait for delivery.
+
+        The executor's last command is then a stop, whatever ends it (shutdown, the node
+        destroyed, SIGINT): the base need not wait out its ``cmd_vel_timeout`` on the last
+        moving command. Nothing is sent while inactive (deactivation already sent one).
+        """
+        if self.cmd_pub is None or not self.gate.active or not self.context.ok():
+            return
+        self.gate.active = False
+        self.enforce()
+        self.cmd_pub.wait_for_all_acked(STOP_DELIVERY)
+
+    def destroy_node(self) -> None:
+        """The final zero twist (:meth:`stop_base`), then the node."""
+        self.stop_base()
+        super().destroy_node()
 
     def _release(self) -> None:
         for entity in self._entities:
@@ -156,15 +188,26 @@ class ExecutorNode(LifecycleNode):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def on_pose(self, msg: PoseWithCovarianceStamped) -> None:
-        """One control step on a new pose; answered by one ``cmd_vel`` with its stamp."""
+        """One control step on a new pose; answered by one ``cmd_vel``.
+
+        The answer is stamped with the node clock as it is sent (``cmd_vel_stamp: now``), or
+        with the pose's stamp (``pose``: the continuous simulator, which waits for a command
+        stamped with its step, while this node's reading of ``/clock`` may lag the pose).
+        """
         try:
             pose = pose_of(msg)
         except GoalError as exc:
             self.errors["pose"] = str(exc)
             return
         self.errors.pop("pose", None)
-        twist = self.core.on_pose(pose, _seconds(msg.header.stamp), self._now())
-        self.publish_twist(twist, msg.header.stamp)
+        stamp, now = _seconds(msg.header.stamp), self._now()
+        lead = stamp - now
+        self.pose_lead = lead if self.pose_lead is None else max(self.pose_lead, lead)
+        twist = self.core.on_pose(pose, stamp, now)
+        if self.params.cmd_vel_stamp == "pose":
+            self.publish_twist(twist, msg.header.stamp)
+        else:
+            self.publish_twist(twist, self.get_clock().now().to_msg())
         self.publish_events()
 
     def on_goal(self, msg: GoalInfo) -> None:
@@ -220,12 +263,16 @@ class ExecutorNode(LifecycleNode):
         self.publish_events()
 
     def publish_twist(self, twist: Twist2D, stamp) -> None:
-        """``cmd_vel`` in the robot's body frame."""
-        msg = TwistStamped()
+        """``cmd_vel`` in the robot's body frame (``drive_type``: stamped or plain)."""
+        body = Twist()
+        body.linear.x = float(twist.linear)
+        body.angular.z = float(twist.angular)
+        if not self.stamped:
+            self.cmd_pub.publish(body)
+            return
+        msg = TwistStamped(twist=body)
         msg.header.stamp = stamp
         msg.header.frame_id = self.frame
-        msg.twist.linear.x = float(twist.linear)
-        msg.twist.angular.z = float(twist.angular)
         self.cmd_pub.publish(msg)
 
     def publish_events(self) -> None:
@@ -242,8 +289,14 @@ class ExecutorNode(LifecycleNode):
                     assert_never(event)
 
     def publish_diagnostics(self) -> None:
-        """OK while driving or ready; WARN while stopped (with why); ERROR on bad input."""
+        """OK while driving or ready; WARN while stopped (with why); ERROR on bad input.
+
+        Also WARN when a pose of the last second came stamped more than
+        ``clock_offset_limit`` ahead of this node's clock: the pose's clock runs ahead by at
+        least that much (latency only makes a stamp older), which the message names.
+        """
         c = self.core.counters
+        lead, self.pose_lead = self.pose_lead, None
         if self.errors:
             level, message = DiagnosticStatus.ERROR, "; ".join(self.errors.values())
         elif self.core.stop_reason is not None:
@@ -251,6 +304,12 @@ class ExecutorNode(LifecycleNode):
         else:
             level = DiagnosticStatus.OK
             message = f"driving tick {self.core.goal.tick}" if self.core.busy else "ready"
+        if lead is not None and lead > self.params.clock_offset_limit:
+            level = max(level, DiagnosticStatus.WARN)
+            message += (
+                f"; pose clock offset: poses stamped {lead:.3f} s ahead of this node's clock "
+                "(synchronise the clocks)"
+            )
         self.diag_pub.publish(
             diagnostics(
                 self,
@@ -264,10 +323,15 @@ class ExecutorNode(LifecycleNode):
                     "control_cycles": c.cycles,
                     "last_failure": c.last_failure,
                     "active": self.gate.active,
+                    "pose_clock_ahead": "" if lead is None else f"{lead:.3f}",
                 },
                 hardware_id=self.frame.split("/")[0],
             )
         )
+
+
+def _interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
 
 
 def main(args: list[str] | None = None) -> int:
@@ -275,15 +339,34 @@ def main(args: list[str] | None = None) -> int:
 
     There is no lifecycle manager in this environment: the program configures and activates
     its node itself; the gate still keeps the robot still until the team is armed.
-    """
 
-    def make() -> ExecutorNode:
+    As ``excavation_common.ros.spin_node`` (a bad parameter: one line, exit code 2), except
+    that SIGINT and SIGTERM are this program's, not rclpy's: rclpy's handlers shut ROS down
+    before Python hears of the signal, and the node could no longer send its final zero
+    twist (:meth:`ExecutorNode.destroy_node`).
+    """
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.signals import SignalHandlerOptions
+
+    init_rclpy(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGINT, _interrupt)
+    signal.signal(signal.SIGTERM, _interrupt)
+    try:
         node = ExecutorNode()
+    except FieldError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
         node.trigger_configure()
         node.trigger_activate()
-        return node
-
-    return spin_node(make, args)
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
 
 
 if __name__ == "__main__":

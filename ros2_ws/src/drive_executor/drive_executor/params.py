@@ -51,6 +51,20 @@ class ExecutorParams:
     pose_timeout: float = param(
         0.3, "a pose older than this (header stamp) stops the robot, s", low=0.01, high=10.0
     )
+    future_tolerance: float = param(
+        0.05,
+        "a pose stamped more than this ahead of the node clock stops the robot too (a clock "
+        "offset), s",
+        low=0.0,
+        high=10.0,
+    )
+    clock_offset_limit: float = param(
+        0.02,
+        "poses stamped more than this ahead of the node clock are reported on /diagnostics "
+        "(WARN), s",
+        low=0.0,
+        high=10.0,
+    )
     override_timeout: float = param(
         0.5, "a drive override stays in charge this long after it arrives, s", low=0.01, high=10.0
     )
@@ -64,6 +78,19 @@ class ExecutorParams:
     )
     seed: int = param(0, "seed of the executor's own random-turn generator", low=0, high=2**31 - 1)
     pose_topic: str = param("pose", "the pose the loop closes on (localiser or simulator)")
+    drive_type: str = param(
+        "twist_stamped",
+        "cmd_vel's type: twist_stamped (geometry_msgs/TwistStamped: Jazzy's "
+        "diff_drive_controller) or twist (geometry_msgs/Twist)",
+        choices=("twist", "twist_stamped"),
+    )
+    cmd_vel_stamp: str = param(
+        "now",
+        "now: cmd_vel stamped with the node clock when sent (a base's cmd_vel_timeout counts "
+        "from it); pose: with the stamp of the pose it answers (the continuous simulator's "
+        "lockstep)",
+        choices=("now", "pose"),
+    )
 
     def check(self) -> None:
         """Throttle-up may only raise the limits."""

@@ -63,6 +63,18 @@ SIM_CLOCK = {"use_sim_time": True}
 """With the continuous-motion simulator every node but ``dynamics`` (the clock), the
 recorder and the view runs on the simulator's ``/clock``."""
 
+SIM_EXECUTOR: dict[str, Any] = {
+    "cmd_vel_stamp": "pose",
+    "future_tolerance": 10.0,
+    "clock_offset_limit": 10.0,
+}
+"""A simulated executor keeps the continuous simulator's lockstep: ``dynamics`` steps once
+every robot has sent a ``cmd_vel`` stamped with its step, so a command carries the stamp of
+the pose it answers; and the executor's reading of ``/clock`` (a best-effort topic of its
+own) can trail a step's pose by a step or more, which is no clock offset (one process
+stamps both), so neither the future-pose rule nor its warning applies. With these values
+every simulated trial runs exactly as before these parameters existed."""
+
 
 @dataclass(frozen=True)
 class NodeSpec:
@@ -502,8 +514,9 @@ def executor(dep: Deployment, k: int, profile: TimingProfile, geometry: Geometry
     """Robot ``k``'s drive executor (a lifecycle node: its program configures and activates it).
 
     Simulated, its loop closes on the simulator's per-step pose (``/truth`` with full
-    perception), which stands in for a localiser at camera rate; in the dome on the
-    localiser's pose, and its ``cmd_vel`` goes to the robot's ``drive_topic`` (the base).
+    perception), which stands in for a localiser at camera rate, and it keeps the
+    simulator's lockstep (:data:`SIM_EXECUTOR`); in the dome on the localiser's pose, and
+    its ``cmd_vel`` goes to the robot's ``drive_topic`` (the base).
     """
     ns = robot_namespace(k)
     pose = f"{TRUTH_PREFIX}/robot_{k}/pose" if dep.full and dep.sim else "pose"
@@ -514,7 +527,9 @@ def executor(dep: Deployment, k: int, profile: TimingProfile, geometry: Geometry
     }
     params |= _sim_deadman(dep, profile)
     remaps: tuple[str, ...] = ()
-    if not dep.sim:
+    if dep.sim:
+        params |= SIM_EXECUTOR
+    else:
         remaps = (f"{ns}/cmd_vel:={dep.site.robots[k].drive_topic}",)
     return NodeSpec(
         f"executor_{k}",
