@@ -41,6 +41,16 @@ BROKEN = {
     "derived_override": "overrides.controller.height_unit = 0.1: set by the site file's "
     "worksite.soil_unit",
     "duplicate_key": "network = 'line 17 column 1': is given twice (first at line 16 column 1)",
+    "same_drive_topic": "robots[1].drive_topic = '/base_1/cmd_vel': robots[0] drives "
+    "/base_1/cmd_vel too",
+    "drive_type": "robots[1].drive_type = 'twist_mux': must be one of twist_stamped, twist",
+    "imu_flag": "robots[1].imu = 'yes': expected true or false",
+    "tilt_override": "overrides.controller.tilt_source = 'imu': set by the site file's "
+    "robots[k].imu",
+    "override_type": "overrides.executor.max_speed = 'fast': expected a number",
+    "override_range": "overrides.team_tick.blade_wait = -1.0: must be >= 0.0",
+    "override_choice": "overrides.executor.mode = 'auto': must be one of tick, free",
+    "override_rule": "overrides.executor = {'max_speed': 0.2}: throttle_speed 0.15 < max_speed 0.2",
 }
 
 
@@ -235,6 +245,50 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
         assert set(by_name["dynamics"].params) <= _config_keys("dynamics")
         assert by_name["dynamics"].params["slip"] == 0.0  # site_sim.yaml: sim.exact
         assert tick.final and tick.params["steps"] == site.sim.ticks
+
+
+def test_each_robot_names_its_base_type_and_imu_and_a_dome_tunes_executor_and_team_tick(
+    tmp_path,
+):
+    """``drive_type`` and ``imu`` per robot reach their nodes; executor and team tick overrides
+    are typed and win over the node spec functions' values; the dome's executors stop within
+    the localiser's error (docs/benchmarks.md: p50 0.046 cell, 11.5 mm)."""
+    from drive_executor.params import ExecutorParams
+
+    text = (SITES / "good.yaml").read_text()
+    text = text.replace("genome: hand-coded}", "genome: hand-coded, drive_type: twist, imu: false}")
+    text = text.replace("../../../", str(Path(__file__).resolve().parents[1]) + "/")
+    text += (
+        "overrides:\n"
+        "  executor: {time_allowance: 20, progress_window: 2.0}\n"
+        "  team_tick: {blade_wait: 5.0, motion_limit: 60}\n"
+    )
+    (tmp_path / "site.yaml").write_text(text)
+    site, errors = sitefile.check_site(tmp_path / "site.yaml")
+    assert errors == []
+    assert [(r.drive_type, r.imu) for r in site.robots] == [
+        ("twist_stamped", True),
+        ("twist", False),
+    ]
+    # an integer given for a double is the double rclpy needs (a params file keeps 20 an int)
+    assert site.overrides["executor"]["time_allowance"] == 20.0
+    assert type(site.overrides["executor"]["time_allowance"]) is float
+    by_name = {s.name: s for s in dome_graph(site, tmp_path / "run").nodes}
+    for k, (drive_type, tilt) in enumerate([("twist_stamped", "imu"), ("twist", "height_map")]):
+        executor = by_name[f"executor_{k}"].params
+        assert executor["drive_type"] == drive_type
+        assert executor.get("cmd_vel_stamp", "now") == "now"  # the base times it from sending
+        assert executor["time_allowance"] == 20.0 and executor["progress_window"] == 2.0
+        assert executor["position_tolerance"] >= 0.0115 and executor["min_progress"] >= 0.0115
+        validate(ExecutorParams, executor, f"executor_{k}")
+        assert by_name[f"controller_{k}"].params["tilt_source"] == tilt
+    tick = by_name["team_tick"].params
+    assert tick["blade_wait"] == 5.0 and tick["motion_limit"] == 60.0
+    # the simulated dome keeps the simulator's lockstep and the defaults every trial ran with
+    sim = {s.name: s for s in dome_graph(site, tmp_path / "sim", sim=True).nodes}
+    executor = sim["executor_1"].params
+    assert executor["cmd_vel_stamp"] == "pose" and "drive_type" not in executor
+    assert "position_tolerance" not in executor and "min_progress" not in executor
 
 
 def test_repeated_keys_are_refused_anywhere():

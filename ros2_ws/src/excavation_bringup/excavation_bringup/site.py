@@ -4,10 +4,11 @@ A site file names everything the node suite needs to run in one dome: the worksi
 (blueprint, grid, cell size, soil unit), the overhead camera (image topic and encoding,
 CameraInfo topic, calibration file, LED table), the overhead laser (scan and mount topics,
 mount position and orientation offsets), the robots (name, LED pair, blade backend and port,
-drive topic, controller genome) and the network (ROS domain, discovery range). Every node's
-parameters are made from it by the node spec functions of :mod:`excavation_bringup.nodes`
-(through a :class:`~excavation_bringup.deployment.Deployment`), so a value such as the soil
-unit is written once.
+drive topic and the base's message type, whether it carries an IMU, controller genome) and
+the network (ROS domain, discovery range). Every node's parameters are made from it by the
+node spec functions of :mod:`excavation_bringup.nodes` (through a
+:class:`~excavation_bringup.deployment.Deployment`), so a value such as the soil unit is
+written once.
 
 :func:`load_site` reads and checks a file; :func:`check_site` returns every problem it
 finds (each a :class:`SiteError` naming file, field and value), which is what
@@ -52,6 +53,9 @@ COMPRESSED_FORMATS = ("jpeg", "png")
 
 BACKENDS = ("sim", "serial")
 """Blade driver backends (``blade_driver``'s ``backend`` parameter)."""
+
+DRIVE_TYPES = ("twist_stamped", "twist")
+"""``cmd_vel`` message types a base takes (the drive executor's ``drive_type``)."""
 
 DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "OFF", "SYSTEM_DEFAULT")
 """Values of ``ROS_AUTOMATIC_DISCOVERY_RANGE``."""
@@ -131,7 +135,11 @@ class Laser:
 
 @dataclass(frozen=True)
 class Robot:
-    """One robot: ``robot_k``, its LED pair, blade backend and port, drive topic, genome."""
+    """One robot: ``robot_k``, its LED pair, blade backend and port, drive topic, genome.
+
+    ``drive_type``: the message its base takes on ``drive_topic`` (:data:`DRIVE_TYPES`);
+    ``imu``: it carries an IMU on ``/robot_k/imu`` (its controller's R1 source).
+    """
 
     name: str
     leds: tuple[str, str]
@@ -139,6 +147,14 @@ class Robot:
     port: str = ""
     drive_topic: str = ""
     genome: str = HAND_CODED
+    drive_type: str = "twist_stamped"
+    imu: bool = True
+
+    @property
+    def drive_topic_resolved(self) -> str:
+        """``drive_topic`` as a full name (a relative one is in the robot's namespace)."""
+        topic = self.drive_topic
+        return topic if topic.startswith("/") else f"/{self.name}/{topic}"
 
 
 @dataclass(frozen=True)
@@ -320,7 +336,7 @@ def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
         r.error("robots", entries, "expected a non-empty list of robots")
         return ()
     out = []
-    keys = {"name", "leds", "blade", "drive_topic", "genome"}
+    keys = {"name", "leds", "blade", "drive_topic", "drive_type", "imu", "genome"}
     for k, entry in enumerate(entries):
         where = f"robots[{k}]"
         if not isinstance(entry, dict):
@@ -351,6 +367,10 @@ def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
         if backend == "serial" and not port:
             r.error(f"{where}.blade.port", port, "the serial backend needs the board's port")
         genome = r.text(entry, where, "genome", HAND_CODED)
+        imu = entry.get("imu", True)
+        if not isinstance(imu, bool):
+            r.error(f"{where}.imu", imu, "expected true or false (does the robot carry an IMU?)")
+            imu = True
         out.append(
             Robot(
                 name,
@@ -359,6 +379,8 @@ def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
                 port,
                 r.text(entry, where, "drive_topic", f"/{name}/cmd_vel", topic=True),
                 genome if genome == HAND_CODED else r.file(genome),
+                r.text(entry, where, "drive_type", "twist_stamped", DRIVE_TYPES),
+                imu,
             )
         )
     return tuple(out)
@@ -405,11 +427,38 @@ def _overrides(r: _Reader, doc: dict) -> dict[str, dict[str, Any]]:
             r.error(f"overrides.{node}", values, "expected a mapping parameter: value")
             continue
         known = node_parameter_names(node)
+        checked = {}
         for name, value in values.items():
             if name not in known:
                 r.error(f"overrides.{node}.{name}", value, f"{node} has no such parameter")
-        out[node] = dict(values)
+                checked[name] = value
+                continue
+            checked[name] = _typed_override(r, node, name, value)
+        out[node] = checked
     return out
+
+
+def _typed_override(r: _Reader, node: str, name: str, value: Any) -> Any:
+    """``value`` checked against parameter ``name``'s declaration (type, range, choices).
+
+    Returns it as the node declares it (an integer given for a double becomes a double, as
+    rclpy, strict about types, would otherwise refuse it at start); a refused value is an
+    error and is kept as given.
+    """
+    from excavation_bringup.kinds import kind
+    from excavation_common.params import ParameterError, specs, validate
+
+    for cls in kind(node).param_classes():
+        if name not in specs(cls):
+            continue
+        try:
+            result = getattr(validate(cls, {name: value}, node), name)
+        except ParameterError as exc:
+            if exc.field == name:
+                r.error(f"overrides.{node}.{name}", value, exc.reason)
+            return value  # else a rule across fields: judged with every override
+        return list(result) if isinstance(result, tuple) else result
+    return value
 
 
 def parse_site(text: str, path: str) -> tuple[Site | None, list[SiteError]]:
@@ -590,6 +639,7 @@ def _check_robots(site: Site, sim: bool) -> list[SiteError]:
         sim_pairs = default_beacons().robots
     pairs: dict[tuple[str, str], int] = {}
     ports: dict[str, int] = {}
+    drives: dict[str, int] = {}
     for k, robot in enumerate(site.robots):
         where = f"robots[{k}]"
         for colour in robot.leds:
@@ -620,6 +670,14 @@ def _check_robots(site: Site, sim: bool) -> list[SiteError]:
             if robot.port in ports:
                 err(f"{where}.blade.port", robot.port, f"robots[{ports[robot.port]}] uses it too")
             ports.setdefault(robot.port, k)
+        topic = robot.drive_topic_resolved
+        if topic in drives:
+            err(
+                f"{where}.drive_topic",
+                robot.drive_topic,
+                f"robots[{drives[topic]}] drives {topic} too: two executors would command one base",
+            )
+        drives.setdefault(topic, k)
         if robot.genome != HAND_CODED:
             from ant_controller.genome_io import load_genome
 
@@ -669,12 +727,38 @@ DERIVED = {
         "robot_id": "robots[k]",
         "robots": "robots",
         "height_unit": "worksite.soil_unit",
+        "tilt_source": "robots[k].imu",
     },
     "blade_driver": {"backend": "robots[k].blade.backend", "port": "robots[k].blade.port"},
+    "executor": {
+        "cell_size": "worksite.cell_size",
+        "seed": "sim.seed",
+        "pose_topic": "robots (the localiser's /robot_k/pose)",
+        "drive_type": "robots[k].drive_type",
+        "cmd_vel_stamp": "--sim (now in the dome; the simulator's step with --sim)",
+    },
+    "team_tick": {
+        "robots": "robots",
+        "steps": "sim.ticks (--ticks)",
+        "seed": "sim.seed",
+        "scenario": "sim.scenario",
+        "blueprint": "worksite.blueprint",
+        "word_timeout": "sim.command_timeout",
+        "first_word_timeout": "sim.first_command_timeout",
+        "output_prefix": "robots (the controllers read /tick)",
+        "blade_in": "--sim (the dome: each blade driver's joint state)",
+        "blade_out": "--sim (the dome: the controllers' blade/tick_state)",
+        "snapshot_ack": "--sim (the dome: nothing acknowledges)",
+        "wait_for_ready": "robots (tick 0 waits for every controller)",
+        "wait_for_recorder": "--record",
+        "result_file": "--run-dir",
+    },
     "recorder": {"out": "--record", "height_unit": "worksite.soil_unit"},
     "supervisor": {"robots": "robots", "arm_at_start": "--sim"},
 }
-"""Per node, the parameters the site file sets (an override of one is an inconsistency)."""
+"""Per node, the parameters the site file sets, or the graph sets from it (an override of
+one is an inconsistency). Every other parameter of these nodes may be tuned under
+``overrides:`` (the executors' tolerances, the team tick's waits...)."""
 
 OVERRIDABLE = tuple(DERIVED)
 """Nodes whose other parameters a site may set under ``overrides:``."""
@@ -690,8 +774,18 @@ def node_parameter_names(node: str) -> set[str]:
 
 
 def _check_overrides(site: Site) -> list[SiteError]:
+    from excavation_bringup.kinds import kind
+    from excavation_common.params import ParameterError, specs, validate
+
     out = []
     for node, values in site.overrides.items():
+        for cls in kind(node).param_classes():
+            own = {n: v for n, v in values.items() if n in specs(cls) and n not in DERIVED[node]}
+            try:
+                validate(cls, own, node)
+            except ParameterError as exc:
+                if exc.field == "parameters":  # a rule across fields (each value is typed)
+                    out.append(SiteError(site.path, f"overrides.{node}", own, exc.reason))
         for name, value in values.items():
             if name in DERIVED[node]:
                 out.append(
