@@ -56,11 +56,11 @@ Written by `make bench` (`ant-bench --write docs/benchmarks.md`); every number i
 section comes from the run that wrote it. Throughput is in robot-steps per second: one
 robot sensing, deciding and acting for one timestep. Setting: 4 robots on the 16 x 16
 default blueprint, T = 300, tissues of 80 neurons (random) or the shipped evolved genome.
-"Plain Python" is the same code run with numba's JIT disabled, on 2 genomes x 2 scenarios
-of the same set, and its scores are checked equal to the compiled ones. Targets
-(the project's, docs/benchmarks.md): 6 million robot-steps per second on both cores; for the reproduction, 1.7e7
-with an evolved genome (a 5,000-generation paper-scale run in under an hour) and a NEAT
-generation at most 1.5 x an ANT generation of the same size.
+"Plain Python" is the same code run with numba's JIT disabled, on 2 genomes x 2 scenarios of
+the same set, and its scores are checked equal to the compiled ones. Targets (the project's,
+docs/benchmarks.md): 6 million robot-steps per second on both cores; for the reproduction,
+1.7e7 with an evolved genome (a 5,000-generation paper-scale run in under an hour) and a
+NEAT generation at most 1.5 x an ANT generation of the same size.
 
 {results}
 

@@ -202,6 +202,9 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+SITE_HELP = "take the domain and discovery range from this site file (as ant-dome up does)"
+
+
 def parser() -> argparse.ArgumentParser:
     """The command line."""
     p = argparse.ArgumentParser(
@@ -225,6 +228,11 @@ def parser() -> argparse.ArgumentParser:
         help="how raw camera frames are stored (default jpeg; png is lossless; none: raw)",
     )
     r.add_argument("--domain", type=int, default=None)
+    r.add_argument(
+        "--site",
+        metavar="SITE",
+        help="take the domain and discovery range from this site file (as ant-dome up does)",
+    )
     r.set_defaults(run=cmd_record)
 
     pl = sub.add_parser("play", help="republish a bag")
@@ -236,6 +244,11 @@ def parser() -> argparse.ArgumentParser:
     pl.add_argument("--lockstep", action="store_true", help="tick by tick, waiting for replies")
     pl.add_argument("--wait-for", nargs="+", metavar="TOPIC")
     pl.add_argument("--domain", type=int, default=None)
+    pl.add_argument(
+        "--site",
+        metavar="SITE",
+        help="take the domain and discovery range from this site file (as ant-dome up does)",
+    )
     pl.set_defaults(run=cmd_play)
 
     i = sub.add_parser("info", help="topics, counts and QoS of a bag")
@@ -266,6 +279,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(remove_ros_args(["ant-bag", *argv])[1:])
     args.ros_args = argv[argv.index("--ros-args") :] if "--ros-args" in argv else []
     try:
+        if getattr(args, "site", None):
+            from excavation_common.network import use_site_network
+
+            use_site_network(args.site)
         return args.run(args)
     except (FieldError, ValueError, OSError) as exc:
         print(f"ant-bag: error: {exc}", file=sys.stderr)

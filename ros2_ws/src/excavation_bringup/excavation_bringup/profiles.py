@@ -86,8 +86,10 @@ PROCESSES = TimingProfile(
 """A process per node on one loaded machine under the simulator's clock (``ant-trial
 --processes``, ``ant-dome up --sim``)."""
 
-DOME = TimingProfile("dome", mount_wait=1.0)
-"""The dome: every node on the wall clock with the field's 0.5 s deadman; a best-effort
+DOME = TimingProfile("dome", first_word_timeout=300.0, mount_wait=1.0)
+"""The dome: every node on the wall clock with the field's 0.5 s deadman; tick 0 waits up to
+300 s for the words (a dome PC on a cold numba cache compiles every controller's kernels
+first: over a minute each on a loaded 2-core machine, docs/benchmarks.md); a best-effort
 laser, whose lost mount state is not repaired, so a scan waits 1 s for it."""
 
 PROFILES = {p.name: p for p in (COMPOSED, PROCESSES, DOME)}

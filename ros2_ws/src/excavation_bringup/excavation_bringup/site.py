@@ -28,6 +28,7 @@ from typing import Any
 
 from excavation_common.errors import FieldError
 from excavation_common.loaders import parse_yaml, read_text_bounded
+from excavation_common.network import DISCOVERY_RANGES, MAX_DOMAIN, Network
 
 FORMAT = "ant-site/1"
 
@@ -57,11 +58,6 @@ BACKENDS = ("sim", "serial")
 DRIVE_TYPES = ("twist_stamped", "twist")
 """``cmd_vel`` message types a base takes (the drive executor's ``drive_type``)."""
 
-DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "OFF", "SYSTEM_DEFAULT")
-"""Values of ``ROS_AUTOMATIC_DISCOVERY_RANGE``."""
-
-MAX_DOMAIN = 232
-"""Largest ROS domain id rmw accepts (0..101 leave the ephemeral port range alone)."""
 
 SIMULATED = "simulated"
 """``camera.calibration`` value for ``--sim``: the simulator's camera, calibrated at
@@ -155,14 +151,6 @@ class Robot:
         """``drive_topic`` as a full name (a relative one is in the robot's namespace)."""
         topic = self.drive_topic
         return topic if topic.startswith("/") else f"/{self.name}/{topic}"
-
-
-@dataclass(frozen=True)
-class Network:
-    """ROS domain id and discovery range of every process of the site."""
-
-    domain: int = 0
-    discovery_range: str = "LOCALHOST"
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""The team's safety state as every moving node sees it (docs/operator.md; docs/architecture.md, "Safety rules").
+"""The team's safety state as every moving node sees it (docs/operator.md).
 
 The supervisor (``team_supervisor``) owns the team state and announces it on two topics:
 

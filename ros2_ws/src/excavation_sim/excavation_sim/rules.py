@@ -1,8 +1,8 @@
 """The world model's readings of the paper, as one frozen record (paper, sections 4.1-4.3).
 
-A first reading of the paper took choices that a careful reader contests (docs/world-model.md and
-docs/evolution.md, "Profiles"). Each is a named switch of :class:`WorldRules`; :data:`WORLD_PROFILES`
-sets them all at once:
+A first reading of the paper took choices that a careful reader contests
+(docs/world-model.md and docs/evolution.md, "Profiles"). Each is a named switch of
+:class:`WorldRules`; :data:`WORLD_PROFILES` sets them all at once:
 
 * ``v1``: the first readings (the shipped genome and every recorded result were made
   under them and keep reproducing bit for bit);

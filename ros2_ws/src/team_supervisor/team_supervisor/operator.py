@@ -161,6 +161,11 @@ def parser() -> argparse.ArgumentParser:
     """The ``ant-operator`` argument parser."""
     p = argparse.ArgumentParser(prog="ant-operator", description=__doc__.split("\n\n")[0])
     p.add_argument("--domain", type=int, default=None, help="ROS domain (default ROS_DOMAIN_ID)")
+    p.add_argument(
+        "--site",
+        metavar="SITE",
+        help="take the domain and discovery range from this site file (as ant-dome up does)",
+    )
     p.add_argument("--supervisor", default="/supervisor", help="the supervisor node's name")
     p.add_argument("--timeout", type=float, default=5.0, help="s to wait for an answer")
     sub = p.add_subparsers(dest="command", required=True)
@@ -189,6 +194,15 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "robot", 0) < 0:
         print(f"ant-operator: error: robot {args.robot}: must be >= 0", file=sys.stderr)
         return EXIT_USAGE
+    if args.site:
+        from excavation_common.errors import FieldError
+        from excavation_common.network import use_site_network
+
+        try:
+            use_site_network(args.site)
+        except FieldError as exc:
+            print(f"ant-operator: error: {exc}", file=sys.stderr)
+            return EXIT_USAGE
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     domain = args.domain if args.domain is not None else int(os.environ.get("ROS_DOMAIN_ID", "0"))
     op = Operator(domain, args.supervisor, args.timeout)
