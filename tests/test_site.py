@@ -217,7 +217,11 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
         "blade/servo_state" if sim else "blade/tick_state"
     )
     assert set(by_name["server"].params) <= _config_keys("server")
-    assert set(by_name["recorder"].params) <= _config_keys("recorder")
+    recorder = by_name["recorder"].params
+    assert set(recorder) <= _config_keys("recorder")
+    for topic in (site.camera.image_topic, site.laser.scan_topic, site.laser.mount_state_topic):
+        assert topic in recorder["topics"]  # the site's own names are recorded too
+    assert all(robot.drive_topic in recorder["topics"] for robot in site.robots)
     supervisor = by_name["supervisor"].params
     assert set(supervisor) <= _config_keys("supervisor")
     assert supervisor["robots"] == site.n_robots

@@ -248,12 +248,31 @@ def robot_namespace(k: int) -> str:
 # --- the node kinds -------------------------------------------------------------------------
 
 
+def site_topics(site: sitefile.Site) -> list[str]:
+    """What a site's recorder records: the suite's topics and the site's own topics.
+
+    A dome's drivers publish where the site says: its camera, laser, mount and bases.
+    """
+    from excavation_bags.topics import SUITE_TOPICS
+
+    named = [site.camera.image_topic, site.camera.camera_info_topic, site.laser.scan_topic]
+    named += [site.laser.mount_state_topic, *(robot.drive_topic for robot in site.robots)]
+    topics = list(SUITE_TOPICS)
+    for topic in named:
+        if topic and topic not in topics:
+            topics.append(topic)
+    return topics
+
+
 def recorder(dep: Deployment, geometry: Geometry) -> NodeSpec:
     """The bag recorder (``ant-bag record``), first, so that it sees every topic appear.
 
-    Not restartable: a second recorder cannot reopen the bag.
+    From a site it records the site's topics too (:func:`site_topics`). Not restartable: a
+    second recorder cannot reopen the bag.
     """
-    params = {"out": str(dep.record), "height_unit": geometry.height_unit}
+    params: dict[str, Any] = {"out": str(dep.record), "height_unit": geometry.height_unit}
+    if dep.site is not None:
+        params["topics"] = site_topics(dep.site)
     return NodeSpec(
         "recorder",
         "recorder",
