@@ -9,7 +9,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 # pytest-xdist workers for make test (tests/conftest.py gives each its own ROS domains)
 TEST_WORKERS ?= 2
-PACKAGES := ros2_ws/src/excavation_common ros2_ws/src/ant_controller ros2_ws/src/blueprint_server ros2_ws/src/excavation_sim ros2_ws/src/overhead_localizer ros2_ws/src/terrain_mapper ros2_ws/src/blade_driver ros2_ws/src/team_supervisor ros2_ws/src/drive_executor ros2_ws/src/team_tick ros2_ws/src/excavation_bags ros2_ws/src/excavation_bringup ros2_ws/src/excavation_field evolution
+PACKAGES := ros2_ws/src/excavation_common ros2_ws/src/ant_controller ros2_ws/src/blueprint_server ros2_ws/src/excavation_sim ros2_ws/src/overhead_localizer ros2_ws/src/terrain_mapper ros2_ws/src/blade_driver ros2_ws/src/team_supervisor ros2_ws/src/drive_executor ros2_ws/src/team_tick ros2_ws/src/excavation_bags ros2_ws/src/excavation_bringup ros2_ws/src/excavation_field ros2_ws/src/dome_emulator evolution
 DEMO_OUT ?= demo_out
 # The test suite runs in a network namespace with only loopback where unshare works (CI runs
 # as root), which also proves that nothing in it talks to the outside.
@@ -21,7 +21,7 @@ $(STAMP): requirements.txt $(addsuffix /setup.py,$(filter ros2_ws/%,$(PACKAGES))
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements.txt 2>&1 | $(QUIET_PIP)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps $(addprefix -e ,$(PACKAGES)) 2>&1 | $(QUIET_PIP)
-	$(BIN)/python -c "import rclpy, numba, excavation_common, ant_controller, blueprint_server, excavation_sim, blade_driver, team_supervisor, drive_executor, ant_evolution, overhead_localizer, terrain_mapper, excavation_bags, team_tick, excavation_bringup, excavation_field"
+	$(BIN)/python -c "import rclpy, numba, excavation_common, ant_controller, blueprint_server, excavation_sim, blade_driver, team_supervisor, drive_executor, ant_evolution, overhead_localizer, terrain_mapper, excavation_bags, team_tick, excavation_bringup, excavation_field, dome_emulator"
 	touch $(STAMP)
 
 setup: $(STAMP)

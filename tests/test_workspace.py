@@ -24,6 +24,7 @@ PACKAGES = {
     "team_tick": ["team_tick"],
     "excavation_bringup": ["ant-trial", "ant-dome", "ant-view"],
     "excavation_field": ["ant-soak", "ant-field-experiment"],
+    "dome_emulator": ["base", "servo_board", "camera", "laser"],
 }
 
 

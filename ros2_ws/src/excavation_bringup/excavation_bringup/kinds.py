@@ -180,6 +180,14 @@ KINDS: dict[str, NodeKind] = {
             "ant-bag",
             "bag_player.yaml",
         ),
+        NodeKind(
+            "emulated_base",
+            "dome_emulator",
+            "dome_emulator.base_node",
+            "BaseNode",
+            ("dome_emulator.base:BaseParams",),
+            "base",
+        ),
     )
 }
 """Every node kind, by name."""
