@@ -13,5 +13,5 @@ class TruthError(FieldError):
     """A message from the simulated world (pose, height map, blade state) cannot be used."""
 
 
-class PtyError(OSError):
+class PtyError(FieldError):
     """The servo board's pseudo-terminal, its link or its path file cannot be set up."""

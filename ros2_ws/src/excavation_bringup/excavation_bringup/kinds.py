@@ -188,6 +188,14 @@ KINDS: dict[str, NodeKind] = {
             ("dome_emulator.base:BaseParams",),
             "base",
         ),
+        NodeKind(
+            "emulated_servo_board",
+            "dome_emulator",
+            "dome_emulator.servo_board_node",
+            "ServoBoardNode",
+            ("dome_emulator.servo_board:ServoBoardParams",),
+            "servo_board",
+        ),
     )
 }
 """Every node kind, by name."""
