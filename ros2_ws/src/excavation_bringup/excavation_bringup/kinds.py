@@ -196,6 +196,14 @@ KINDS: dict[str, NodeKind] = {
             ("dome_emulator.servo_board:ServoBoardParams",),
             "servo_board",
         ),
+        NodeKind(
+            "emulated_camera",
+            "dome_emulator",
+            "dome_emulator.camera_node",
+            "CameraNode",
+            ("dome_emulator.camera:CameraEmulatorParams",),
+            "camera",
+        ),
     )
 }
 """Every node kind, by name."""
