@@ -17,6 +17,7 @@ setup(
         "blade_driver",
         "excavation_sim",
         "overhead_localizer",
+        "terrain_mapper",
         "numpy",
         "opencv-python-headless",
     ],

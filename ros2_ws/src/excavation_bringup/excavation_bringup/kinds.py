@@ -204,6 +204,14 @@ KINDS: dict[str, NodeKind] = {
             ("dome_emulator.camera:CameraEmulatorParams",),
             "camera",
         ),
+        NodeKind(
+            "emulated_laser",
+            "dome_emulator",
+            "dome_emulator.laser_node",
+            "LaserNode",
+            ("dome_emulator.laser:LaserEmulatorParams",),
+            "laser",
+        ),
     )
 }
 """Every node kind, by name."""
