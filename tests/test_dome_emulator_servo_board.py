@@ -159,6 +159,15 @@ def test_the_serial_blade_driver_moves_the_world_blade_through_the_board(ros, tm
     )
     plant = world.create_publisher(JointState, "/robot_0/world/plant_state", 10)
 
+    # The port survives a host that closes it and opens it again (the driver's reconnect).
+    from blade_driver.serial_backend import SerialBackend
+
+    for _ in range(2):
+        link_to_board = SerialBackend(str(link), timeout=1.0)
+        try:
+            assert link_to_board.ping() == "dome_emulator/1"
+        finally:
+            link_to_board.close()
     # The real driver, serial backend, on the board's stable name.
     blade_driver_node(ros, backend="serial", port=str(link), rate=50.0)
     probe = blade_probe(ros)
