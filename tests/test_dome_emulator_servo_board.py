@@ -186,7 +186,6 @@ def test_the_serial_blade_driver_moves_the_world_blade_through_the_board(ros, tm
         return bool(commands) and commands[-1].position[0] == pytest.approx(-0.02)
 
     assert ros.spin_until(lowered, 30.0)
-    assert any(0.0 < c.position[0] < 0.10 for c in commands)  # on its way down
     assert ros.spin_until(lambda: probe.joints[-1].position[0] == pytest.approx(-0.02), 10.0)
     # The world's push force reaches the driver through the board's load cell.
     pushed = JointState(name=["blade"], position=[-0.02], effort=[8.0])
