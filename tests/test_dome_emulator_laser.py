@@ -62,6 +62,11 @@ def test_scans_wait_for_the_worlds_heights_and_a_late_device_drops_its_backlog()
     out = core.due(T0 + 2 * S)  # held up 1.75 s: only the last 0.2 s goes out
     assert min(o.stamp_ns for o in out) >= T0 + 2 * S - S // 5
     assert core.dropped > 0
+    out = core.due(T0 + 3600 * S)  # an hour's stall (or a clock jump) costs no hour of work
+    assert min(o.stamp_ns for o in out) >= T0 + 3600 * S - S // 5
+    assert len(out) <= 0.2 * (40 + 100) + 2
+    # every mount state (0 .. 360000) and scan (0 .. 143999) once: sent, waited or dropped
+    assert core.dropped + core.scans + core.mount_states + core.waiting == 360_001 + 144_000
 
 
 @pytest.mark.parametrize("j", [5, 70])  # a scan on the way up, one on the way down

@@ -216,6 +216,7 @@ class LaserCore:
         backlog_ns = int(round(p.max_backlog * 1e9))
         last_beam_ns = int(round((p.beams - 1) * p.time_increment * 1e9))
         out: list[Output] = []
+        self.skip_backlog(now_ns - backlog_ns)
         while self.mount_stamp(self.next_mount) <= now_ns:
             stamp = self.mount_stamp(self.next_mount)
             self.next_mount += 1
@@ -236,6 +237,17 @@ class LaserCore:
                 out.append(scan)
         out.sort(key=lambda o: o.stamp_ns)
         return out
+
+    def skip_backlog(self, oldest_ns: int) -> None:
+        """Drop at once what is older than ``oldest_ns`` (a long stall, or a clock jump)."""
+        p = self.params
+        first_mount = max(0, -(-(oldest_ns - self.start_ns) * p.mount_rate // 1e9))
+        first_scan = max(0, -(-(oldest_ns - self.start_ns) * p.scan_rate // 1e9))
+        for name, first in (("next_mount", int(first_mount)), ("next_scan", int(first_scan))):
+            behind = first - getattr(self, name) - 1  # the one at the edge is judged below
+            if behind > 0:
+                self.dropped += behind
+                setattr(self, name, getattr(self, name) + behind)
 
     def render(self, j: int) -> Scan | None:
         """Scan ``j`` of the world's current heights (None: no height map yet)."""
