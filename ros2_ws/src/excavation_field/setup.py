@@ -14,6 +14,11 @@ setup(
     ],
     install_requires=[
         "excavation_bringup",
+        "excavation_common",
+        "ant_controller",
+        "blueprint_server",
+        "drive_executor",
+        "terrain_mapper",
         "ant-evolution",
         "numpy",
         "matplotlib",
