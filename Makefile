@@ -65,7 +65,7 @@ else
 	unshare -n sh -c 'ip link set lo up 2>/dev/null; $(call tests_of,$(SYSTEM))'
 endif
 
-# Integration tests marked pending (docs/reliability.md, "Pending"; none now).
+# Integration tests marked pending (docs/reliability.md, "Pending").
 test-pending: setup
 	$(BIN)/python -m pytest -q -m pending tests || [ $$? -eq 5 ]  # 5: none pending
 
