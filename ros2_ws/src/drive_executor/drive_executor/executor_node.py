@@ -330,8 +330,13 @@ class ExecutorNode(LifecycleNode):
         )
 
 
+_STOP: list[int] = []
+"""Signals received: the spin loop ends at the next wake-up (raising from the handler could
+land inside a middleware call and turn into a RuntimeError there)."""
+
+
 def _interrupt(signum, frame) -> None:
-    raise KeyboardInterrupt
+    _STOP.append(signum)
 
 
 def main(args: list[str] | None = None) -> int:
@@ -360,7 +365,8 @@ def main(args: list[str] | None = None) -> int:
     try:
         node.trigger_configure()
         node.trigger_activate()
-        rclpy.spin(node)
+        while not _STOP and rclpy.ok():
+            rclpy.spin_once(node, timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
