@@ -156,6 +156,32 @@ def test_sim_driver_node_answers_each_tick_in_sim_time(ros):
     assert cmd.position[0] == pytest.approx(0.10)
 
 
+def test_sim_driver_gives_a_late_reader_the_ticks_joint_state(ros):
+    """A reader matched after the tick's relay (a controller that joined late) gets it too.
+
+    The relay goes out once per tick on a volatile writer; without the copy, a controller
+    matched a moment later waited for its tick until the next (a robot idled tick 0).
+    """
+    from builtin_interfaces.msg import Time
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+
+    from blade_driver.driver_node import joint_state
+
+    blade_driver_node(ros, backend="sim")
+    probe = blade_probe(ros)
+    assert ros.spin_until(lambda: probe.count_subscribers("/robot_0/blade/servo_state") > 0)
+    probe.state.publish(joint_state(0.10, 0.0, Time(sec=7)))
+    assert ros.spin_until(lambda: probe.joints and probe.joints[-1].header.stamp.sec == 7)
+    late: list[JointState] = []
+    reader = ros.add(Node("late_controller", context=ros.context))
+    reader.create_subscription(JointState, "/robot_0/blade/joint_states", late.append, 10)
+    assert ros.spin_until(lambda: late)
+    assert {m.header.stamp.sec for m in late} == {7}
+    assert ros.spin_until(lambda: len(probe.joints) >= 2)  # the first reader got the copy too
+    assert {m.header.stamp.sec for m in probe.joints} == {7}
+
+
 def _drive_status(probe, tick, status):
     """Publish what the drive executor says about its goal of ``tick`` (sec)."""
     from action_msgs.msg import GoalStatus

@@ -249,7 +249,6 @@ def _missed_lines(sim_log: str) -> str:
     return "\n".join(line for line in sim_log.splitlines() if "no command from" in line)
 
 
-@pytest.mark.pending  # a robot may miss a word when the recorder dies (docs/reliability.md)
 def test_recorder_killed_and_restarted(tmp_path, domain, capsys):
     """The killed bag is truncated and recoverable; a restart records into a new bag.
 
@@ -302,7 +301,6 @@ def test_recorder_killed_and_restarted(tmp_path, domain, capsys):
     assert "/blueprint/zones" in new.topics  # latched: recorded again by the new bag
 
 
-@pytest.mark.pending  # a robot may miss a word when the recorder dies (docs/reliability.md)
 def test_recorder_disk_full(tmp_path, domain, capsys):
     """Writes fail (RLIMIT_FSIZE): one error line, the trial goes on, the bag is recoverable."""
     bag = tmp_path / "bag"

@@ -178,6 +178,40 @@ def test_simulator_waits_for_every_controller_to_be_ready(ros):
     assert ros.spin_until(lambda: sim.clock.started)
 
 
+def test_simulator_waits_until_its_tick_reaches_each_controller(ros):
+    """Another reader of a robot's topics (a recorder, a view) does not stand in for the
+    robot's controller: tick 0 waits until the writers reach the controller itself."""
+    from excavation_sim.sim_node import SimNode
+
+    sim = ros.add(
+        SimNode(
+            context=ros.context,
+            parameter_overrides=[
+                Parameter("robots", value=1),
+                Parameter("steps", value=3),
+                Parameter("supervised", value=False),
+                Parameter("startup_period", value=0.0),
+            ],
+        )
+    )
+    recorder = ros.add(Node("recorder", context=ros.context))
+    for msg_type, topic in (
+        (PoseWithCovarianceStamped, "/robot_0/pose"),
+        (Bool, "/robot_0/stuck"),
+        (JointState, "/robot_0/blade/joint_states"),
+    ):
+        recorder.create_subscription(msg_type, topic, lambda m: None, 10)
+    # the controller: publishes its word and reads its pose and joint state, not yet U1
+    controller = ros.add(Node("controller", namespace="/robot_0", context=ros.context))
+    controller.create_publisher(UInt16, "behaviour", 10)
+    controller.create_subscription(PoseWithCovarianceStamped, "pose", lambda m: None, 10)
+    controller.create_subscription(JointState, "blade/joint_states", lambda m: None, 10)
+    reports_from(ros, sim)
+    assert not sim.clock.started  # the recorder reads /robot_0/stuck, the controller not yet
+    controller.create_subscription(Bool, "stuck", lambda m: None, 10)
+    assert ros.spin_until(lambda: sim.clock.started)
+
+
 def test_team_tick_waits_for_every_controller_to_be_ready(ros):
     """The continuous trial's tick 0 as the lockstep simulator's: a recorder (or any other
     node) subscribed to the tick topics must not stand in for a controller that is not yet

@@ -64,6 +64,7 @@ import sys
 from action_msgs.msg import GoalStatus
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray, Header, UInt16
@@ -175,7 +176,13 @@ class BladeDriverNode(LifecycleNode):
             self._io.append(sub(GoalStatus, "drive/status", self.on_drive_status, 10))
             if p.backend != "sim":
                 self._io.append(sub(Header, TEAM_TICK_TOPIC, self.on_team_tick, 10))
-        self.joint_pub = self.create_publisher(JointState, "blade/joint_states", 10)
+        self.last_joint: JointState | None = None
+        self.joint_pub = self.create_publisher(
+            JointState,
+            "blade/joint_states",
+            10,
+            event_callbacks=PublisherEventCallbacks(matched=self.on_joint_reader),
+        )
         if p.backend == "sim":
             self.servo_pub = self.create_publisher(JointState, "blade/servo_command", 10)
             self._io.append(
@@ -360,8 +367,21 @@ class BladeDriverNode(LifecycleNode):
         if self.tick_stamp is not None and _seconds(msg.header.stamp) < _seconds(self.tick_stamp):
             self.restart(msg.header.stamp)
         self.tick_stamp = msg.header.stamp
-        self.joint_pub.publish(joint_state(self.position, self.force, msg.header.stamp))
+        self.last_joint = joint_state(self.position, self.force, msg.header.stamp)
+        self.joint_pub.publish(self.last_joint)
         self.send_sim_setpoint()
+
+    def on_joint_reader(self, info) -> None:
+        """Sim backend: a new reader of the joint states gets the current tick's too.
+
+        The sim backend relays each tick's joint state once, and a volatile writer keeps
+        nothing for a reader it matches later: a controller matched just after the relay
+        would wait for its tick until the next (seen: a robot idled tick 0). The copy is
+        stamped with its tick and comes before any newer one from this writer, so a reader
+        that has it already changes nothing.
+        """
+        if info.current_count_change > 0 and self.last_joint is not None:
+            self.joint_pub.publish(self.last_joint)
 
     def restart(self, stamp: TimeMsg) -> None:
         """Sim backend: the simulator's time went back (it restarted): a new trial.

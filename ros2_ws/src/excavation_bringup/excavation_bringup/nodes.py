@@ -317,9 +317,10 @@ def server(dep: Deployment) -> NodeSpec:
 def sim(dep: Deployment, files: RunFiles, processes: bool) -> NodeSpec:
     """The lockstep simulator: the clock of a grid trial, and its final node.
 
-    With full perception its truth moves under ``/truth`` and tick 0 waits for every
-    controller's ``ready``; as a process it writes ``result.json`` at the end and, with a
-    recorder, tick 0 waits for it.
+    Tick 0 waits for every controller's ``ready`` (each has connected all its inputs, the
+    blade driver's joint states among them); with full perception its truth moves under
+    ``/truth``; as a process it writes ``result.json`` at the end and, with a recorder, tick
+    0 waits for it.
     """
     params: dict[str, Any] = {
         "blueprint": dep.blueprint,
@@ -329,11 +330,12 @@ def sim(dep: Deployment, files: RunFiles, processes: bool) -> NodeSpec:
         "scenario": dep.scenario,
         "command_timeout": float(dep.command_timeout),
         "blade_driver": dep.blade_driver,
+        "wait_for_ready": True,
     }
     if processes:
         params |= {"result_file": str(files.result), "wait_for_recorder": bool(dep.record)}
     if dep.full:
-        params |= {"truth_prefix": TRUTH_PREFIX, "wait_for_ready": True}
+        params["truth_prefix"] = TRUTH_PREFIX
     return NodeSpec("sim", "sim", params, ("/sim",), restart=False, final=True)
 
 

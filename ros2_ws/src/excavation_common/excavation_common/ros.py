@@ -251,6 +251,35 @@ def recorder_subscribes(node: Node, topics) -> bool:
     )
 
 
+def endpoint_name(info) -> str:
+    """The fully qualified name of the node behind a graph endpoint (``/robot_0/controller``)."""
+    return f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+
+
+def publishers_of(node: Node, topic: str) -> set[str]:
+    """Fully qualified names of the nodes that publish ``topic`` (as ``node``'s graph sees it)."""
+    return {endpoint_name(i) for i in node.get_publishers_info_by_topic(topic)}
+
+
+def reaches(node: Node, publisher, readers=()) -> bool:
+    """Whether a message ``publisher`` sends now reaches every subscription it will ever reach.
+
+    A reliable, volatile writer delivers only to the readers it has matched when it writes;
+    a reader matched later never gets that message (it is not kept for it). A node that
+    publishes something only once (the lockstep simulator's tick 0, a relay's tick) must
+    wait until its writer has matched every subscription the graph shows on the topic, and
+    the graph shows one of each node in ``readers`` (fully qualified names). Seen: a
+    controller whose blade driver's joint state of tick 0 went out before the two had
+    matched waited for it until tick 1, and its robot idled tick 0.
+
+    A subscription whose QoS cannot match the writer's keeps this false: the caller says
+    what it waits for.
+    """
+    subscriptions = node.get_subscriptions_info_by_topic(publisher.topic_name)
+    present = {endpoint_name(i) for i in subscriptions}
+    return set(readers) <= present and publisher.get_subscription_count() >= len(subscriptions)
+
+
 def diagnostics(
     node: Node,
     level: bytes,

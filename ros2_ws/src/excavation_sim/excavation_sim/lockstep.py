@@ -52,7 +52,7 @@ class SimParams:
         True, "apply ticks only while the team supervisor's heartbeat says armed"
     )
     wait_for_ready: bool = param(
-        False, "tick 0 also waits for every controller's latched ready (perception trials)"
+        False, "tick 0 also waits for every controller's latched ready (every trial graph)"
     )
     wait_for_recorder: bool = param(
         False, "tick 0 also waits for the bag recorder (node bag_recorder) to subscribe /clock"

@@ -11,10 +11,12 @@ The node owns a :class:`excavation_sim.world.World` (scenario 0 of ``seed``, the
    robot that does not answer idles this tick, which is reported on ``/diagnostics``);
 3. apply the commands in robot order (the offline rule) and go on with tick t + 1.
 
-Tick 0 is published once every robot's controller is on the graph (it publishes
-``/robot_k/behaviour`` and subscribes ``/robot_k/pose``) and ``startup_period`` has passed
-since, so no controller misses it; nothing is ever published twice for one tick, which is
-what lets a controller pair the unstamped ``stuck`` flag with its tick. After ``steps``
+Tick 0 is published once every robot's controller is on the graph (the node that
+publishes ``/robot_k/behaviour``), every writer of the tick has matched each reader the
+graph shows and the controller's own readers among them (a message sent before a reader is
+matched is lost to it), and ``startup_period`` has passed since, so no controller misses
+it; nothing is ever published twice for one tick, which is what lets a controller pair the
+unstamped ``stuck`` flag with its tick. After ``steps``
 ticks the node publishes the final state and fitness and stops stepping (``finished``).
 
 Parameters: ``blueprint`` (``default``, ``default:D``, ``landing-pad`` or a file),
@@ -82,6 +84,8 @@ from excavation_common.ros import (
     LATCHED,
     declare_params,
     diagnostics,
+    publishers_of,
+    reaches,
     recorder_subscribes,
     spin_node,
 )
@@ -277,34 +281,41 @@ class SimNode(Node):
     def controllers_present(self) -> bool:
         """Every robot's controller (and blade driver, and recorder) is on the graph and connected.
 
-        Besides the graph, the middleware must have matched this node's per-robot publishers
-        with their subscribers and its command subscriptions with their publishers: a message
-        sent before that is lost, and a robot would miss tick 0.
+        Tick 0 is published once, so every writer of the tick must already deliver to each
+        node that needs it (:func:`excavation_common.ros.reaches`: a message sent before the
+        middleware has matched a reader is lost to it, and the robot would wait for it until
+        tick 1). The controller of robot k is the node that publishes ``/robot_k/behaviour``
+        and its blade driver the one that publishes ``/robot_k/blade/servo_command``; with
+        ``wait_for_ready`` each controller has also connected every one of its inputs (the
+        blade driver's joint states among them).
         """
         if self.params.wait_for_ready and len(self.ready) < self.n:
             return False
         if self.params.wait_for_recorder and not recorder_subscribes(self, ["/clock"]):
             return False
-        readers = self.n if not self.truth_prefix else 1
-        matched = all(s.get_publisher_count() > 0 for s in self.inputs) and all(
-            self.pose_pubs[k].get_subscription_count() >= readers
-            and self.stuck_pubs[k].get_subscription_count() > 0
-            and self.joint_pubs[k].get_subscription_count() > 0
-            for k in range(self.n)
-        )
-        return matched and all(
-            self.count_publishers(f"/robot_{k}/behaviour") > 0
-            and self.count_subscribers(f"/robot_{k}/pose") > 0
-            and self.count_subscribers(f"{self.truth_prefix}/robot_{k}/pose") > 0
-            and (
-                not self.blade_driver
-                or (
-                    self.count_publishers(f"/robot_{k}/blade/servo_command") > 0
-                    and self.count_subscribers(f"/robot_{k}/blade/servo_state") > 0
-                )
-            )
-            for k in range(self.n)
-        )
+        if not all(s.get_publisher_count() > 0 for s in self.inputs):
+            return False
+        controllers, drivers = [], []
+        for k in range(self.n):
+            controller = publishers_of(self, f"/robot_{k}/behaviour")
+            driver = publishers_of(self, f"/robot_{k}/blade/servo_command")
+            if not controller or (self.blade_driver and not driver):
+                return False
+            controllers.append(controller)
+            drivers.append(driver)
+        everyone = set().union(*controllers)
+        for k in range(self.n):
+            pose_readers = set() if self.truth_prefix else everyone
+            joint_readers = drivers[k] if self.blade_driver else controllers[k]
+            if not (
+                reaches(self, self.pose_pubs[k], pose_readers)
+                and reaches(self, self.stuck_pubs[k], controllers[k])
+                and reaches(self, self.joint_pubs[k], joint_readers)
+                and reaches(self, self.imu_pubs[k])
+                and self.count_subscribers(f"{self.truth_prefix}/robot_{k}/pose") > 0
+            ):
+                return False
+        return True
 
     def on_servo_command(self, k: int, msg: JointState) -> None:
         """A blade driver's set-point for the current tick (stamped with it; others dropped)."""
