@@ -58,6 +58,8 @@ from excavation_common.ros import (
     LATCHED,
     declare_params,
     diagnostics,
+    publishers_of,
+    reaches,
     recorder_subscribes,
     spin_node,
 )
@@ -245,7 +247,10 @@ class TeamTickNode(Node):
         and with ``wait_for_ready`` every controller has said ``ready`` (its subscriptions to
         this node's tick topics are matched: a tick-0 pose sent before that is lost, and a
         recorder subscribed to the same topic makes this node's own subscriber count say
-        nothing of the controllers; seen: robot 1 missed tick 0 of a recorded process trial).
+        nothing of the controllers; seen: robot 1 missed tick 0 of a recorded process trial),
+        and each tick writer has matched every reader the graph shows, the robot's own
+        controller (the node that publishes ``/robot_k/behaviour``) and executor (``drive/
+        status``) among them (:func:`excavation_common.ros.reaches`).
         """
         if self.topics.wait_for_ready and len(self.ready) < self.n:
             return False
@@ -253,12 +258,19 @@ class TeamTickNode(Node):
             self, [p.topic_name for p in self.publishers]
         ):
             return False
-        return all(s.get_publisher_count() > 0 for s in self.inputs) and all(
-            self.pose_pubs[k].get_subscription_count() > 0
-            and self.stuck_pubs[k].get_subscription_count() > 0
-            and self.goal_pubs[k].get_subscription_count() > 0
+        if not all(s.get_publisher_count() > 0 for s in self.inputs):
+            return False
+        controllers = [publishers_of(self, f"/robot_{k}/behaviour") for k in range(self.n)]
+        executors = [publishers_of(self, f"/robot_{k}/drive/status") for k in range(self.n)]
+        if not all(controllers) or not all(executors):
+            return False
+        everyone = set().union(*controllers)
+        return all(
+            reaches(self, self.pose_pubs[k], everyone)
+            and reaches(self, self.stuck_pubs[k], controllers[k])
+            and reaches(self, self.goal_pubs[k], executors[k])
+            and reaches(self, self.blade_pubs[k])
             and self.blade_pubs[k].get_subscription_count() > 0
-            and self.count_publishers(f"/robot_{k}/behaviour") > 0
             for k in range(self.n)
         )
 
