@@ -25,6 +25,7 @@ workers start on the first chunks while this process compiles the rest.
 
 from __future__ import annotations
 
+import copy
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -87,6 +88,19 @@ def _unchunk(results: list[list[float]]) -> np.ndarray:
     return out
 
 
+def _writable_items(task: Callable, items, *args):
+    """``task(items, *args)`` on a writable copy of ``items`` (a Ray worker's task).
+
+    Ray hands a task the numpy arrays of its arguments read-only (zero-copy from its object
+    store), and numba types a read-only array apart from a writable one: every kernel taking
+    a program that came that way compiled once more in each Ray worker, for minutes on a
+    cold cache, although the cache held the same kernel for writable arrays (the NEAT
+    programs of ``CompileHere``). Only the individuals are copied (microseconds): the
+    scenario sets' arrays are read-only by design, wherever they are.
+    """
+    return task(copy.deepcopy(items), *args)
+
+
 def start_workers(workers: int, ray_address: str | None, task) -> tuple:
     """Start the workers of a backend: ``(pool, ray, remote task, worker count)``.
 
@@ -102,7 +116,11 @@ def start_workers(workers: int, ray_address: str | None, task) -> tuple:
                 ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
             else:
                 ray.init(address=ray_address, log_to_driver=False)
-        return None, ray, ray.remote(task), max(1, int(ray.cluster_resources().get("CPU", 1)))
+        def on_ray(items, *args):
+            return _writable_items(task, items, *args)
+
+        remote = ray.remote(on_ray)
+        return None, ray, remote, max(1, int(ray.cluster_resources().get("CPU", 1)))
     if workers > 1:
         return ProcessPoolExecutor(workers, mp_context=get_context("spawn")), None, None, workers
     return None, None, None, workers
