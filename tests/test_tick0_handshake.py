@@ -317,3 +317,31 @@ def test_team_tick_node_sends_each_action_as_its_message(ros, tmp_path):
     assert tick.reports == ["tick 3: a report"]
     summary = json.loads(result.read_text())
     assert summary["reports"] == ["tick 3: a report"] and summary["commands"] == [[0x21]]
+
+
+def test_a_recorded_dome_has_every_tick_topic_in_the_bag(ros):
+    """In the dome the team tick republishes each blade state on ``blade/tick_state``; a
+    recorder that leaves it out holds a recorded dome at tick 0 for ever (seen in the first
+    recorded rehearsal: "waiting for the team"), so the suite's topics include it."""
+    from team_tick.node import TeamTickNode
+
+    from excavation_bags.topics import SUITE_TOPICS, topic_selected
+    from excavation_bringup.nodes import DOME_BLADE_IN, DOME_BLADE_OUT
+
+    tick = ros.add(
+        TeamTickNode(
+            context=ros.context,
+            parameter_overrides=[
+                Parameter("robots", value=2),
+                Parameter("steps", value=1),
+                Parameter("blade_in", value=DOME_BLADE_IN),
+                Parameter("blade_out", value=DOME_BLADE_OUT),
+                Parameter("snapshot_ack", value=False),
+            ],
+        )
+    )
+    from excavation_common.ros import UNRECORDED
+
+    topics = [p.topic_name for p in tick.publishers if p.topic_name not in UNRECORDED]
+    assert "/robot_1/blade/tick_state" in topics
+    assert [t for t in topics if not topic_selected(t, SUITE_TOPICS)] == []

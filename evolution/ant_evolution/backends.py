@@ -116,6 +116,7 @@ def start_workers(workers: int, ray_address: str | None, task) -> tuple:
                 ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
             else:
                 ray.init(address=ray_address, log_to_driver=False)
+
         def on_ray(items, *args):
             return _writable_items(task, items, *args)
 

@@ -36,6 +36,7 @@ SUITE_TOPICS: tuple[str, ...] = (
     "/robot_*/blade/servo_command",
     "/robot_*/blade/servo_state",
     "/robot_*/blade/plant_state",
+    "/robot_*/blade/tick_state",
     "/robot_*/cmd_vel",
     "/robot_*/drive/goal",
     "/robot_*/drive/status",
@@ -48,7 +49,8 @@ SUITE_TOPICS: tuple[str, ...] = (
 )
 """The node suite's topics (docs/interfaces.md); ``*`` matches a robot index
 (``/team/*``: e-stop, heartbeat, tick, snapshot requests and their acknowledgements;
-``/tick/*``: the snapshot the team tick republishes per tick in a continuous trial).
+``/tick/*``: the snapshot the team tick republishes per tick in a continuous trial;
+``/robot_*/blade/tick_state``: in the dome, the blade state it republishes per tick).
 
 ``/overhead/image_raw`` is recorded as ``/overhead/image_raw/compressed`` (see
 :mod:`excavation_bags.recorder_node`)."""

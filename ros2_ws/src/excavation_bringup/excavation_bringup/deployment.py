@@ -5,11 +5,13 @@ launch it (:mod:`excavation_bringup.launch`): the drive (``grid``: the lockstep 
 applies each word at once; ``continuous``: drive executors, the team tick and the
 continuous-motion simulator), the perception (``truth``: the simulator's poses and heights;
 ``full``: camera + localiser, laser + mapper), the hardware (``sim``: the simulator stands in
-for the robots; ``dome``: the site's drivers), the supervisor (``internal``: started and
-armed; ``external``: an operator's), recording, and the launcher (composed in one process,
-or a process per node). ``ant-trial`` builds one from its options; ``ant-dome`` from a site
-file (:meth:`Deployment.from_site`), which then supplies topics, offsets, the LED table and
-each robot's genome. :meth:`Deployment.check` refuses combinations that cannot run.
+for the robots; ``dome``: the site's drivers; ``emulated``: the dome's table against emulated
+drivers in front of the simulated world, ``ant-dome rehearse``), the supervisor
+(``internal``: started and armed; ``external``: an operator's), recording, and the launcher
+(composed in one process, or a process per node). ``ant-trial`` builds one from its
+options; ``ant-dome`` from a site file (:meth:`Deployment.from_site`), which then supplies
+topics, offsets, the LED table and each robot's genome. :meth:`Deployment.check` refuses
+combinations that cannot run.
 
 Pure module: no ``rclpy``.
 """
@@ -22,7 +24,7 @@ from excavation_bringup import site as sitefile
 
 DRIVES = ("grid", "continuous")
 PERCEPTIONS = ("truth", "full")
-HARDWARE = ("sim", "dome")
+HARDWARE = ("sim", "dome", "emulated")
 SUPERVISORS = ("internal", "external")
 
 
@@ -54,7 +56,9 @@ class Deployment:
         drive: ``grid`` or ``continuous``.
         exact: The continuous-motion simulator without slip and noise (the parity setting).
         processes: Each node in its own process (else composed in this one).
-        hardware: ``sim`` or ``dome``.
+        hardware: ``sim``, ``dome`` or ``emulated`` (the dome's table, unchanged, against
+            :mod:`dome_emulator`'s drivers and the continuous-motion world on the wall
+            clock).
         site: The site file the run comes from (``ant-dome``), or ``None``.
         first_command_timeout: Wall seconds tick 0 waits for the words (``None``: the
             timing profile's).
@@ -95,6 +99,11 @@ class Deployment:
         return self.hardware == "sim"
 
     @property
+    def emulated(self) -> bool:
+        """The dome's table against emulated drivers (a rehearsal)."""
+        return self.hardware == "emulated"
+
+    @property
     def profile_name(self) -> str:
         """The timing profile (:mod:`excavation_bringup.profiles`) this run uses."""
         if not self.sim:
@@ -131,31 +140,34 @@ class Deployment:
             )
         if not self.sim and (self.drive != "continuous" or not self.full or self.site is None):
             raise DeploymentError(
-                "hardware: dome runs a site file's continuous drive with full perception"
+                f"hardware: {self.hardware} runs a site file's continuous drive with full "
+                "perception"
             )
         if not self.sim and not self.processes:
-            raise DeploymentError("hardware: dome runs every node as its own process")
+            raise DeploymentError(f"hardware: {self.hardware} runs every node as its own process")
 
     @classmethod
     def from_site(
         cls,
         site: sitefile.Site,
-        sim: bool,
+        hardware: str,
         ticks: int | None = None,
         record: str | None = None,
         domain: int | None = None,
     ) -> Deployment:
-        """The run ``ant-dome up SITE`` starts (``--sim``: the simulator for the robots).
+        """The run ``ant-dome up SITE`` (``--sim``) or ``ant-dome rehearse SITE`` starts.
 
         Args:
             site: The checked site.
-            sim: ``--sim``.
-            ticks: Ticks to run (default: with ``sim`` the site's ``sim.ticks``; the dome
-                runs until stopped, 0).
+            hardware: ``dome`` (``up``), ``sim`` (``up --sim``) or ``emulated``
+                (``rehearse``).
+            ticks: Ticks to run (default: simulated or emulated the site's ``sim.ticks``;
+                the dome runs until stopped, 0).
             record: ``--record``'s bag directory.
             domain: ``--domain`` (default: the site's).
         """
         s = site.sim
+        sim = hardware != "dome"  # a simulated world: the site's scenario and its ticks
         return cls(
             controller="",
             robots=site.n_robots,
@@ -173,7 +185,7 @@ class Deployment:
             drive="continuous",
             exact=s.exact,
             processes=True,
-            hardware="sim" if sim else "dome",
+            hardware=hardware,
             site=site,
-            first_command_timeout=float(s.first_command_timeout) if sim else None,
+            first_command_timeout=float(s.first_command_timeout) if hardware == "sim" else None,
         )

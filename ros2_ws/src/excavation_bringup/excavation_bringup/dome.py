@@ -50,6 +50,7 @@ import json
 import os
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -63,7 +64,7 @@ from excavation_bringup.nodes import RunFiles
 def dome_graph(
     site: sitefile.Site,
     run_dir: Path,
-    sim: bool = False,
+    hardware: str = "dome",
     record: str | None = None,
     view: bool = False,
     ticks: int | None = None,
@@ -72,25 +73,27 @@ def dome_graph(
 ) -> Graph:
     """Every process of the dome, in start order (stopped in reverse).
 
-    Writes the files the nodes read into ``run_dir`` (the site's LED table, and with
-    ``sim`` or a ``simulated`` calibration the synthetic camera's model).
+    ``hardware``: ``dome`` (``up``), ``sim`` (``up --sim``) or ``emulated`` (``rehearse``).
+    Writes the files the nodes read into ``run_dir`` (the site's LED table, and with a
+    ``simulated`` calibration the synthetic camera's model).
     """
-    dep = Deployment.from_site(site, sim, ticks, record, domain)
+    dep = Deployment.from_site(site, hardware, ticks, record, domain)
     dep.check()
     return continuous(dep, run_dir, view, view_port)
 
 
 def cmd_check(args: argparse.Namespace) -> int:
     """``ant-dome check``."""
-    site, errors = sitefile.check_site(args.site, sim=args.sim)
+    site, errors = sitefile.check_site(args.site, sim=args.sim, emulated=args.rehearse)
     for e in errors:
         print(str(e))
     if errors:
         print(f"ant-dome: {len(errors)} problem(s) in {args.site}", file=sys.stderr)
         return 1
+    hardware = "simulated" if args.sim else "emulated" if args.rehearse else "dome"
     print(
         f"ant-dome: {args.site} is consistent ({site.n_robots} robots, domain "
-        f"{site.network.domain}, {'simulated' if args.sim else 'dome'} hardware)"
+        f"{site.network.domain}, {hardware} hardware)"
     )
     return 0
 
@@ -108,9 +111,55 @@ def sim_result(run_dir: Path) -> dict | None:
     return json.loads(ticks.read_text()) | {"fitness": data["fitness"], "heights": data["heights"]}
 
 
-def cmd_up(args: argparse.Namespace) -> int:
-    """``ant-dome up``."""
-    site, errors = sitefile.check_site(args.site, sim=args.sim)
+class Arming:
+    """A rehearsal's operator: arms the team once the supervisor answers (a thread).
+
+    As a person would with ``ant-operator arm``: the dome's supervisor starts disarmed and
+    nothing moves before it is armed. It asks every ``retry`` seconds until the
+    supervisor agrees or the run ends.
+    """
+
+    def __init__(self, domain: int, report, retry: float = 2.0) -> None:
+        self.domain = domain
+        self.report = report
+        self.retry = retry
+        self.armed = False
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="ant-dome-arming", daemon=True)
+
+    def start(self) -> None:
+        """Begin asking."""
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop asking (the run ended)."""
+        self._stop.set()
+        self._thread.join(timeout=30.0)
+
+    def _run(self) -> None:
+        from team_supervisor.operator import NoAnswer, Operator
+
+        operator = Operator(self.domain, timeout=self.retry)
+        try:
+            while not self._stop.is_set():
+                try:
+                    ok, message = operator.trigger("arm")
+                except NoAnswer:
+                    ok, message = False, ""
+                if ok:
+                    self.armed = True
+                    self.report(f"armed the team (as ant-operator arm): {message}")
+                    return
+                self._stop.wait(self.retry)
+        finally:
+            operator.close()
+
+
+def bring_up(args: argparse.Namespace, hardware: str) -> int:
+    """``ant-dome up`` (``dome`` or ``sim`` hardware) and ``ant-dome rehearse`` (``emulated``)."""
+    site, errors = sitefile.check_site(
+        args.site, sim=hardware == "sim", emulated=hardware == "emulated"
+    )
     if errors:
         for e in errors:
             print(f"ant-dome: error: {e}", file=sys.stderr)
@@ -118,7 +167,7 @@ def cmd_up(args: argparse.Namespace) -> int:
     run_dir = Path(args.run_dir or Path("dome_runs") / time.strftime("%Y%m%d-%H%M%S")).resolve()
     record = str(Path(args.record).resolve()) if args.record else None
     graph = dome_graph(
-        site, run_dir, args.sim, record, args.view, args.ticks, args.view_port, args.domain
+        site, run_dir, hardware, record, args.view, args.ticks, args.view_port, args.domain
     )
     env = dict(os.environ, **sitefile.environment(site, args.domain))
     dome = ProcessLauncher(graph, env, echo=not args.json)
@@ -128,8 +177,15 @@ def cmd_up(args: argparse.Namespace) -> int:
         f"bringing up {args.site} ({len(graph.nodes)} nodes, domain {env['ROS_DOMAIN_ID']}) "
         f"in {run_dir}"
     )
-    ok = dome.run(timeout=args.timeout)
-    result = sim_result(run_dir) if args.sim else None
+    arming = Arming(int(env["ROS_DOMAIN_ID"]), dome.report) if hardware == "emulated" else None
+    if arming is not None:
+        arming.start()
+    try:
+        ok = dome.run(timeout=args.timeout)
+    finally:
+        if arming is not None:
+            arming.stop()
+    result = sim_result(run_dir) if hardware != "dome" else None
     summary = {
         "ok": ok,
         "run_dir": str(run_dir),
@@ -151,6 +207,16 @@ def cmd_up(args: argparse.Namespace) -> int:
     return 0 if ok else 1
 
 
+def cmd_up(args: argparse.Namespace) -> int:
+    """``ant-dome up``."""
+    return bring_up(args, "sim" if args.sim else "dome")
+
+
+def cmd_rehearse(args: argparse.Namespace) -> int:
+    """``ant-dome rehearse``."""
+    return bring_up(args, "emulated")
+
+
 def parser() -> argparse.ArgumentParser:
     """The command line."""
     p = argparse.ArgumentParser(
@@ -162,25 +228,33 @@ def parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     c = sub.add_parser("check", help="name every inconsistency of a site file")
     c.add_argument("site", metavar="SITE")
-    c.add_argument("--sim", action="store_true", help="check it for ant-dome up --sim")
+    how = c.add_mutually_exclusive_group()
+    how.add_argument("--sim", action="store_true", help="check it for ant-dome up --sim")
+    how.add_argument("--rehearse", action="store_true", help="check it for ant-dome rehearse")
     c.set_defaults(run=cmd_check)
     u = sub.add_parser("up", help="bring the dome up from a site file")
-    u.add_argument("site", metavar="SITE")
     u.add_argument("--sim", action="store_true", help="the simulator in place of the hardware")
-    u.add_argument("--record", metavar="BAG", help="record every suite topic into this bag")
-    u.add_argument("--view", action="store_true", help="serve the live view (ant-view)")
-    u.add_argument("--view-port", type=int, default=8765)
-    u.add_argument(
-        "--ticks",
-        type=int,
-        default=None,
-        help="ticks to run (default: with --sim the site's; the dome until Ctrl-C)",
+    r = sub.add_parser(
+        "rehearse", help="the dome's table against emulated drivers, on the wall clock"
     )
-    u.add_argument("--domain", type=int, default=None, help="ROS domain (default: the site's)")
-    u.add_argument("--run-dir", metavar="DIR", help="default dome_runs/<date-time>")
-    u.add_argument("--timeout", type=float, default=None, help="give up after S seconds")
-    u.add_argument("--json", action="store_true", help="print the outcome as JSON")
+    for q in (u, r):
+        q.add_argument("site", metavar="SITE")
+        q.add_argument("--record", metavar="BAG", help="record every suite topic into this bag")
+        q.add_argument("--view", action="store_true", help="serve the live view (ant-view)")
+        q.add_argument("--view-port", type=int, default=8765)
+        q.add_argument(
+            "--ticks",
+            type=int,
+            default=None,
+            help="ticks to run (default: simulated or rehearsed the site's sim.ticks; the "
+            "dome until Ctrl-C)",
+        )
+        q.add_argument("--domain", type=int, default=None, help="ROS domain (default: the site's)")
+        q.add_argument("--run-dir", metavar="DIR", help="default dome_runs/<date-time>")
+        q.add_argument("--timeout", type=float, default=None, help="give up after S seconds")
+        q.add_argument("--json", action="store_true", help="print the outcome as JSON")
     u.set_defaults(run=cmd_up)
+    r.set_defaults(run=cmd_rehearse)
     return p
 
 

@@ -13,6 +13,9 @@ profile. Two shapes:
   executors, which it waits for before its first step; the supervisor, the server, the
   synthetic sensors (simulated), the localiser and the mapper; per robot a blade driver;
   in the dome the executors; per robot a controller; the team tick (final); the live view.
+  A rehearsal (``hardware: emulated``, ``ant-dome rehearse``) starts the simulated world
+  (``dynamics`` at real time) and the emulated drivers (a base and a servo board per robot,
+  the overhead camera, the tilting laser) first, then exactly the dome's table.
   ``ant-dome up SITE --sim`` and ``ant-trial --drive continuous --perception full
   --processes`` are this one function, so they run the same graph by construction.
 
@@ -123,7 +126,7 @@ def lockstep(dep: Deployment, run_dir: str | Path) -> Graph:
     for k in range(dep.robots):
         add(nodes.controller(dep, k, geometry))
         if dep.blade_driver:
-            add(nodes.blade_driver(dep, k, profile))
+            add(nodes.blade_driver(dep, k, profile, graph.files))
     return graph
 
 
@@ -144,6 +147,13 @@ def continuous(
     robots = range(dep.robots)
     if dep.record:
         add(nodes.recorder(dep, geometry))
+    if dep.emulated:  # a rehearsal: the world and the emulated drivers, then the dome's table
+        add(nodes.world(dep, profile, graph.files))
+        for k in robots:
+            add(nodes.emulated_base(dep, k))
+            add(nodes.emulated_servo_board(dep, k, graph.files))
+        add(nodes.emulated_camera(dep, geometry))
+        add(nodes.emulated_laser(dep, geometry))
     if dep.sim:
         add(nodes.dynamics(dep, profile, graph.files))
         for k in robots:
@@ -157,7 +167,7 @@ def continuous(
         add(nodes.localizer(dep, graph.files, view))
         add(nodes.mapper(dep, profile, geometry))
     for k in robots:
-        add(nodes.blade_driver(dep, k, profile))
+        add(nodes.blade_driver(dep, k, profile, graph.files))
     if not dep.sim:
         for k in robots:
             add(nodes.executor(dep, k, profile, geometry))

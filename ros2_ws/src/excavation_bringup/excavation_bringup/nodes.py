@@ -34,6 +34,12 @@ SNAPSHOT_PREFIX = "/snapshot"
 """Where ``dynamics`` publishes the instant the team tick asked for (the sensors render it)."""
 TRUTH_PREFIX = "/truth"
 """Where a simulator publishes its truth with full perception."""
+WORLD_PREFIX = "/sim"
+"""A rehearsal: where the simulated world's own topics go (its clock, the commands its
+bases and boards take, the IMU readings, the blades' plant states), so that the dome's graph
+holds only what the dome's drivers publish (the emulators read and write these)."""
+WORLD_SNAPSHOT_PERIOD = 0.25
+"""A rehearsal: sim seconds between the world's height maps (the emulated laser's truth)."""
 
 LOST_TIMEOUT = 1.5
 """Seconds of pose stamps (1.5 ticks) after which a simulated trial's supervisor stops a
@@ -75,13 +81,21 @@ own) can trail a step's pose by a step or more, which is no clock offset (one pr
 stamps both), so neither the future-pose rule nor its warning applies. With these values
 every simulated trial runs exactly as before these parameters existed."""
 
-DOME_EXECUTOR: dict[str, Any] = {"position_tolerance": 0.012, "min_progress": 0.012}
+DOME_EXECUTOR: dict[str, Any] = {
+    "position_tolerance": 0.012,
+    "min_progress": 0.012,
+    "pose_timeout": 0.6,
+}
 """The dome's executors close their loop on the localiser, whose median position error is
 0.046 cell, 11.5 mm (docs/benchmarks.md, "Perception"): a drive ends within 12 mm of the
 cell centre (not the simulator's 8 mm, where the pose noise is 2 mm) and must make 12 mm of
 progress per ``progress_window`` (not 4 mm, which a stalled robot's pose noise alone can
-show). Only here, so that no simulated trial changes; a site tunes them under
-``overrides: {executor: ...}``."""
+show). A pose counts as stale after 0.6 s, not the simulator's 0.3 s: a localiser pose
+reaches the executor a frame's latency after its stamp (median 0.12 s, at most 0.41 s in a
+recorded rehearsal on 2 cores, docs/benchmarks.md, "Rehearsal") and the next one a frame
+period later, so 0.3 s stopped most drives of a 10 Hz camera for a pose of ordinary age.
+Only here, so that no simulated trial changes; a site tunes them under ``overrides:
+{executor: ...}``."""
 
 
 @dataclass(frozen=True)
@@ -159,6 +173,10 @@ class RunFiles:
     def result(self) -> Path:
         """The final node's summary after its last tick (``sim`` or the team tick)."""
         return self.run_dir / "result.json"
+
+    def board_link(self, k: int) -> Path:
+        """A rehearsal: the port name of robot ``k``'s emulated servo board (a symlink)."""
+        return self.run_dir / f"robot_{k}_blade"
 
 
 class Geometry:
@@ -516,8 +534,11 @@ def controller(dep: Deployment, k: int, geometry: Geometry) -> NodeSpec:
     )
 
 
-def blade_driver(dep: Deployment, k: int, profile: TimingProfile) -> NodeSpec:
+def blade_driver(dep: Deployment, k: int, profile: TimingProfile, files: RunFiles) -> NodeSpec:
     """Robot ``k``'s blade driver; simulated, the simulator is the board.
+
+    In a rehearsal its port is the emulated board's (:meth:`RunFiles.board_link`), the one
+    value of the dome's table a rehearsal changes.
 
     With drive executors a tick's blade bits wait for the end of its drive
     (``blade_after_motion``, Table 2 order); the lockstep simulator ends no drive, so there
@@ -530,7 +551,7 @@ def blade_driver(dep: Deployment, k: int, profile: TimingProfile) -> NodeSpec:
     if dep.drive == "continuous":
         params["blade_after_motion"] = True
     if backend == "serial":
-        params["port"] = robot.port
+        params["port"] = str(files.board_link(k)) if dep.emulated else robot.port
     params |= _sim_deadman(dep, profile)
     return NodeSpec(
         f"blade_driver_{k}",
@@ -631,4 +652,144 @@ def view(dep: Deployment, files: RunFiles, port: int) -> NodeSpec:
             str(port),
         ),
         module="excavation_bringup.view",
+    )
+
+
+# --- a rehearsal's emulated drivers (hardware: emulated) -------------------------------------
+
+
+def world(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeSpec:
+    """A rehearsal's world: ``dynamics`` at real time behind the emulated drivers.
+
+    Its per-step truth and its height maps (every :data:`WORLD_SNAPSHOT_PERIOD`, unasked) go
+    under ``/truth`` for the emulated camera and laser; its own topics under
+    :data:`WORLD_PREFIX`: the commands of the emulated bases and boards (the servo board
+    holds a tick's blade bits, so set-points apply at once), the IMU readings the bases
+    republish, the plant states the boards measure, and its clock (every node of the dome
+    runs on the wall clock).
+    """
+    spec = dynamics(dep, profile, files)
+    params = spec.params | {
+        "pose_prefix": TRUTH_PREFIX,
+        "snapshot_prefix": TRUTH_PREFIX,
+        "snapshot_period": WORLD_SNAPSHOT_PERIOD,
+        "time_factor": 1.0,
+        "blade_after_motion": False,
+    }
+    remaps = [f"/clock:={WORLD_PREFIX}/clock"]
+    for k in range(dep.robots):
+        ns = robot_namespace(k)
+        for topic in ("cmd_vel", "imu", "blade/servo_command", "blade/plant_state"):
+            remaps.append(f"{ns}/{topic}:={WORLD_PREFIX}{ns}/{topic}")
+    return NodeSpec(
+        "world",
+        "dynamics",
+        _finish(dep, "dynamics", params),
+        ("/dynamics",),
+        restart=False,
+        remaps=tuple(remaps),
+    )
+
+
+def emulated_base(dep: Deployment, k: int) -> NodeSpec:
+    """Robot ``k``'s base as diff_drive_controller: on the site's ``drive_topic`` and type.
+
+    It drives the world's robot (``world/cmd_vel``) and, where the site says the robot
+    carries an IMU, republishes the world's reading as the robot's ``imu``.
+    """
+    ns = robot_namespace(k)
+    robot = dep.site.robots[k]
+    params = {"drive_type": robot.drive_type, "publish_imu": bool(robot.imu)}
+    remaps = (
+        f"{ns}/cmd_vel:={robot.drive_topic_resolved}",
+        f"{ns}/world/cmd_vel:={WORLD_PREFIX}{ns}/cmd_vel",
+        f"{ns}/world/imu:={WORLD_PREFIX}{ns}/imu",
+    )
+    return NodeSpec(
+        f"base_{k}",
+        "emulated_base",
+        _finish(dep, "emulated_base", params),
+        (f"{ns}/base",),
+        namespace=ns,
+        remaps=remaps,
+    )
+
+
+def emulated_servo_board(dep: Deployment, k: int, files: RunFiles) -> NodeSpec:
+    """Robot ``k``'s blade servo board on a pseudo-terminal, its port a link in the run dir."""
+    ns = robot_namespace(k)
+    params = {"link": str(files.board_link(k)), "force_source": "world", "seed": dep.seed + k}
+    remaps = (
+        f"{ns}/world/servo_command:={WORLD_PREFIX}{ns}/blade/servo_command",
+        f"{ns}/world/plant_state:={WORLD_PREFIX}{ns}/blade/plant_state",
+    )
+    return NodeSpec(
+        f"servo_board_{k}",
+        "emulated_servo_board",
+        _finish(dep, "emulated_servo_board", params),
+        (f"{ns}/servo_board",),
+        namespace=ns,
+        remaps=remaps,
+    )
+
+
+EMULATED_CAMERA_NS = "/overhead"
+"""The emulated camera's namespace (its topics are remapped onto the site's)."""
+EMULATED_LASER_NS = "/worksite"
+"""The emulated laser's namespace (its topics are remapped onto the site's)."""
+
+
+def emulated_camera(dep: Deployment, geometry: Geometry) -> NodeSpec:
+    """The overhead camera driver on the site's topics and encoding, rendering ``/truth``."""
+    c = dep.site.camera
+    ns = EMULATED_CAMERA_NS
+    params: dict[str, Any] = {
+        "robots": dep.robots,
+        "truth_prefix": TRUTH_PREFIX,
+        "rows": geometry.rows,
+        "cols": geometry.cols,
+        "cell_size": geometry.cell_size,
+        "seed": dep.seed,
+        "encoding": c.encoding,
+    }
+    image = f"{ns}/image_raw/compressed" if c.compressed else f"{ns}/image_raw"
+    remaps = [f"{image}:={c.image_topic}"]
+    if c.camera_info_topic:
+        remaps.append(f"{ns}/camera_info:={c.camera_info_topic}")
+    return NodeSpec(
+        "camera",
+        "emulated_camera",
+        _finish(dep, "emulated_camera", params),
+        (f"{ns}/camera",),
+        namespace=ns,
+        remaps=tuple(remaps),
+    )
+
+
+def emulated_laser(dep: Deployment, geometry: Geometry) -> NodeSpec:
+    """The tilting laser and its mount where the site puts them, rendering ``/truth``."""
+    las = dep.site.laser
+    ns = EMULATED_LASER_NS
+    params: dict[str, Any] = {
+        "robots": dep.robots,
+        "truth_prefix": TRUTH_PREFIX,
+        "rows": geometry.rows,
+        "cols": geometry.cols,
+        "cell_size": geometry.cell_size,
+        "mount": [float(v) for v in las.mount],
+        "sweep_scans": las.sweep_scans,
+        "robot_height": float(las.robot_height),
+        "seed": dep.seed,
+    }
+    remaps = (
+        f"{ns}/scan:={las.scan_topic}",
+        f"{ns}/laser_mount/joint_states:={las.mount_state_topic}",
+    )
+    return NodeSpec(
+        "laser",
+        "emulated_laser",
+        _finish(dep, "emulated_laser", params),
+        (f"{ns}/laser",),
+        namespace=ns,
+        remaps=remaps,
     )

@@ -486,12 +486,19 @@ def _beacon_table(site: Site):
     return load_beacons(site.camera.beacons or CONFIG_DIR / "beacons.yaml")
 
 
-def consistency(site: Site, sim: bool = False) -> list[SiteError]:
+EMULATED_ENCODINGS = ("bgr8", "yuv422", "jpeg")
+"""What the emulated camera driver sends (``dome_emulator.camera``)."""
+
+
+def consistency(site: Site, sim: bool = False, emulated: bool = False) -> list[SiteError]:
     """Every inconsistency of a parsed site (across sections and against the files it names).
 
     Args:
         site: The parsed site.
         sim: Checked for ``ant-dome up --sim`` (the simulator's camera and laser).
+        emulated: Checked for ``ant-dome rehearse`` (the dome's table against the emulated
+            drivers: the simulator's LEDs, laser height and camera model; serial blades,
+            whose ports the emulated boards replace).
     """
     from blueprint_server.blueprint import resolve_blueprint
 
@@ -519,14 +526,14 @@ def consistency(site: Site, sim: bool = False) -> list[SiteError]:
                 f"the blueprint's height_unit is {bp.height_unit} m (the controllers' "
                 "height_unit is the soil unit: they would misread every height)",
             )
-    errors += _check_camera(site, sim)
-    errors += _check_laser(site, sim)
-    errors += _check_robots(site, sim)
+    errors += _check_camera(site, sim, emulated)
+    errors += _check_laser(site, sim, emulated)
+    errors += _check_robots(site, sim, emulated)
     errors += _check_overrides(site)
     return errors
 
 
-def _check_camera(site: Site, sim: bool) -> list[SiteError]:
+def _check_camera(site: Site, sim: bool, emulated: bool = False) -> list[SiteError]:
     out = []
     c = site.camera
 
@@ -536,7 +543,7 @@ def _check_camera(site: Site, sim: bool) -> list[SiteError]:
     if not c.calibration:
         err("camera.calibration", c.calibration, "required: the localizer needs the camera model")
     elif c.calibration == SIMULATED:
-        if not sim:
+        if not (sim or emulated):
             err("camera.calibration", c.calibration, "only with --sim: give the dome's file")
     else:
         from overhead_localizer.camera_model import load_model
@@ -556,6 +563,8 @@ def _check_camera(site: Site, sim: bool) -> list[SiteError]:
         err("camera.encoding", c.encoding, "a .../compressed topic carries jpeg or png")
     if sim and (c.compressed or c.encoding != "bgr8" or c.camera_info_topic):
         err("camera", c.image_topic, "with --sim the synthetic camera sends bgr8 image_raw only")
+    if emulated and c.encoding not in EMULATED_ENCODINGS:
+        err("camera.encoding", c.encoding, f"the emulated camera sends {list(EMULATED_ENCODINGS)}")
     if c.beacons:
         try:
             _beacon_table(site)
@@ -564,7 +573,7 @@ def _check_camera(site: Site, sim: bool) -> list[SiteError]:
     return out
 
 
-def _check_laser(site: Site, sim: bool) -> list[SiteError]:
+def _check_laser(site: Site, sim: bool, emulated: bool = False) -> list[SiteError]:
     out = []
     w, las = site.worksite, site.laser
     x, y, z = las.mount
@@ -578,11 +587,11 @@ def _check_laser(site: Site, sim: bool) -> list[SiteError]:
                 f"is outside the {width} x {depth} m worksite: the laser must look down on it",
             )
         )
-    if sim:
+    if sim or emulated:
         from excavation_sim.laser import LaserParams
 
         expected = LaserParams.for_site(w.rows, w.cols, w.cell_size)
-        if not all(
+        if sim and not all(
             math.isclose(a, b, abs_tol=1e-9) for a, b in zip(las.mount, expected.mount, strict=True)
         ):
             out.append(
@@ -609,7 +618,7 @@ def _check_laser(site: Site, sim: bool) -> list[SiteError]:
     return out
 
 
-def _check_robots(site: Site, sim: bool) -> list[SiteError]:
+def _check_robots(site: Site, sim: bool, emulated: bool = False) -> list[SiteError]:
     out = []
 
     def err(where: str, value: object, reason: str) -> None:
@@ -621,7 +630,7 @@ def _check_robots(site: Site, sim: bool) -> list[SiteError]:
     except FieldError:
         table, colours = None, set()
     sim_pairs = ()
-    if sim:
+    if sim or emulated:
         from excavation_sim.camera import default_beacons
 
         sim_pairs = default_beacons().robots
@@ -641,7 +650,7 @@ def _check_robots(site: Site, sim: bool) -> list[SiteError]:
                 "them apart",
             )
         pairs.setdefault(robot.leds, k)
-        if sim and k < len(sim_pairs) and robot.leds != sim_pairs[k]:
+        if sim_pairs and k < len(sim_pairs) and robot.leds != sim_pairs[k]:
             err(
                 f"{where}.leds",
                 list(robot.leds),
@@ -678,7 +687,7 @@ def _check_robots(site: Site, sim: bool) -> list[SiteError]:
                     err(f"{where}.genome", robot.genome, f"cannot be loaded: {exc}")
             except OSError as exc:
                 err(f"{where}.genome", robot.genome, f"cannot be read: {exc}")
-    if sim and len(site.robots) > len(sim_pairs):
+    if sim_pairs and len(site.robots) > len(sim_pairs):
         err("robots", len(site.robots), f"the simulator paints LEDs on {len(sim_pairs)} robots")
     return out
 
@@ -743,6 +752,32 @@ DERIVED = {
     },
     "recorder": {"out": "--record", "height_unit": "worksite.soil_unit"},
     "supervisor": {"robots": "robots", "arm_at_start": "--sim"},
+    "emulated_camera": {
+        "robots": "robots",
+        "truth_prefix": "rehearse (the world's /truth)",
+        "rows": "worksite.rows",
+        "cols": "worksite.cols",
+        "cell_size": "worksite.cell_size",
+        "seed": "sim.seed",
+        "encoding": "camera.encoding",
+    },
+    "emulated_laser": {
+        "robots": "robots",
+        "truth_prefix": "rehearse (the world's /truth)",
+        "rows": "worksite.rows",
+        "cols": "worksite.cols",
+        "cell_size": "worksite.cell_size",
+        "mount": "laser.mount",
+        "sweep_scans": "laser.sweep_scans",
+        "robot_height": "laser.robot_height",
+        "seed": "sim.seed",
+    },
+    "emulated_base": {"drive_type": "robots[k].drive_type", "publish_imu": "robots[k].imu"},
+    "emulated_servo_board": {
+        "link": "--run-dir (the blade driver's port)",
+        "force_source": "rehearse (the world's blade force)",
+        "seed": "sim.seed",
+    },
 }
 """Per node, the parameters the site file sets, or the graph sets from it (an override of
 one is an inconsistency). Every other parameter of these nodes may be tuned under
@@ -797,8 +832,13 @@ def _check_overrides(site: Site) -> list[SiteError]:
     return out
 
 
-def check_site(path: str | Path, sim: bool = False) -> tuple[Site | None, list[SiteError]]:
-    """Read ``path`` and return the site with every error found (empty: usable)."""
+def check_site(
+    path: str | Path, sim: bool = False, emulated: bool = False
+) -> tuple[Site | None, list[SiteError]]:
+    """Read ``path`` and return the site with every error found (empty: usable).
+
+    ``sim``: for ``ant-dome up --sim``; ``emulated``: for ``ant-dome rehearse``.
+    """
     path = str(path)
     try:
         text = read_text_bounded(path, error=SiteError)
@@ -806,17 +846,17 @@ def check_site(path: str | Path, sim: bool = False) -> tuple[Site | None, list[S
         return None, [exc]
     site, errors = parse_site(text, path)
     if site is not None:
-        errors += consistency(site, sim)
+        errors += consistency(site, sim, emulated)
     return site, errors
 
 
-def load_site(path: str | Path, sim: bool = False) -> Site:
-    """A usable site.
+def load_site(path: str | Path, sim: bool = False, emulated: bool = False) -> Site:
+    """A usable site (``sim`` and ``emulated`` as :func:`check_site`).
 
     Raises:
         SiteError: The first problem :func:`check_site` finds.
     """
-    site, errors = check_site(path, sim)
+    site, errors = check_site(path, sim, emulated)
     if errors:
         raise errors[0]
     return site

@@ -41,6 +41,11 @@ exactly those), the blade plant states, ``/worksite/fitness``, ``/worksite/marke
 ``/team/snapshot_ack`` (Header, latched: the request's ``frame_id``, stamped with the
 snapshot's instant); ``/diagnostics``.
 
+With ``snapshot_period`` (sim seconds) the node takes a snapshot that often unasked and
+ignores requests: the world of an emulated dome (``ant-dome rehearse``), where the team
+tick stamps its requests on the wall clock and the emulated camera and laser render the
+world's latest poses and heights whenever their own clocks say so.
+
 With ``result_file`` set, every snapshot also rewrites that JSON file (atomically) with the
 world as the snapshot shows it: ``fitness``, ``heights`` (soil units), ``snapshots`` (the
 fitness of every snapshot by its request label, ``"tick t"``), ``sim_seconds``, ``steps``
@@ -121,6 +126,13 @@ class DynamicsNodeParams:
     max_force: float = param(10.0, "push force of a full blade, N", low=0.001)
     diagnostics_period: float = param(1.0, "wall seconds between diagnostics", low=0.05)
     result_file: str = param("", "JSON rewritten at every snapshot: the world it shows")
+    snapshot_period: float = param(
+        0.0,
+        "sim seconds between snapshots taken unasked (0: only when the team tick asks; "
+        "then requests are ignored: the world of an emulated dome)",
+        low=0.0,
+        high=3600.0,
+    )
 
 
 def _stamp(ns: int) -> TimeMsg:
@@ -154,6 +166,7 @@ class DynamicsNode(Node):
         self.late = 0
         self.steps = 0
         self.next_imu_ns = 0
+        self.next_snapshot_ns = 0
         self.pending: list[tuple[int, int] | None] = [None] * self.n
         self.command_ns: list[int | None] = [None] * self.n  # sim time of each last cmd_vel
         self.timed_out: set[int] = set()
@@ -249,7 +262,13 @@ class DynamicsNode(Node):
         self.pending[k] = None
 
     def on_snapshot_request(self, msg: Header) -> None:
-        """The team tick wants a perception snapshot taken at ``msg.stamp`` or later."""
+        """The team tick wants a perception snapshot taken at ``msg.stamp`` or later.
+
+        Ignored with ``snapshot_period``: in an emulated dome the team tick's requests are
+        stamped on the wall clock and the emulated sensors render the world as it is now.
+        """
+        if self.params.snapshot_period > 0:
+            return
         if (msg.frame_id, _key(msg.stamp)) == self.taken:
             self.ack_pub.publish(self.ack)  # taken already: its acknowledgement came late
             return
@@ -349,6 +368,9 @@ class DynamicsNode(Node):
                 self.imu_pubs[k].publish(self.imu(k, stamp))
                 self.plant_pubs[k].publish(self.plant_state(k, stamp))
         if self.snapshot_due is not None and self.now_ns >= self.snapshot_due:
+            self.publish_snapshot()
+        elif self.params.snapshot_period > 0 and self.now_ns >= self.next_snapshot_ns:
+            self.next_snapshot_ns = self.now_ns + int(round(self.params.snapshot_period * 1e9))
             self.publish_snapshot()
 
     def pose(self, k: int, stamp: TimeMsg) -> PoseWithCovarianceStamped:

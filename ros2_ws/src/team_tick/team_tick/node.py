@@ -239,8 +239,11 @@ class TeamTickNode(Node):
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def team_present(self) -> bool:
-        """Every controller, executor and blade driver of the team is on the graph and connected.
+    def missing(self) -> str | None:
+        """What the team still lacks before tick 0; ``None`` once it is present.
+
+        Present: every controller, executor and blade driver is on the graph and connected.
+        The answer is shown on ``/diagnostics`` while the team tick waits.
 
         Connected: the middleware has matched this node's word and status subscriptions with
         their publishers (a word sent before that is lost, and the robot would miss tick 0),
@@ -253,26 +256,35 @@ class TeamTickNode(Node):
         status``) among them (:func:`excavation_common.ros.reaches`).
         """
         if self.topics.wait_for_ready and len(self.ready) < self.n:
-            return False
-        if self.topics.wait_for_recorder and not recorder_subscribes(
-            self, [p.topic_name for p in self.publishers]
-        ):
-            return False
-        if not all(s.get_publisher_count() > 0 for s in self.inputs):
-            return False
+            unready = [k for k in range(self.n) if k not in self.ready]
+            return f"controllers of robots {unready} not ready (their inputs unconnected)"
+        if self.topics.wait_for_recorder:
+            topics = [p.topic_name for p in self.publishers]
+            if not recorder_subscribes(self, topics):
+                return "the recorder does not subscribe every tick topic yet"
+        unmatched = [s.topic_name for s in self.inputs if s.get_publisher_count() == 0]
+        if unmatched:
+            return f"no publisher of {unmatched[0]}"
         controllers = [publishers_of(self, f"/robot_{k}/behaviour") for k in range(self.n)]
         executors = [publishers_of(self, f"/robot_{k}/drive/status") for k in range(self.n)]
-        if not all(controllers) or not all(executors):
-            return False
+        for k in range(self.n):
+            if not controllers[k] or not executors[k]:
+                return f"robot {k}'s controller or executor is not on the graph"
         everyone = set().union(*controllers)
-        return all(
-            reaches(self, self.pose_pubs[k], everyone)
-            and reaches(self, self.stuck_pubs[k], controllers[k])
-            and reaches(self, self.goal_pubs[k], executors[k])
-            and reaches(self, self.blade_pubs[k])
-            and self.blade_pubs[k].get_subscription_count() > 0
-            for k in range(self.n)
-        )
+        for k in range(self.n):
+            for pub, readers in (
+                (self.pose_pubs[k], everyone),
+                (self.stuck_pubs[k], controllers[k]),
+                (self.goal_pubs[k], executors[k]),
+                (self.blade_pubs[k], ()),
+            ):
+                if not reaches(self, pub, readers) or pub.get_subscription_count() == 0:
+                    return f"{pub.topic_name} does not reach its readers yet"
+        return None
+
+    def team_present(self) -> bool:
+        """Every controller, executor and blade driver of the team is on the graph and connected."""
+        return self.missing() is None
 
     def poll(self) -> None:
         """Start the ticks once the team is present; then run the state machine."""
@@ -333,6 +345,9 @@ class TeamTickNode(Node):
         late = sum(self.core.late)
         level = DiagnosticStatus.WARN if (late or self.errors) else DiagnosticStatus.OK
         text = message or f"tick {self.core.tick}: {self.core.phase.value}"
+        if message is None and self.core.phase is Phase.WAITING:
+            reason = self.missing()
+            text += f" ({reason})" if reason else ""
         if self.errors:
             text += "; " + "; ".join(self.errors.values())
         self.diag_pub.publish(
