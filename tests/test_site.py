@@ -148,7 +148,8 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
 
     path = CONFIG / "site_sim.yaml" if sim else SITES / "good.yaml"
     site = sitefile.load_site(path, sim=sim)
-    table = dome_graph(site, tmp_path, sim=sim, record=str(tmp_path / "bag"), view=True).nodes
+    hardware = "sim" if sim else "dome"
+    table = dome_graph(site, tmp_path, hardware, record=str(tmp_path / "bag"), view=True).nodes
     names = [s.name for s in table]
     # the recorder first (it sees every topic); with --sim the simulated robots and the
     # clock (dynamics, the executors), then the team supervisor; in the dome the executors
@@ -289,10 +290,69 @@ def test_each_robot_names_its_base_type_and_imu_and_a_dome_tunes_executor_and_te
     tick = by_name["team_tick"].params
     assert tick["blade_wait"] == 5.0 and tick["motion_limit"] == 60.0
     # the simulated dome keeps the simulator's lockstep and the defaults every trial ran with
-    sim = {s.name: s for s in dome_graph(site, tmp_path / "sim", sim=True).nodes}
+    sim = {s.name: s for s in dome_graph(site, tmp_path / "sim", "sim").nodes}
     executor = sim["executor_1"].params
     assert executor["cmd_vel_stamp"] == "pose" and "drive_type" not in executor
     assert "position_tolerance" not in executor and "min_progress" not in executor
+
+
+def test_a_rehearsal_is_the_dome_table_behind_emulated_drivers(tmp_path):
+    """``ant-dome rehearse``: the emulators first, then the dome's table, unchanged but for
+    each blade driver's port (the emulated board's link); every parameter is its node's."""
+    from excavation_bringup.kinds import kind
+
+    site = sitefile.load_site(CONFIG / "site_rehearsal.yaml", emulated=True)
+    dome_dir, rehearsal_dir = tmp_path / "dome", tmp_path / "rehearsal"
+    dome = dome_graph(site, dome_dir, "dome", ticks=5).nodes
+    rehearsal = dome_graph(site, rehearsal_dir, "emulated", ticks=5).nodes
+    emulators = ["world", "base_0", "servo_board_0", "base_1", "servo_board_1", "camera", "laser"]
+    assert [s.name for s in rehearsal] == emulators + [s.name for s in dome]
+    same = {s.name: s for s in dome}
+
+    def here(value):  # the rehearsal's run directory read as the dome's
+        return value.replace(str(rehearsal_dir), str(dome_dir)) if isinstance(value, str) else value
+
+    for spec in rehearsal[len(emulators) :]:
+        other = same[spec.name]
+        params = {k: here(v) for k, v in spec.params.items()}
+        expected = dict(other.params)
+        if spec.kind == "blade_driver":
+            link = str(dome_dir / f"robot_{spec.name[-1]}_blade")
+            assert params.pop("port") == link and expected.pop("port").startswith("/dev/tty")
+        assert params == expected, spec.name
+        assert (spec.remaps, spec.namespace, spec.args) == (
+            other.remaps,
+            other.namespace,
+            other.args,
+        )
+    for spec in rehearsal:
+        assert "use_sim_time" not in spec.params  # every node of a rehearsal on the wall clock
+        for cls in kind(spec.kind).param_classes():
+            own = {f.name for f in fields(cls)}
+            validate(cls, {k: v for k, v in spec.params.items() if k in own}, spec.name)
+    by_name = {s.name: s for s in rehearsal}
+    world = by_name["world"]
+    assert world.params["time_factor"] == 1.0 and world.params["blade_after_motion"] is False
+    assert "/clock:=/sim/clock" in world.remaps
+    assert by_name["base_1"].params == {"drive_type": "twist", "publish_imu": False}
+    assert "/robot_1/cmd_vel:=/robot_1/cmd_vel_unstamped" in by_name["base_1"].remaps
+    assert by_name["servo_board_0"].params["link"] == str(rehearsal_dir / "robot_0_blade")
+
+
+def test_a_rehearsal_site_is_checked_for_the_emulators(tmp_path):
+    text = (CONFIG / "site_rehearsal.yaml").read_text()
+    assert sitefile.check_site(CONFIG / "site_rehearsal.yaml", emulated=True)[1] == []
+    # the dome itself refuses the simulated calibration
+    assert any(
+        e.field == "camera.calibration"
+        for e in sitefile.check_site(CONFIG / "site_rehearsal.yaml")[1]
+    )
+    bad = tmp_path / "s.yaml"
+    genome = str((CONFIG / "../../../../genomes/best.json").resolve())
+    text = text.replace("../../../../genomes/best.json", genome)
+    bad.write_text(text.replace("encoding: jpeg", "encoding: png"))
+    _, errors = sitefile.check_site(bad, emulated=True)
+    assert [(e.field, e.value) for e in errors] == [("camera.encoding", "png")]
 
 
 def test_repeated_keys_are_refused_anywhere():
