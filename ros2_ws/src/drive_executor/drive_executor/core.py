@@ -224,6 +224,8 @@ class DriveExecutorCore:
         """Goals started from free-mode words (their tick numbers)."""
         self.suspended_at: float | None = None
         """Time the running goal was suspended by a pause (``None``: not suspended)."""
+        self.sent: Twist2D = STOP
+        """The twist of the last control step (what :meth:`predict` advances a pose by)."""
 
     # --- inputs -----------------------------------------------------------------------------
 
@@ -269,13 +271,40 @@ class DriveExecutorCore:
         if math.isfinite(twist.linear) and math.isfinite(twist.angular):
             self.override = (twist, now)
 
+    def predict(self, pose: Pose2D, stamp: float, now: float) -> tuple[Pose2D, float]:
+        """``pose`` (stamped ``stamp``) advanced to ``now`` along the twist last sent.
+
+        A camera's pose is a frame's latency old when it arrives (0.13 s median in a
+        rehearsal, docs/benchmarks.md); meanwhile the robot went on at the speed last
+        commanded. A unicycle step over the pose's age (at most ``pose_timeout``; none for a
+        pose from the future) gives where it is now, stamped ``now``.
+        """
+        age = min(max(now - stamp, 0.0), self.params.pose_timeout)
+        if age <= 0.0:
+            return pose, stamp
+        v, w = self.sent.linear, self.sent.angular
+        mid = pose.yaw + 0.5 * w * age
+        moved = Pose2D(
+            pose.x + v * age * math.cos(mid),
+            pose.y + v * age * math.sin(mid),
+            math.atan2(math.sin(pose.yaw + w * age), math.cos(pose.yaw + w * age)),
+        )
+        return moved, stamp + age
+
     def on_pose(self, pose: Pose2D, stamp: float, now: float) -> Twist2D:
         """A new pose (stamped ``stamp``): one control step; returns the twist to send."""
+        twist = self._control(pose, stamp, now)
+        self.sent = twist
+        return twist
+
+    def _control(self, pose: Pose2D, stamp: float, now: float) -> Twist2D:
         self.counters.cycles += 1
         self.pose, self.pose_stamp = pose, stamp
         forced = self.check(now)
         if forced is not None:
             return forced
+        if self.params.predict_pose:
+            pose, stamp = self.predict(pose, stamp, now)
         if self.goal is None:
             return STOP
         while True:
@@ -310,6 +339,12 @@ class DriveExecutorCore:
         gate gives zero; a fresh override, clamped, when the gate is open; a stale pose
         zero. A running goal is aborted in each case.
         """
+        forced = self._forced(now)
+        if forced is not None:
+            self.sent = forced
+        return forced
+
+    def _forced(self, now: float) -> Twist2D | None:
         why = self.gate.reason(now)
         if why is not None:
             self.stop_reason = why

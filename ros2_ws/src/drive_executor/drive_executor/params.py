@@ -84,6 +84,12 @@ class ExecutorParams:
         "diff_drive_controller) or twist (geometry_msgs/Twist)",
         choices=("twist", "twist_stamped"),
     )
+    predict_pose: bool = param(
+        False,
+        "advance each pose by its age along the twist last sent before acting on it (a "
+        "camera's latency: the dome), so a drive does not overshoot its cell by the distance "
+        "covered while the frame was processed",
+    )
     cmd_vel_stamp: str = param(
         "now",
         "now: cmd_vel stamped with the node clock when sent (a base's cmd_vel_timeout counts "

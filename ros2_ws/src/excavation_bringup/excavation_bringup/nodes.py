@@ -85,6 +85,7 @@ DOME_EXECUTOR: dict[str, Any] = {
     "position_tolerance": 0.012,
     "min_progress": 0.012,
     "pose_timeout": 0.6,
+    "predict_pose": True,
 }
 """The dome's executors close their loop on the localiser, whose median position error is
 0.046 cell, 11.5 mm (docs/benchmarks.md, "Perception"): a drive ends within 12 mm of the
@@ -94,6 +95,8 @@ show). A pose counts as stale after 0.6 s, not the simulator's 0.3 s: a localise
 reaches the executor a frame's latency after its stamp (median 0.12 s, at most 0.41 s in a
 recorded rehearsal on 2 cores, docs/benchmarks.md, "Rehearsal") and the next one a frame
 period later, so 0.3 s stopped most drives of a 10 Hz camera for a pose of ordinary age.
+Each pose is advanced by its age along the twist last sent (``predict_pose``): acted on as
+it was, a drive overshot its cell by the distance covered while the frame was processed.
 Only here, so that no simulated trial changes; a site tunes them under ``overrides:
 {executor: ...}``."""
 
