@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.workers < 1:
         parser.error(f"--workers: must be at least 1, got {args.workers}")
     started = time.perf_counter()
-    print("compiling the kernels into numba's cache (cold: 2-4 min on 2 cores) ...", flush=True)
+    print("compiling the kernels into numba's cache (cold: 2-3 min on 2 cores) ...", flush=True)
     if args.workers == 1:
         times = [compile_kind(k) for k in KINDS]
     else:

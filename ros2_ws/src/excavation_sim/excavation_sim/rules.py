@@ -94,7 +94,14 @@ class WorldRules:
                 raise RulesError("<rules>", name, getattr(self, name), f"must be one of {choices}")
 
     def as_array(self) -> np.ndarray:
-        """Pack the kernel switches: ``int64 [N_PACKED]`` at the ``P_*`` indices."""
+        """Pack the kernel switches: ``int64 [N_PACKED]`` at the ``P_*`` indices, read-only.
+
+        Read-only always: numba compiles a kernel once per argument type and a read-only
+        array is another type. The batched evaluator hands its kernels read-only arrays
+        (``ScenarioSet.arrays``); a stepped world's packed rules were writable, and every
+        episode kernel was compiled twice per decision program (docs/benchmarks.md,
+        "Compiling the kernels").
+        """
         out = np.zeros(N_PACKED, dtype=np.int64)
         out[P_NORMAL_LOAD] = self.normal_load
         out[P_THROTTLE_LOAD] = self.throttle_load
@@ -102,6 +109,7 @@ class WorldRules:
         out[P_THROTTLE_CLIMB] = self.throttle_climb
         out[P_SOIL_FILL] = int(self.soil_fill)
         out[P_H1] = H1_FRAMES[self.h1]
+        out.setflags(write=False)
         return out
 
     @property
