@@ -114,6 +114,27 @@ def test_watchdog_sends_the_blade_home_and_commands_bring_it_back():
     assert not core.state.watchdog_tripped and core.state.source == "controller"
 
 
+def test_in_a_ticked_team_the_watchdog_counts_ticks_not_wall_seconds():
+    """A dome tick lasts many wall seconds and the controller answers once per tick."""
+    core = BladeDriverCore(DriverParams(watchdog_timeout=1.5))
+    core.command(word(BLADE_LEVEL_CMD), 100.0, tick=0.0)
+    for now in (101.0, 105.0, 109.0):  # tick 0 still: 9 wall seconds are no silence
+        core.update(now, 0.0, tick=0.0)
+    assert not core.state.watchdog_tripped and core.state.setting == BLADE_LEVEL
+    core.update(110.0, 0.0, tick=1.0)  # tick 1 began, its word not in yet
+    assert not core.state.watchdog_tripped
+    core.command(word(MOVE_FORWARD), 111.0, tick=1.0)
+    core.update(120.0, 0.0, tick=2.0)  # tick 2 began: one tick without a word
+    assert not core.state.watchdog_tripped and core.state.setting == BLADE_LEVEL
+    core.update(121.0, 0.0, tick=3.0)  # tick 3 began: ticks 2 and 3 without a word
+    assert core.state.watchdog_tripped and core.state.setting == BLADE_HOME
+    # Without tick times (no team tick), wall seconds count as before.
+    wall = BladeDriverCore(DriverParams(watchdog_timeout=1.5))
+    wall.command(word(BLADE_LEVEL_CMD), 100.0)
+    wall.update(101.6, 0.0, tick=0.0)
+    assert wall.state.watchdog_tripped
+
+
 def test_operator_override_wins_while_fresh():
     core = BladeDriverCore(DriverParams(override_timeout=0.5))
     core.command(word(BLADE_LEVEL_CMD), 0.0)

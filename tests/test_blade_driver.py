@@ -275,3 +275,48 @@ def test_serial_driver_waits_for_the_team_ticks_drive(ros, board):
     assert driver.commands > 0 and driver.after.holding()
     _drive_status(probe, 4, GoalStatus.STATUS_SUCCEEDED)
     assert words_until(lambda: fake.target == cal.angle(0.0), timeout=5.0)
+
+
+def test_serial_driver_watchdog_counts_team_ticks(ros, board):
+    """One word per tick, ticks of many wall seconds: the blade keeps its setting.
+
+    The first dome rehearsal's blades went home 1.5 wall seconds into every tick (the
+    watchdog counted wall time) and no word's setting outlived its drive. On tick time the
+    watchdog trips only after two ticks without a word.
+    """
+    from action_msgs.msg import GoalStatus
+    from builtin_interfaces.msg import Time
+    from std_msgs.msg import Header, UInt16
+
+    fake, path = board
+    cal = ServoCalibration()
+    driver = blade_driver_node(
+        ros, backend="serial", port=path, rate=50.0, blade_after_motion=True, watchdog_timeout=1.5
+    )
+    probe = blade_probe(ros)
+    probe.status = probe.create_publisher(GoalStatus, "/robot_0/drive/status", 10)
+    team_tick = probe.create_publisher(Header, "/team/tick", 10)
+    assert ros.spin_until(lambda: probe.count_subscribers("/team/tick") > 0)
+    for topic in ("/robot_0/behaviour", "/robot_0/drive/status"):
+        assert ros.spin_until(lambda topic=topic: probe.count_subscribers(topic) > 0)
+    assert ros.spin_until(lambda: len(probe.joints) > 3 and fake.target == cal.angle(0.10))
+    team_tick.publish(Header(stamp=Time(sec=4), frame_id="4"))
+    assert ros.spin_until(lambda: driver.team_tick == (4, 0))
+    probe.behaviour.publish(UInt16(data=word(BLADE_LEVEL_CMD)))  # once
+    assert ros.spin_until(lambda: driver.commands == 1)
+    _drive_status(probe, 4, GoalStatus.STATUS_SUCCEEDED)
+    assert ros.spin_until(lambda: fake.target == cal.angle(0.0), timeout=5.0)
+    # 100 control steps (2 s at 50 Hz: past a wall-clock watchdog) in the same tick.
+    seen = len(probe.joints)
+    assert ros.spin_until(lambda: len(probe.joints) >= seen + 100, timeout=30.0)
+    assert fake.target == cal.angle(0.0) and driver.core.state.source.startswith("controller")
+    assert not driver.core.state.watchdog_tripped
+    # Tick 5 without a word: still within the watchdog; tick 6 too: the blade goes home.
+    team_tick.publish(Header(stamp=Time(sec=5), frame_id="5"))
+    assert ros.spin_until(lambda: driver.team_tick == (5, 0))
+    seen = len(probe.joints)
+    assert ros.spin_until(lambda: len(probe.joints) >= seen + 5, timeout=20.0)
+    assert fake.target == cal.angle(0.0)
+    team_tick.publish(Header(stamp=Time(sec=6), frame_id="6"))
+    assert ros.spin_until(lambda: fake.target == cal.angle(0.10), timeout=5.0)
+    assert driver.core.state.watchdog_tripped

@@ -202,3 +202,23 @@ def test_camera_node_publishes_late_stamped_frames_of_the_world(ros, encoding):
     assert (info.width, info.height, info.distortion_model) == (320, 180, "plumb_bob")
     assert info.k[0] == pytest.approx(1050.0) and info.k[2] == pytest.approx(159.5)
     assert ros.spin_until(lambda: diags[-1].level == b"\x00")  # OK: frames go out
+
+
+def test_the_emulated_sensors_take_the_newest_truth_not_a_queue(ros):
+    """A sensor busy rendering for longer than the world's 20 Hz step must not fall behind.
+
+    With a queue of 10 poses the first rehearsal's frames showed the world as it was 0.5 s
+    before their stamps (the localiser's poses matched the truth best 0.5 s back), and the
+    executors, trusting the stamps, overshot every cell by 5 to 8 cm.
+    """
+    from dome_emulator.camera_node import CameraNode
+    from dome_emulator.laser_node import LaserNode
+    from rclpy.qos import HistoryPolicy
+
+    for kind in (CameraNode, LaserNode):
+        node = ros.add(kind(context=ros.context))
+        truth = [s for s in node.subscriptions if s.topic_name.startswith("/truth/robot_")]
+        assert len(truth) == node.params.robots > 0
+        for sub in truth:
+            assert sub.qos_profile.history == HistoryPolicy.KEEP_LAST
+            assert sub.qos_profile.depth == 1, sub.topic_name

@@ -159,3 +159,16 @@ def test_same_seed_same_run():
     model.step(np.array([word]))
     assert a[1] == c[1] == tuple(int(v) for v in model.robots[0, [ROW, COL, HEADING]])
     assert a[1] == (6, 7, 2)
+
+
+def test_warming_the_kernels_changes_nothing():
+    """``Dynamics.warm`` runs a grid event's kernels on copies: the world is untouched."""
+    from excavation_sim.sim_node import scenario_world
+
+    _, world = scenario_world("default", 2, 0, 0)
+    before = (world.heights.copy(), world.robots.copy(), world.active.copy(), world.rng.copy())
+    sim = Dynamics(world, DynamicsParams.exact(), 0.25, np.random.default_rng(0))
+    sim.warm()
+    after = (world.heights, world.robots, world.active, world.rng)
+    assert all(np.array_equal(a, b) for a, b in zip(before, after, strict=True))
+    assert sim.counters == type(sim.counters)() and sim.time == 0.0

@@ -14,7 +14,12 @@ On top of that nominal setting the driver adds what a real blade needs:
 * **Limits.** Set-points are clipped to ``[position_min, position_max]`` and move at most
   ``max_speed`` per second.
 * **Watchdog.** No behaviour word for ``watchdog_timeout`` seconds: the blade goes home (no
-  soil contact) and stays there until commands return.
+  soil contact) and stays there until commands return. In a ticked team the seconds are
+  the team's tick time (tick ``t`` is stamped ``t`` s), given as ``tick`` to
+  :meth:`BladeDriverCore.command` and :meth:`BladeDriverCore.update`: a controller answers
+  once per tick, and a dome tick lasts many wall seconds (the drive, the snapshot), so a
+  wall-clock watchdog would home the blade in every tick; on tick time it trips after two
+  ticks without a word, as in a lockstep trial.
 * **Operator override.** A set-point from ``blade/commands`` wins over the controller while it
   is younger than ``override_timeout``.
 * **After the drive.** In the field a word's moves take seconds; with ``blade_after_motion``
@@ -250,6 +255,7 @@ class DriverState:
     source: str = "startup"
     watchdog_tripped: bool = False
     last_command: float | None = None
+    last_command_tick: float | None = None
     override: float | None = None
     override_time: float | None = None
     clipped: int = 0
@@ -299,18 +305,20 @@ class BladeDriverCore:
         if self.went_back(now):
             self.restart()
 
-    def command(self, word: int, now: float, blade: bool = True) -> None:
+    def command(self, word: int, now: float, blade: bool = True, tick: float | None = None) -> None:
         """A behaviour word from the controller.
 
         ``blade=False``: the word's blade bits wait (:class:`AfterDrive`; apply them later
         with :meth:`apply_blade`); the word still feeds the watchdog and says whether the
-        robot pushes (the force loop runs while it drives).
+        robot pushes (the force loop runs while it drives). ``tick``: the team's tick time
+        of the word (s), which the watchdog then counts in (module docstring).
         """
         self._follow(now)
         if blade:
             self.apply_blade(word)
         self.pushing = bool((int(word) >> MOVE_FORWARD) & 1)
         self.state.last_command = now
+        self.state.last_command_tick = tick
         self.state.watchdog_tripped = False
 
     def apply_blade(self, word: int) -> None:
@@ -334,16 +342,24 @@ class BladeDriverCore:
         t = self.state.override_time
         return t is not None and now - t <= self.params.override_timeout
 
-    def watchdog_due(self, now: float) -> bool:
-        """Commands stopped for longer than ``watchdog_timeout`` (none yet does not count)."""
-        last = self.state.last_command
-        return last is not None and now - last > self.params.watchdog_timeout
+    def watchdog_due(self, now: float, tick: float | None = None) -> bool:
+        """Commands stopped for longer than ``watchdog_timeout`` (none yet does not count).
+
+        On tick time when both the last word and ``tick`` (the team's current tick) have
+        one; on ``now`` otherwise.
+        """
+        s = self.state
+        if tick is not None and s.last_command_tick is not None:
+            return tick - s.last_command_tick > self.params.watchdog_timeout
+        return s.last_command is not None and now - s.last_command > self.params.watchdog_timeout
 
     def needs_no_controller(self, now: float) -> bool:
         """The set-point at ``now`` does not wait for a behaviour word (override or watchdog)."""
         return self.override_active(now) or self.watchdog_due(now)
 
-    def update(self, now: float, force: float | None, hold: str | None = None) -> float:
+    def update(
+        self, now: float, force: float | None, hold: str | None = None, tick: float | None = None
+    ) -> float:
         """Advance to time ``now`` with the measured push force (N, None if unknown).
 
         Args:
@@ -352,6 +368,8 @@ class BladeDriverCore:
             hold: Why the robot must stand still (the MotionGate's reason), or ``None``.
                 A hold sends the blade home at once (no ``max_speed`` ramp: the servo moves
                 at its own speed); it beats the operator and the controller.
+            tick: The team's current tick time (s), or ``None``: what the watchdog counts
+                in (:meth:`watchdog_due`).
 
         Returns:
             The servo set-point (m), within the limits; after the first call and unless
@@ -370,7 +388,7 @@ class BladeDriverCore:
             target, s.source, s.trim = s.override, "operator override", 0.0
             self._pid.reset()
         else:
-            if self.watchdog_due(now):
+            if self.watchdog_due(now, tick):
                 s.watchdog_tripped = True
                 s.setting = BLADE_HOME
                 s.source = "watchdog: blade home, no command"

@@ -27,6 +27,9 @@ Backends (parameter ``backend``):
   ``rate`` Hz reads the board, publishes the joint state, runs the force loop and sends the
   set-point. A port that is absent or fails (unplugged) is closed and reopened with
   back-off (``reopen_initial`` doubling up to ``reopen_max``), reported on ``/diagnostics``.
+  Once ``/team/tick`` (std_msgs/Header, the team tick's tick ``t`` stamped ``t`` s) has
+  come, the watchdog counts tick time, as the sim backend does: a controller answers once
+  per tick, and a dome tick lasts many wall seconds.
 * ``sim``: the simulator's blade, through two topics in the style of
   topic_based_ros2_control: the simulator publishes ``blade/servo_state`` (JointState,
   stamped with its tick) and takes ``blade/servo_command`` (JointState, the set-point,
@@ -171,11 +174,11 @@ class BladeDriverNode(LifecycleNode):
             self.create_subscription(UInt16, "behaviour", self.on_behaviour, 10),
             self.create_subscription(Float64MultiArray, "blade/commands", self.on_override, 10),
         ]
+        sub = self.create_subscription
         if self.after is not None:
-            sub = self.create_subscription
             self._io.append(sub(GoalStatus, "drive/status", self.on_drive_status, 10))
-            if p.backend != "sim":
-                self._io.append(sub(Header, TEAM_TICK_TOPIC, self.on_team_tick, 10))
+        if p.backend != "sim":
+            self._io.append(sub(Header, TEAM_TICK_TOPIC, self.on_team_tick, 10))
         self.last_joint: JointState | None = None
         self.joint_pub = self.create_publisher(
             JointState,
@@ -298,9 +301,9 @@ class BladeDriverNode(LifecycleNode):
         self.commands += 1
         word, tick = int(msg.data), self._word_tick()
         if self.after is None or tick is None:
-            self.core.command(word, self._now())
+            self.core.command(word, self._now(), tick=self._tick_time())
         else:
-            self.core.command(word, self._now(), blade=False)
+            self.core.command(word, self._now(), blade=False, tick=self._tick_time())
             for released in self.after.word(tick, word):
                 self.core.apply_blade(released)
         if self.params.backend == "sim" and self.tick_stamp is not None:
@@ -317,6 +320,18 @@ class BladeDriverNode(LifecycleNode):
     def on_team_tick(self, msg: Header) -> None:
         """Serial backend: the team tick began tick ``msg.stamp`` (its words come next)."""
         self.team_tick = (msg.stamp.sec, msg.stamp.nanosec)
+
+    def _tick_time(self) -> float | None:
+        """Serial backend: the team's current tick time (s), which the watchdog counts in.
+
+        ``None`` before the first ``/team/tick`` (no team tick runs: wall seconds). A dome
+        tick lasts many wall seconds and a controller answers once per tick, so on the wall
+        clock the watchdog would home the blade in every tick (seen in the first rehearsal:
+        no blade setting of a word outlived its drive).
+        """
+        if self.params.backend == "sim" or self.team_tick is None:
+            return None
+        return self.team_tick[0] + self.team_tick[1] * 1e-9
 
     def on_drive_status(self, msg: GoalStatus) -> None:
         """The executor's status: a terminal one releases the blade bits of its tick."""
@@ -467,7 +482,8 @@ class BladeDriverNode(LifecycleNode):
             self.joint_pub.publish(
                 joint_state(self.position, self.force, self.get_clock().now().to_msg())
             )
-            self.board.set_position(self.core.update(now, self.force, self.gate.reason(now)))
+            setpoint = self.core.update(now, self.force, self.gate.reason(now), self._tick_time())
+            self.board.set_position(setpoint)
         except PortError as exc:
             self.board.close()
             self.board = None

@@ -34,7 +34,14 @@ from dome_emulator.errors import TruthError
 from dome_emulator.laser import LaserCore, LaserEmulatorParams, MountState, Scan
 from dome_emulator.truth import yaw_of
 from excavation_common.messages import MessageError, image_to_grid
-from excavation_common.ros import LATCHED, SENSOR_DATA, declare_params, diagnostics, spin_node
+from excavation_common.ros import (
+    LATCHED,
+    LATEST_STATE,
+    SENSOR_DATA,
+    declare_params,
+    diagnostics,
+    spin_node,
+)
 
 
 class LaserNode(Node):
@@ -53,7 +60,7 @@ class LaserNode(Node):
                 PoseWithCovarianceStamped,
                 f"{prefix}/robot_{k}/pose",
                 lambda m, k=k: self.on_pose(k, m),
-                10,
+                LATEST_STATE,
             )
         self.heights_topic = f"{prefix}/worksite/height_map"
         self.create_subscription(Image, self.heights_topic, self.on_heights, LATCHED)

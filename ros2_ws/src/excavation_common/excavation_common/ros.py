@@ -59,6 +59,14 @@ LATEST_FRAME = QoSProfile(
 )
 """QoS of a subscriber that only ever wants the newest camera frame (queue depth 1)."""
 
+LATEST_STATE = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST
+)
+"""QoS of a subscriber that only ever wants the newest state of a stream (the emulated
+sensors' world truth): a node busy rendering for longer than the stream's period takes the
+newest message, not the oldest of a queue (with depth 10 and a 20 Hz world, frames showed
+the world as it was 0.5 s before their stamps)."""
+
 RECORDER_NODE = "bag_recorder"
 """Node name of the bag recorder (``excavation_bags``' recorder node; its default)."""
 

@@ -232,6 +232,22 @@ class Dynamics:
         self.bodies[k, 0] += cells * self.cell * FORWARD[h, 1]
         self.bodies[k, 1] += cells * self.cell * FORWARD[h, 0]
 
+    def warm(self) -> None:
+        """Compile the world-model kernels a grid event runs, on copies of the world.
+
+        Called before the first step: otherwise the first committed move compiles them
+        while the robots drive (on a cold numba cache, 20 s in which a wall-clock world
+        stands still and every executor sees no progress). Changes nothing.
+        """
+        w = self.world
+        for bit in (MOVE_FORWARD, TURN_RIGHT):
+            robots = w.robots.copy()
+            apply_behaviours(
+                w.heights.copy(), robots, w.active.copy(), 0, 1 << bit, w.rng.copy(), w.params
+            )
+        self.blade_force(0, 1.0)
+        self.tilted(0)
+
     # --- outputs ----------------------------------------------------------------------------
 
     def measured(self, k: int) -> tuple[float, float, float]:

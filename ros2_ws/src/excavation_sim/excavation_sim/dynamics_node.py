@@ -14,7 +14,8 @@ runs at most ``idle_time_factor`` times real time, so that waiting costs neither
 a race of sim time; ``max_time_factor`` caps it while robots move (nodes in separate
 processes judge heartbeats on this clock: a cap bounds how much sim time a process's lag is)
 and ``time_factor`` caps it always (1: real time, as in the dome, for nodes in other
-processes that must keep up with sim time, such as a supervisor's heartbeat).
+processes that must keep up with sim time, such as a supervisor's heartbeat), on a fixed
+schedule of wall time so that the time each step takes does not add up.
 
 Subscribes, per robot k: ``/robot_k/cmd_vel`` (TwistStamped; none for ``cmd_vel_timeout``
 sim seconds stops the robot's wheels, as diff_drive_controller's ``cmd_vel_timeout`` does,
@@ -82,6 +83,10 @@ from excavation_sim.sim_node import TILT_PITCH, scenario_world
 from excavation_sim.world import BLADE
 
 TERMINAL = (GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_ABORTED, GoalStatus.STATUS_CANCELED)
+SCHEDULE_SLACK = 0.05
+"""Wall seconds a ``time_factor`` step may fall behind its schedule before the schedule
+starts over from it (:meth:`DynamicsNode.on_schedule`): small, so that catching up never
+bursts more than a step or two of sim time past nodes that judge heartbeats on it."""
 
 
 @dataclass(frozen=True)
@@ -156,6 +161,7 @@ class DynamicsNode(Node):
         self.sim = Dynamics(
             world, self.physics, self.blueprint.cell_size, np.random.default_rng(p.noise_seed)
         )
+        self.sim.warm()  # before any topic: the team waits for it, not its first move
         self.geometry = BladeGeometry(max_force=p.max_force)
         self.dt_ns = int(round(self.physics.dt * 1e9))
         self.now_ns = 0
@@ -163,6 +169,7 @@ class DynamicsNode(Node):
         self.ready_since: float | None = None
         self.answered: set[int] = set()
         self.wait_started = 0.0
+        self.schedule: tuple[float, int] | None = None  # (wall, sim ns): time_factor's origin
         self.late = 0
         self.steps = 0
         self.next_imu_ns = 0
@@ -318,7 +325,28 @@ class DynamicsNode(Node):
         factors = [f for f in factors if f > 0]
         if not factors:
             return True
-        return wall - self.wait_started >= self.physics.dt / min(factors)
+        factor = min(factors)
+        if factor == p.time_factor:
+            return self.on_schedule(wall, factor)
+        self.schedule = None
+        return wall - self.wait_started >= self.physics.dt / factor
+
+    def on_schedule(self, wall: float, factor: float) -> bool:
+        """``time_factor`` governs: the next step is due on a fixed schedule of wall time.
+
+        Step ``i`` after the schedule's origin is due ``i * dt / factor`` wall seconds after
+        it, so the time a step takes does not add up (counted from each step's end, a
+        rehearsal's world ran at 0.95 of real time). A step more than
+        :data:`SCHEDULE_SLACK` late (a stalled machine) starts a new origin instead of a
+        burst of steps to catch up.
+        """
+        origin = self.schedule
+        if origin is None:
+            self.schedule = origin = (self.wait_started, self.now_ns)
+        due = origin[0] + (self.now_ns + self.dt_ns - origin[1]) * 1e-9 / factor
+        if wall - due > SCHEDULE_SLACK:
+            self.schedule = (wall, self.now_ns + self.dt_ns)
+        return wall >= due
 
     def all_answered(self) -> bool:
         """Every robot answered this step, except those not waited for.
