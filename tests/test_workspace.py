@@ -9,6 +9,10 @@ from pathlib import Path
 
 import pytest
 
+# One worker takes the whole module (--dist loadgroup), so the module's colcon build runs
+# once: split over two workers, each built the workspace (23 s each on 2 cores).
+pytestmark = pytest.mark.xdist_group("colcon")
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {
     "excavation_common": [],
