@@ -23,7 +23,17 @@ def test_the_network_section_is_read_with_defaults(tmp_path):
     assert site_network(_site(tmp_path, "")) == Network(0, "LOCALHOST")
     env: dict[str, str] = {}
     use_site_network(_site(tmp_path, "network: {domain: 7}\n"), env)
-    assert env == {"ROS_DOMAIN_ID": "7", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    assert env == {
+        "ROS_DOMAIN_ID": "7",
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "ROS_STATIC_PEERS": "",
+    }
+    peers = "network: {static_peers: [198.18.0.2, robot-1.lan]}\n"
+    use_site_network(_site(tmp_path, peers), env)
+    assert env["ROS_STATIC_PEERS"] == "198.18.0.2;robot-1.lan"
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    off = "network: {discovery_range: OFF}\n"  # YAML 1.1 reads an unquoted OFF as false
+    assert site_network(_site(tmp_path, off)).discovery_range == "OFF"
 
 
 @pytest.mark.parametrize(
@@ -33,6 +43,9 @@ def test_the_network_section_is_read_with_defaults(tmp_path):
         ("network: {domain: true}\n", "network.domain"),
         ("network: {discovery_range: WAN}\n", "network.discovery_range"),
         ("network: [1, 2]\n", "network"),
+        ("network: {static_peers: 198.18.0.2}\n", "network.static_peers"),
+        ("network: {static_peers: ['198.18.0.2', 'not a host']}\n", "network.static_peers"),
+        ("network: {discovery_range: OFF, static_peers: [198.18.0.2]}\n", "network.static_peers"),
     ],
 )
 def test_a_bad_network_names_file_field_and_value(tmp_path, network, field):

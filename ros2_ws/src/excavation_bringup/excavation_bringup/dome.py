@@ -4,6 +4,13 @@
 (:mod:`excavation_bringup.site`), one per line as ``file: field = value: reason``, and
 exits 1 if there is any.
 
+``ant-dome plan SITE [--sim | --rehearse]`` prints each host's share of the graph (the
+nodes ``ant-dome up SITE --host NAME`` starts there, in start order) and the network every
+process gets. A site with robots on their own computers (``hosts``, ``robots[k].host``)
+runs ``ant-dome up SITE --host NAME`` on each: a robot's host runs its drive executor and
+blade driver (the parts that must stop the robot when its link drops), the dome PC (the
+first host) everything else, the supervisor first. Without ``--host`` every node runs here.
+
 ``ant-dome up SITE [--sim] [--record BAG] [--view]`` generates every node's parameters from
 the site file and starts each node as its own process (the venv's interpreter, ``python -m
 module``, as ``ros2 run`` would), in the order of the trial graph
@@ -80,6 +87,36 @@ def dome_graph(
     dep = Deployment.from_site(site, hardware, ticks, record, domain)
     dep.check()
     return continuous(dep, run_dir, view, view_port)
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    """``ant-dome plan``: each host's share of the graph."""
+    import tempfile
+
+    hardware = "sim" if args.sim else "emulated" if args.rehearse else "dome"
+    site, errors = sitefile.check_site(args.site, sim=args.sim, emulated=args.rehearse)
+    if errors:
+        for e in errors:
+            print(f"ant-dome: error: {e}", file=sys.stderr)
+        return 2
+    with tempfile.TemporaryDirectory(prefix="ant-dome-plan-") as tmp:
+        graph = dome_graph(site, Path(tmp), hardware)
+    env = sitefile.environment(site)
+    addresses = {h.name: h.address for h in site.hosts}
+    shares = {host: [n.name for n in graph.share(host)] for host in graph.hosts}
+    if args.json:
+        print(
+            json.dumps(
+                {"hardware": hardware, "network": env, "hosts": addresses} | {"shares": shares}
+            )
+        )
+        return 0
+    print(f"ant-dome: {args.site}: {hardware} hardware, {len(graph.nodes)} nodes")
+    for host, names in shares.items():
+        role = "the dome PC" if host == graph.hosts[0] else "a robot's computer"
+        print(f"host {host} ({addresses[host]}, {role}): {', '.join(names) or '-'}")
+    print("network: " + " ".join(f"{k}={v}" for k, v in env.items()))
+    return 0
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -169,6 +206,20 @@ def bring_up(args: argparse.Namespace, hardware: str) -> int:
     graph = dome_graph(
         site, run_dir, hardware, record, args.view, args.ticks, args.view_port, args.domain
     )
+    host = args.host or graph.hosts[0]
+    try:
+        graph.nodes = graph.share(host) if args.host else graph.nodes
+    except KeyError as exc:
+        print(f"ant-dome: error: --host {args.host}: {exc.args[0]}", file=sys.stderr)
+        return 2
+    on_dome_pc = host == graph.hosts[0]
+    if not on_dome_pc and (record or args.view):
+        print(
+            f"ant-dome: error: --host {host}: --record and --view run on the dome PC "
+            f"({graph.hosts[0]})",
+            file=sys.stderr,
+        )
+        return 2
     env = dict(os.environ, **sitefile.environment(site, args.domain))
     dome = ProcessLauncher(graph, env, echo=not args.json)
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -177,7 +228,8 @@ def bring_up(args: argparse.Namespace, hardware: str) -> int:
         f"bringing up {args.site} ({len(graph.nodes)} nodes, domain {env['ROS_DOMAIN_ID']}) "
         f"in {run_dir}"
     )
-    arming = Arming(int(env["ROS_DOMAIN_ID"]), dome.report) if hardware == "emulated" else None
+    rehearsal_pc = hardware == "emulated" and on_dome_pc
+    arming = Arming(int(env["ROS_DOMAIN_ID"]), dome.report) if rehearsal_pc else None
     if arming is not None:
         arming.start()
     try:
@@ -185,7 +237,7 @@ def bring_up(args: argparse.Namespace, hardware: str) -> int:
     finally:
         if arming is not None:
             arming.stop()
-    result = sim_result(run_dir) if hardware != "dome" else None
+    result = sim_result(run_dir) if hardware != "dome" and on_dome_pc else None
     summary = {
         "ok": ok,
         "run_dir": str(run_dir),
@@ -232,6 +284,13 @@ def parser() -> argparse.ArgumentParser:
     how.add_argument("--sim", action="store_true", help="check it for ant-dome up --sim")
     how.add_argument("--rehearse", action="store_true", help="check it for ant-dome rehearse")
     c.set_defaults(run=cmd_check)
+    pl = sub.add_parser("plan", help="print each host's share of the graph and the network")
+    pl.add_argument("site", metavar="SITE")
+    how = pl.add_mutually_exclusive_group()
+    how.add_argument("--sim", action="store_true", help="the graph of ant-dome up --sim")
+    how.add_argument("--rehearse", action="store_true", help="the graph of ant-dome rehearse")
+    pl.add_argument("--json", action="store_true", help="print it as JSON")
+    pl.set_defaults(run=cmd_plan)
     u = sub.add_parser("up", help="bring the dome up from a site file")
     u.add_argument("--sim", action="store_true", help="the simulator in place of the hardware")
     r = sub.add_parser(
@@ -253,6 +312,12 @@ def parser() -> argparse.ArgumentParser:
         q.add_argument("--run-dir", metavar="DIR", help="default dome_runs/<date-time>")
         q.add_argument("--timeout", type=float, default=None, help="give up after S seconds")
         q.add_argument("--json", action="store_true", help="print the outcome as JSON")
+        q.add_argument(
+            "--host",
+            metavar="NAME",
+            help="start only this host's share of the graph (ant-dome plan SITE lists them; "
+            "default: every node here)",
+        )
     u.set_defaults(run=cmd_up)
     r.set_defaults(run=cmd_rehearse)
     return p

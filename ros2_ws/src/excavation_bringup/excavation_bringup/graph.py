@@ -74,6 +74,23 @@ class Graph:
         """Node names in start order."""
         return [n.name for n in self.nodes]
 
+    @property
+    def hosts(self) -> list[str]:
+        """The site's hosts, the dome PC first (``["dome"]`` without a site)."""
+        site = self.deployment.site
+        return [h.name for h in site.hosts] if site is not None else [sitefile.DOME_PC.name]
+
+    def share(self, host: str) -> list[nodes.NodeSpec]:
+        """The nodes ``host`` runs, in start order (the dome PC: every node of no host).
+
+        Raises:
+            KeyError: ``host`` is not one of :attr:`hosts`.
+        """
+        if host not in self.hosts:
+            raise KeyError(f"no host {host!r} in the site (hosts: {', '.join(self.hosts)})")
+        own = "" if host == self.hosts[0] else host
+        return [n for n in self.nodes if n.host == own]
+
 
 def _calibration(dep: Deployment, run_dir: Path) -> str:
     """The camera model the localiser loads; the synthetic camera's is written now.

@@ -118,6 +118,7 @@ class NodeSpec:
         remaps: Topic remappings ``from:=to``.
         module: ``python -m`` module, when not the kind's (the recorder runs through
             ``ant-bag record``).
+        host: The site's host that runs it (``ant-dome up --host``); empty: the dome PC.
     """
 
     name: str
@@ -130,6 +131,7 @@ class NodeSpec:
     final: bool = False
     remaps: tuple[str, ...] = ()
     module: str = ""
+    host: str = ""
 
     def command(self, params_file: str | Path) -> list[str]:
         """The command line that starts it (this interpreter, as ``ros2 run`` would)."""
@@ -537,6 +539,18 @@ def controller(dep: Deployment, k: int, geometry: Geometry) -> NodeSpec:
     )
 
 
+def robot_host(dep: Deployment, k: int) -> str:
+    """The host of robot ``k``'s own nodes: its executor and blade driver.
+
+    A rehearsal's emulated base and servo board too (the robot's hardware). The site's
+    ``robots[k].host``; empty for the dome PC (and without a site, and with ``--sim``).
+    """
+    if dep.site is None or dep.sim:
+        return ""
+    host = dep.site.robot_host(k)
+    return "" if host == dep.site.dome_host else host
+
+
 def blade_driver(dep: Deployment, k: int, profile: TimingProfile, files: RunFiles) -> NodeSpec:
     """Robot ``k``'s blade driver; simulated, the simulator is the board.
 
@@ -562,6 +576,7 @@ def blade_driver(dep: Deployment, k: int, profile: TimingProfile, files: RunFile
         _finish(dep, "blade_driver", params),
         (f"{ns}/blade_driver",),
         namespace=ns,
+        host=robot_host(dep, k),
     )
 
 
@@ -597,6 +612,7 @@ def executor(dep: Deployment, k: int, profile: TimingProfile, geometry: Geometry
         (f"{ns}/executor",),
         namespace=ns,
         remaps=remaps,
+        host=robot_host(dep, k),
     )
 
 
@@ -715,6 +731,7 @@ def emulated_base(dep: Deployment, k: int) -> NodeSpec:
         (f"{ns}/base",),
         namespace=ns,
         remaps=remaps,
+        host=robot_host(dep, k),
     )
 
 
@@ -733,6 +750,7 @@ def emulated_servo_board(dep: Deployment, k: int, files: RunFiles) -> NodeSpec:
         (f"{ns}/servo_board",),
         namespace=ns,
         remaps=remaps,
+        host=robot_host(dep, k),
     )
 
 

@@ -4,8 +4,10 @@ A site file names everything the node suite needs to run in one dome: the worksi
 (blueprint, grid, cell size, soil unit), the overhead camera (image topic and encoding,
 CameraInfo topic, calibration file, LED table), the overhead laser (scan and mount topics,
 mount position and orientation offsets), the robots (name, LED pair, blade backend and port,
-drive topic and the base's message type, whether it carries an IMU, controller genome) and
-the network (ROS domain, discovery range). Every node's parameters are made from it by the
+drive topic and the base's message type, whether it carries an IMU, controller genome, the
+host that runs its drive executor and blade driver), the hosts (the dome PC first, then the
+robots' computers: name and address) and the network (ROS domain, discovery range, static
+peers). Every node's parameters are made from it by the
 node spec functions of :mod:`excavation_bringup.nodes` (through a
 :class:`~excavation_bringup.deployment.Deployment`), so a value such as the soil unit is
 written once.
@@ -28,7 +30,15 @@ from typing import Any
 
 from excavation_common.errors import FieldError
 from excavation_common.loaders import parse_yaml, read_text_bounded
-from excavation_common.network import DISCOVERY_RANGES, MAX_DOMAIN, Network
+from excavation_common.network import (
+    DISCOVERY_RANGES,
+    MAX_DOMAIN,
+    MAX_STATIC_PEERS,
+    OFF_WITH_PEERS,
+    Network,
+    valid_address,
+    yaml_range,
+)
 
 FORMAT = "ant-site/1"
 
@@ -145,12 +155,37 @@ class Robot:
     genome: str = HAND_CODED
     drive_type: str = "twist_stamped"
     imu: bool = True
+    host: str = ""
 
     @property
     def drive_topic_resolved(self) -> str:
         """``drive_topic`` as a full name (a relative one is in the robot's namespace)."""
         topic = self.drive_topic
         return topic if topic.startswith("/") else f"/{self.name}/{topic}"
+
+
+LOCAL = "local"
+"""A host's ``address`` for the machine ``ant-dome`` runs on."""
+
+MAX_HOSTS = 64
+"""Most hosts a site may name."""
+
+_HOST_NAME = re.compile(r"^[a-z][a-z0-9_-]{0,31}$")
+
+
+@dataclass(frozen=True)
+class Host:
+    """A computer of the dome: ``name`` (``ant-dome up --host NAME``) and its address.
+
+    ``address``: an IP address or host name its peers reach it at, or ``local``.
+    """
+
+    name: str
+    address: str = LOCAL
+
+
+DOME_PC = Host("dome", LOCAL)
+"""The hosts of a site without a ``hosts`` section: one dome PC, this machine."""
 
 
 @dataclass(frozen=True)
@@ -183,11 +218,21 @@ class Site:
     network: Network
     sim: SimSettings = field(default_factory=SimSettings)
     overrides: dict[str, dict[str, Any]] = field(default_factory=dict)
+    hosts: tuple[Host, ...] = (DOME_PC,)
 
     @property
     def n_robots(self) -> int:
         """Team size."""
         return len(self.robots)
+
+    @property
+    def dome_host(self) -> str:
+        """The dome PC's name: the first host (the supervisor, perception, the team tick)."""
+        return self.hosts[0].name
+
+    def robot_host(self, k: int) -> str:
+        """The host that runs robot ``k``'s drive executor and blade driver."""
+        return self.robots[k].host or self.dome_host
 
 
 # --- reading ----------------------------------------------------------------------------------
@@ -324,7 +369,7 @@ def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
         r.error("robots", entries, "expected a non-empty list of robots")
         return ()
     out = []
-    keys = {"name", "leds", "blade", "drive_topic", "drive_type", "imu", "genome"}
+    keys = {"name", "leds", "blade", "drive_topic", "drive_type", "imu", "genome", "host"}
     for k, entry in enumerate(entries):
         where = f"robots[{k}]"
         if not isinstance(entry, dict):
@@ -369,18 +414,68 @@ def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
                 genome if genome == HAND_CODED else r.file(genome),
                 r.text(entry, where, "drive_type", "twist_stamped", DRIVE_TYPES),
                 imu,
+                r.text(entry, where, "host", ""),
             )
         )
     return tuple(out)
 
 
 def _network(r: _Reader, doc: dict) -> Network:
-    s = r.section(doc, "network", {"domain", "discovery_range"})
+    s = r.section(doc, "network", {"domain", "discovery_range", "static_peers"})
     d = Network()
-    return Network(
+    peers = s.get("static_peers", [])
+    if not isinstance(peers, list) or len(peers) > MAX_STATIC_PEERS:
+        r.error("network.static_peers", peers, f"expected a list of at most {MAX_STATIC_PEERS}")
+        peers = []
+    for i, peer in enumerate(peers):
+        if not valid_address(peer):
+            r.error(f"network.static_peers[{i}]", peer, "expected an IP address or a host name")
+    if "discovery_range" in s:
+        s = s | {"discovery_range": yaml_range(s["discovery_range"])}
+    network = Network(
         r.number(s, "network", "domain", d.domain, 0, MAX_DOMAIN, integer=True),
         r.text(s, "network", "discovery_range", d.discovery_range, DISCOVERY_RANGES),
+        tuple(p for p in peers if valid_address(p)),
     )
+    if network.static_peers and network.discovery_range == "OFF":
+        r.error("network.static_peers", list(network.static_peers), OFF_WITH_PEERS)
+    return network
+
+
+def _hosts(r: _Reader, doc: dict) -> tuple[Host, ...]:
+    entries = doc.get("hosts")
+    if entries is None:
+        return (DOME_PC,)
+    if not isinstance(entries, list) or not entries or len(entries) > MAX_HOSTS:
+        r.error("hosts", entries, f"expected a list of 1 .. {MAX_HOSTS} hosts, the dome PC first")
+        return (DOME_PC,)
+    out: list[Host] = []
+    addresses: dict[str, int] = {}
+    for i, entry in enumerate(entries):
+        where = f"hosts[{i}]"
+        if not isinstance(entry, dict):
+            r.error(where, entry, "expected a mapping {name, address}")
+            continue
+        for extra in sorted(set(entry) - {"name", "address"}):
+            r.error(f"{where}.{extra}", entry[extra], "unknown key (known: address, name)")
+        name = entry.get("name")
+        if not isinstance(name, str) or not _HOST_NAME.match(name):
+            r.error(f"{where}.name", name, "expected a name of a-z, 0-9, _ and - (up to 32)")
+            continue
+        if any(h.name == name for h in out):
+            r.error(f"{where}.name", name, "named twice")
+            continue
+        address = entry.get("address", LOCAL)
+        if address != LOCAL and not valid_address(address):
+            r.error(
+                f"{where}.address", address, f"expected {LOCAL!r}, an IP address or a host name"
+            )
+            continue
+        if address != LOCAL and address in addresses:
+            r.error(f"{where}.address", address, f"hosts[{addresses[address]}] has it too")
+        addresses.setdefault(address, i)
+        out.append(Host(name, address))
+    return tuple(out) or (DOME_PC,)
 
 
 def _sim(r: _Reader, doc: dict) -> SimSettings:
@@ -461,7 +556,7 @@ def parse_site(text: str, path: str) -> tuple[Site | None, list[SiteError]]:
     if doc.get("format") != FORMAT:
         r.error("format", doc.get("format"), f"expected {FORMAT!r}")
     known = {"format", "name", "worksite", "camera", "laser", "robots", "network", "sim"}
-    known.add("overrides")
+    known |= {"overrides", "hosts"}
     for extra in sorted(set(doc) - known):
         r.error(extra, doc[extra], f"unknown section (known: {sorted(known)})")
     site = Site(
@@ -473,6 +568,7 @@ def parse_site(text: str, path: str) -> tuple[Site | None, list[SiteError]]:
         _network(r, doc),
         _sim(r, doc),
         _overrides(r, doc),
+        _hosts(r, doc),
     )
     return site, r.errors
 
@@ -675,6 +771,12 @@ def _check_robots(site: Site, sim: bool, emulated: bool = False) -> list[SiteErr
                 f"robots[{drives[topic]}] drives {topic} too: two executors would command one base",
             )
         drives.setdefault(topic, k)
+        if robot.host and robot.host not in {h.name for h in site.hosts}:
+            err(
+                f"{where}.host",
+                robot.host,
+                f"not a host of the site (hosts: {[h.name for h in site.hosts]})",
+            )
         if robot.genome != HAND_CODED:
             from ant_controller.genome_io import load_genome
 
@@ -878,8 +980,12 @@ def beacons_document(site: Site) -> dict[str, Any]:
 
 
 def environment(site: Site, domain: int | None = None) -> dict[str, str]:
-    """``ROS_DOMAIN_ID`` and ``ROS_AUTOMATIC_DISCOVERY_RANGE`` of every process of the site."""
-    return {
-        "ROS_DOMAIN_ID": str(site.network.domain if domain is None else domain),
-        "ROS_AUTOMATIC_DISCOVERY_RANGE": site.network.discovery_range,
-    }
+    """The ROS network of every process of the site, on every host.
+
+    ``ROS_DOMAIN_ID``, ``ROS_AUTOMATIC_DISCOVERY_RANGE`` and ``ROS_STATIC_PEERS``
+    (:meth:`excavation_common.network.Network.environment`); ``domain`` replaces the site's.
+    """
+    env = site.network.environment()
+    if domain is not None:
+        env["ROS_DOMAIN_ID"] = str(domain)
+    return env
