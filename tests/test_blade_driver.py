@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 
 import pytest
 from helpers.blades import blade_driver_node, blade_probe, word
@@ -209,41 +210,54 @@ def test_sim_driver_waits_for_the_ticks_drive_before_moving_the_blade(ros):
         probe.state.publish(joint_state(0.10, 0.0, Time(sec=t)))
         assert ros.spin_until(lambda: probe.joints and probe.joints[-1].header.stamp.sec == t)
 
-    def answer(m, timeout=1.0):
-        ros.spin_until(lambda: len(probe.servo) > m, timeout=timeout)
-        return probe.servo[-1] if len(probe.servo) > m else None
+    sent = [0]  # set-points the test has seen (a late one would show in the next count)
 
-    def send_word(bits):
+    def answer(m, expect):
+        """The set-point the last input released, or None; ``expect``: one is due.
+
+        A set-point is published in the callback that takes the input, so once the driver
+        has taken it (the callers wait for that) one is either on its way or not coming;
+        none expected waits briefly, and every later answer checks that exactly one
+        set-point came since the last one seen, so a late one fails the test there.
+        """
+        ros.spin_until(lambda: len(probe.servo) > m, timeout=10.0 if expect else 0.5)
+        if len(probe.servo) == m:
+            return None
+        assert len(probe.servo) == m + 1 == sent[0] + 1, [s.position for s in probe.servo]
+        sent[0] = len(probe.servo)
+        return probe.servo[-1]
+
+    def send_word(bits, expect=False):
         n, m = driver.commands, len(probe.servo)
         probe.behaviour.publish(UInt16(data=bits))
         assert ros.spin_until(lambda: driver.commands > n)
-        return answer(m)
+        return answer(m, expect)
 
-    def send_status(tick, status):
+    def send_status(tick, status, expect=False):
         m = len(probe.servo)
         _drive_status(probe, tick, status)
         if status != GoalStatus.STATUS_EXECUTING:
             done = driver.after
             assert ros.spin_until(lambda: done.done is not None and done.done[0] >= tick)
-        return answer(m)
+        return answer(m, expect)
 
     new_tick(0)
     assert send_word(word(MOVE_FORWARD, BLADE_BELOW_CMD)) is None
     assert send_status(0, GoalStatus.STATUS_EXECUTING) is None  # still driving: the blade waits
     assert driver.core.pushing and driver.core.state.setting == BLADE_HOME  # not yet set
-    cmd = send_status(0, GoalStatus.STATUS_SUCCEEDED)
+    cmd = send_status(0, GoalStatus.STATUS_SUCCEEDED, expect=True)
     # below ground, trimmed by the constant-force loop (it pushes: 0 N measured)
     assert cmd.header.stamp.sec == 0 and cmd.position[0] == pytest.approx(-0.02, abs=0.008)
     # Tick 1: an old tick's status releases nothing; an aborted drive of tick 1 does.
     new_tick(1)
     assert send_word(word(BLADE_LEVEL_CMD)) is None
     assert send_status(0, GoalStatus.STATUS_SUCCEEDED) is None
-    cmd = send_status(1, GoalStatus.STATUS_ABORTED)
+    cmd = send_status(1, GoalStatus.STATUS_ABORTED, expect=True)
     assert cmd.header.stamp.sec == 1 and cmd.position[0] == pytest.approx(0.0)
     # Tick 2: the drive ended before the word came (nothing to drive): the blade at once.
     new_tick(2)
     assert send_status(2, GoalStatus.STATUS_SUCCEEDED) is None
-    cmd = send_word(word(BLADE_ABOVE_CMD))
+    cmd = send_word(word(BLADE_ABOVE_CMD), expect=True)
     assert cmd.header.stamp.sec == 2 and cmd.position[0] == pytest.approx(0.02)
 
 
@@ -320,3 +334,54 @@ def test_serial_driver_watchdog_counts_team_ticks(ros, board):
     team_tick.publish(Header(stamp=Time(sec=6), frame_id="6"))
     assert ros.spin_until(lambda: fake.target == cal.angle(0.10), timeout=5.0)
     assert driver.core.state.watchdog_tripped
+
+
+def test_the_board_homes_the_servo_when_its_set_points_stop(board):
+    """``TIMEOUT <ms>``: no ``SET`` for that long and the board retracts the blade itself."""
+    fake, path = board
+    cal = ServoCalibration()
+    link = SerialBackend(path, timeout=1.0)
+    try:
+        assert link.set_timeout(0.3) == 300
+        link.set_position(-0.02)
+        assert fake.target == cal.angle(-0.02) and fake.timeout == 0.3
+        for _ in range(5):  # set-points keep coming: the blade stays down
+            link.set_position(-0.02)
+        assert fake.target == cal.angle(-0.02) and fake.timeouts == 0
+        deadline = time.monotonic() + 5.0
+        while fake.target != fake.home_deg and time.monotonic() < deadline:
+            time.sleep(0.05)  # the host is gone: the board's own loop times it out
+        assert fake.target == fake.home_deg == cal.angle(0.10) and fake.timeouts == 1
+        link.set_position(0.0)  # the host is back: its set-points rule again
+        assert fake.target == cal.angle(0.0)
+        assert link.set_timeout(0) == 0 and fake.timeout == 0.0
+    finally:
+        link.close()
+
+
+def test_the_driver_arms_the_boards_timeout_and_a_dead_driver_leaves_the_blade_home(ros, board):
+    from std_msgs.msg import UInt16
+
+    fake, path = board
+    cal = ServoCalibration()
+    driver = blade_driver_node(ros, backend="serial", port=path, rate=50.0, board_timeout=0.4)
+    probe = blade_probe(ros)
+    assert ros.spin_until(lambda: driver.board_timeout == "armed" and fake.timeout == 0.4)
+    level = UInt16(data=word(BLADE_LEVEL_CMD))
+
+    def words_until(cond, timeout=10.0):
+        def check():
+            probe.behaviour.publish(level)
+            return cond()
+
+        return ros.spin_until(check, timeout)
+
+    assert words_until(lambda: fake.target == cal.angle(0.0))
+    ros.executor.remove_node(driver)  # its computer hangs: no set-point, no driver to home it
+    try:
+        deadline = time.monotonic() + 5.0
+        while fake.target != fake.home_deg and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert fake.target == cal.angle(0.10) and fake.timeouts == 1
+    finally:
+        driver.destroy_node()

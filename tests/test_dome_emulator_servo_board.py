@@ -109,10 +109,34 @@ def test_the_board_answers_as_the_fake_board_does():
         (1.2, b"READ*77\n"),
         (1.3, encode("HELLO")),
         (1.4, encode("READ")),
+        (1.5, encode("TIMEOUT", "300")),
+        (1.6, encode("SET", "70.00")),
+        (1.7, encode("READ")),
+        (2.5, encode("READ")),  # no SET since 1.6: both went home at the timeout
+        (2.6, encode("TIMEOUT", "soon")),
+        (2.7, encode("TIMEOUT", "0")),
+        (2.8, encode("SET", "80.00")),
+        (9.0, encode("READ")),  # off: the set-point holds
     ]
     for now, line in script:
         answer = ours.handle(line, now)
         assert answer.data == fake.handle(line, now), line
+
+
+def test_the_set_point_timeout_homes_the_servo_until_the_next_set():
+    b = board(speed=0.0)
+    assert ask(b, "TIMEOUT", "500") == ["ACK", "TIMEOUT", "500"]
+    ask(b, "SET", "78.00", now=1.0)
+    b.advance(1.4)
+    assert b.target == 78.0
+    ask(b, "SET", "78.00", now=1.4)  # the host keeps sending
+    b.advance(1.8)
+    assert b.target == 78.0 and b.timeouts == 0
+    assert b.world_command(1.85) == MoveBlade(pytest.approx(-0.02))
+    assert b.world_command(2.5) == MoveBlade(pytest.approx(0.10))  # 1.1 s silent: home
+    assert b.timeouts == 1 and ask(b, "READ", now=2.6)[1] == "150.00"
+    ask(b, "SET", "90.00", now=3.0)
+    assert b.position() == pytest.approx(0.0)
 
 
 def test_parameters_are_checked():

@@ -359,3 +359,45 @@ def test_a_pose_clock_ahead_is_reported_with_its_offset(ros):
     status = next(d for d in probe.diagnostics if "0.030 s ahead" in d.message)
     assert status.level == DiagnosticStatus.WARN and "pose clock offset" in status.message
     assert {v.key: v.value for v in status.values}["pose_clock_ahead"] == "0.030"
+
+
+def test_on_a_robot_host_a_returning_link_moves_nothing_until_a_re_arm(ros):
+    """``rearm_after_loss``: the heartbeat stops (the link dropped) and comes back armed."""
+    base = ros.add(Base(ros.context))
+    node = ros.add(
+        ExecutorNode(
+            context=ros.context,
+            namespace="/robot_0",
+            parameter_overrides=[
+                Parameter("progress_window", value=5.0),
+                Parameter("rearm_after_loss", value=True),
+            ],
+        )
+    )
+    armed_pub = base.create_publisher(Header, "/team/armed", LATCHED)
+    armed_pub.publish(Header(stamp=Time(seconds=100).to_msg(), frame_id="1"))
+    base.estop_pub.publish(Bool(data=False))
+    base.enabled_pub.publish(Bool(data=True))
+    node.trigger_configure()
+    node.trigger_activate()
+    wait_matched(ros, base, node)
+    send_goal(base, 0)
+    assert ros.spin_until(base.moving, 5)
+    t0 = time.monotonic()
+    base.beating = False  # the link drops
+    assert ros.spin_until(lambda: base.stopped_after(t0), 5)
+    first = base.first_zero_after(t0)
+    base.beating = True  # it returns: armed heartbeats again
+    seen = node.gate.heartbeat_time
+    assert ros.spin_until(lambda: node.gate.heartbeat_time != seen, 5)
+    assert node.gate.link_lost
+    send_goal(base, 1)
+    count = len(base.twists)
+    assert ros.spin_until(lambda: len(base.twists) >= count + 5, 5)
+    assert all(m.twist.linear.x == 0.0 for _, m in base.twists[first:])
+    now = node.get_clock().now().nanoseconds * 1e-9
+    assert node.gate.reason(now) == "heartbeat lost earlier: waiting for the operator to re-arm"
+    armed_pub.publish(Header(stamp=Time(seconds=200).to_msg(), frame_id="2"))  # re-armed
+    assert ros.spin_until(lambda: not node.gate.link_lost, 5)
+    send_goal(base, 2)
+    assert ros.spin_until(base.moving, 5)

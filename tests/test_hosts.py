@@ -54,6 +54,17 @@ def test_each_robot_host_runs_its_executor_blade_driver_base_and_board(tmp_path)
     assert sorted(sum(shares.values(), [])) == sorted(graph.names)
     dome_table = dome_graph(site, tmp_path / "dome", "dome")
     assert [n.name for n in dome_table.share("robot1")] == ["blade_driver_1", "executor_1"]
+    # On its own computer a robot's executor and blade driver wait for a re-arm after a
+    # lost heartbeat; on the dome PC they do not (a restarted supervisor resumes the team).
+    for spec in graph.nodes:
+        if spec.kind in ("executor", "blade_driver"):
+            assert spec.params.get("rearm_after_loss", False) is bool(spec.host), spec.name
+    one_host = dome_graph(
+        sitefile.load_site(CONFIG / "site_rehearsal.yaml", emulated=True),
+        tmp_path / "one",
+        "emulated",
+    )
+    assert not any(n.params.get("rearm_after_loss") for n in one_host.nodes)
     with pytest.raises(KeyError, match="no host 'robot7'"):
         graph.share("robot7")
     # --sim has no robot computers: the simulator is every robot.

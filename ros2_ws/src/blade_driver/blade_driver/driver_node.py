@@ -77,6 +77,7 @@ from blade_driver.errors import BoardError, DriverConfigError, PortError
 from blade_driver.params import JOINT, DriverNodeParams
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
 from excavation_common.safety import (
+    ARMED_TOPIC,
     ENABLED_TOPIC,
     ESTOP_TOPIC,
     HEARTBEAT_TOPIC,
@@ -135,7 +136,7 @@ class BladeDriverNode(LifecycleNode):
         self.params = declare_params(self, DriverNodeParams, on_change=self.on_params)
         p = self.params
         self.core = BladeDriverCore(p.driver())
-        self.gate = MotionGate(deadman=p.deadman)
+        self.gate = MotionGate(deadman=p.deadman, rearm_after_loss=p.rearm_after_loss)
         self.hold: str | None = self.gate.reason(self._wall())
         self.lifecycle = "unconfigured"
         self.errors: dict[str, str] = {}
@@ -144,6 +145,9 @@ class BladeDriverNode(LifecycleNode):
         self.board = None
         self.backoff = p.backoff()
         self.reopened = 0
+        self.board_timeout = (
+            "off"  # the board's own set-point timeout: off, pending, armed, refused
+        )
         self.tick_stamp: TimeMsg | None = None
         self.word_tick: tuple[int, int] | None = None
         self.open_setpoint: tuple[tuple[int, int], float] | None = None
@@ -158,6 +162,7 @@ class BladeDriverNode(LifecycleNode):
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_subscription(Bool, ESTOP_TOPIC, self.on_estop, LATCHED)
         self.create_subscription(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
+        self.create_subscription(Header, ARMED_TOPIC, self.on_armed, LATCHED)
         self.create_subscription(Bool, ENABLED_TOPIC, self.on_enabled, LATCHED)
         self.create_timer(1.0 / p.safety_rate, self.apply_gate)
         self.create_timer(p.diagnostics_period, self.publish_diagnostics)
@@ -270,6 +275,11 @@ class BladeDriverNode(LifecycleNode):
     def on_heartbeat(self, msg: Header) -> None:
         """A team heartbeat (``frame_id`` = team state)."""
         self.gate.on_heartbeat(msg.frame_id, self._wall())
+        self.apply_gate()
+
+    def on_armed(self, msg: Header) -> None:
+        """``/team/armed``: an arming (a re-arm ends a latched link loss)."""
+        self.gate.on_armed(msg.stamp.sec, msg.stamp.nanosec, msg.frame_id)
         self.apply_gate()
 
     def on_enabled(self, msg: Bool) -> None:
@@ -457,12 +467,34 @@ class BladeDriverNode(LifecycleNode):
             return False
         reopened = self.backoff.failures > 0
         self.backoff.succeeded()
+        self.board_timeout = "pending" if p.board_timeout > 0 else "off"
         self.errors.pop("board", None)
         if reopened:
             self.reopened += 1
             self.get_logger().info(f"{p.port}: port open again")
             self.publish_diagnostics()
         return True
+
+    def arm_board_timeout(self) -> None:
+        """Arm the board's own set-point timeout (``TIMEOUT``), once per connection.
+
+        A board that refuses it (firmware without one: ``ERR``) is reported and used as it
+        is; no answer leaves it pending for the next control step.
+        """
+        p = self.params
+        try:
+            self.board.set_timeout(p.board_timeout)
+        except BoardError as exc:
+            if "board refused" not in str(exc):
+                raise
+            self.board_timeout = "refused"
+            self.get_logger().warning(
+                f"{p.port}: the board has no set-point timeout ({exc}): only this driver "
+                "homes the blade when its host fails"
+            )
+            return
+        self.board_timeout = "armed"
+        self.get_logger().info(f"{p.port}: board set-point timeout {p.board_timeout:g} s")
 
     def fault(self, message: str) -> None:
         """Record a board fault (logged once per distinct message)."""
@@ -478,6 +510,8 @@ class BladeDriverNode(LifecycleNode):
                 return
         now = self._wall()
         try:
+            if self.board_timeout == "pending":
+                self.arm_board_timeout()
             self.position, self.force = self.board.read()
             self.joint_pub.publish(
                 joint_state(self.position, self.force, self.get_clock().now().to_msg())
@@ -539,6 +573,7 @@ class BladeDriverNode(LifecycleNode):
                 "port_open": self.board is not None,
                 "reopen_failures": self.backoff.failures,
                 "reopened": self.reopened,
+                "board_timeout": self.board_timeout,
             }
         hardware = p.port if p.backend == "serial" else f"sim{self.get_namespace()}"
         self.diag_pub.publish(diagnostics(self, level, message, values, hardware_id=hardware))

@@ -40,6 +40,9 @@ class FakeBoard:
         seed: Seed of the noise.
         drop_every: Leave every n-th request unanswered (0: never).
         corrupt_every: Answer every n-th request with a wrong checksum (0: never).
+        home_deg: The angle a set-point timeout sends the servo to (the blade home).
+        timeout: The set-point timeout the host armed (``TIMEOUT``), s; 0: off.
+        timeouts: Set-point timeouts that fired.
     """
 
     calibration: ServoCalibration = field(default_factory=ServoCalibration)
@@ -52,19 +55,35 @@ class FakeBoard:
     corrupt_every: int = 0
     angle: float = 150.0
     target: float = 150.0
+    home_deg: float = 150.0
+    timeout: float = 0.0
+    timeouts: int = 0
     requests: int = 0
     set_points: list[float] = field(default_factory=list)
     _rng: np.random.Generator | None = None
     _last: float | None = None
+    _last_set: float | None = None
 
     def __post_init__(self) -> None:
         self._rng = np.random.default_rng(self.seed)
 
     def _advance(self, now: float) -> None:
+        self.check_timeout(now)
         if self._last is not None:
             step = self.speed * (now - self._last)
             self.angle = min(self.angle + step, max(self.angle - step, self.target))
         self._last = now
+
+    def check_timeout(self, now: float) -> None:
+        """The set-point timeout: no ``SET`` for ``timeout`` s sends the servo home."""
+        if not self.timeout or self._last_set is None or now - self._last_set <= self.timeout:
+            return
+        if self.target != self.home_deg:
+            self.timeouts += 1
+        self.target = self.home_deg
+        if self.speed == float("inf"):
+            self.angle = self.home_deg
+        self._last_set = None  # fired: the next SET takes over again
 
     def force(self) -> float:
         """The load-cell reading for the current blade position (N, never negative)."""
@@ -96,9 +115,16 @@ class FakeBoard:
                 return encode("ERR", "3", f"angle {angle} outside [{c.min_deg}, {c.max_deg}]")
             self.target = angle
             self.set_points.append(angle)
+            self._last_set = now
             if self.speed == float("inf"):
                 self.angle = angle
             reply = encode("ACK", "SET", request[1])
+        elif len(request) == 2 and request[0] == "TIMEOUT":
+            if not request[1].isdigit():
+                return encode("ERR", "2", "timeout is not a whole number of ms")
+            self.timeout = int(request[1]) / 1000.0
+            self._last_set = now if self.timeout else None
+            reply = encode("ACK", "TIMEOUT", request[1])
         else:
             return encode("ERR", "4", "unknown request")
         if self.corrupt_every and self.requests % self.corrupt_every == 0:
@@ -111,6 +137,7 @@ class FakeBoard:
         while not stop():
             ready, _, _ = select.select([fd], [], [], 0.05)
             if not ready:
+                self.check_timeout(time.monotonic())
                 continue
             try:
                 chunk = os.read(fd, 1024)

@@ -31,6 +31,13 @@ class DriverNodeParams:
     baudrate: int = param(115200, "serial line speed", low=1200, high=4_000_000)
     serial_timeout: float = param(0.1, "s to wait for the board's answer", low=0.001, high=10.0)
     rate: float = param(20.0, "Hz, serial backend control loop", low=1.0, high=1000.0)
+    board_timeout: float = param(
+        1.0,
+        "serial: s without a set-point after which the board itself sends the blade home "
+        "(its TIMEOUT, armed at connect: a dead driver or robot computer); 0: leave it off",
+        low=0.0,
+        high=60.0,
+    )
     reopen_initial: float = param(
         0.5, "s before the first retry of an absent port", low=0.01, high=60.0
     )
@@ -57,6 +64,11 @@ class DriverNodeParams:
     override_timeout: float = param(0.5, "s an operator set-point stays in charge", read_only=False)
     deadman: float = param(
         DEADMAN_TIMEOUT, "s without a team heartbeat: blade home", low=0.05, high=10.0
+    )
+    rearm_after_loss: bool = param(
+        False,
+        "on a robot's own computer: after a lost heartbeat (a dropped link) the blade stays "
+        "home until a newer arming on /team/armed (the operator re-arms)",
     )
     safety_rate: float = param(
         50.0, "Hz at which the team state (deadman) is checked", low=10.0, high=1000.0

@@ -10,8 +10,16 @@ host               board                    meaning
 ``PING``           ``PONG <firmware>``      link check
 ``SET <deg>``      ``ACK SET <deg>``        servo angle set-point, degrees, 2 decimals
 ``READ``           ``STATE <deg> <N>``      measured servo angle and load-cell force
+``TIMEOUT <ms>``   ``ACK TIMEOUT <ms>``     set-point timeout: no ``SET`` for ``<ms>``
+                                            sends the servo to its home angle (0: off)
 (any)              ``ERR <code> <text>``    the board refused the request
 =================  =======================  ==========================================
+
+The set-point timeout is the board's own stop: the driver sends ``SET`` every control
+step, so a board that hears none for the timeout has lost its host (a crashed driver, a
+dead robot computer, a cut cable) and retracts the blade by itself. Firmware that does
+not know ``TIMEOUT`` answers ``ERR 4``; the driver then reports that the board has no
+timeout and runs on.
 
 This module is pure: it turns requests and replies into bytes and back.
 """

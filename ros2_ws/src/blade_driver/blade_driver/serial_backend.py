@@ -72,6 +72,18 @@ class SerialBackend:
             raise BoardError(f"{self.port}: expected 'ACK SET {angle}', got {reply}")
         return float(angle)
 
+    def set_timeout(self, seconds: float) -> int:
+        """Arm the board's set-point timeout (``TIMEOUT <ms>``; 0 disarms it).
+
+        Returns the milliseconds acknowledged. Raises :class:`BoardError` when the board
+        refuses it (firmware without a timeout answers ``ERR 4``).
+        """
+        ms = max(0, int(round(seconds * 1000)))
+        reply = self._request("TIMEOUT", ms)
+        if reply != ["ACK", "TIMEOUT", str(ms)]:
+            raise BoardError(f"{self.port}: expected 'ACK TIMEOUT {ms}', got {reply}")
+        return ms
+
     def read(self) -> tuple[float, float]:
         """``(position m, force N)`` measured by the board."""
         reply = self._request("READ")

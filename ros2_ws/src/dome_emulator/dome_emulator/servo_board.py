@@ -9,6 +9,8 @@ definition of the protocol), with the board-side behaviour of
   ``READ`` -> ``STATE <deg> <N>``; a bad checksum, a bad number, an angle outside the
   servo's range and an unknown request -> ``ERR 1..4 <text>``;
 * the servo slews towards its set-point at ``speed`` degrees per second (0: at once);
+* ``TIMEOUT <ms>`` -> ``ACK TIMEOUT <ms>`` arms the set-point timeout: no ``SET`` for that
+  long sends the servo to ``start_angle`` (the blade home), as the firmware must;
 * the load cell reads the push force of the simulated world's blade (``force_source:
   world``) or the fake board's spring-like soil force below ``soil_surface``
   (``spring``), plus seeded Gaussian noise, never below zero;
@@ -130,8 +132,12 @@ class ServoBoard:
         self.angle = float(params.start_angle)  # where the servo is, deg
         self.target = float(params.start_angle)  # its set-point, deg
         self.last = now  # when the servo was last moved on
+        self.now = now  # the time of the request being answered
         self.world_force: float | None = None  # the simulated blade's push force, N
         self.sent: tuple[float, float] | None = None  # (position, time) last sent to the world
+        self.timeout = 0.0  # the set-point timeout the host armed, s (0: off)
+        self.last_set: float | None = None  # when the last SET came (None: none pending)
+        self.timeouts = 0
         self.requests = 0
         self.set_points = 0
         self.refused = 0
@@ -143,7 +149,12 @@ class ServoBoard:
         self.params = params
 
     def advance(self, now: float) -> None:
-        """Move the servo on towards its set-point until ``now``."""
+        """Move the servo on towards its set-point until ``now`` (the timeout first)."""
+        if self.timeout and self.last_set is not None and now - self.last_set > self.timeout:
+            if self.target != self.params.start_angle:
+                self.timeouts += 1
+            self.target = float(self.params.start_angle)
+            self.last_set = None
         speed = self.params.speed
         if speed == 0.0:
             self.angle = self.target
@@ -171,6 +182,7 @@ class ServoBoard:
         """The answer to one request line (with its newline)."""
         self.requests += 1
         self.advance(now)
+        self.now = now
         p = self.params
         if p.drop_every and self.requests % p.drop_every == 0:
             self.dropped += 1
@@ -205,9 +217,17 @@ class ServoBoard:
                 return encode("ERR", "3", f"angle {angle} outside [{c.min_deg}, {c.max_deg}]")
             self.target = angle
             self.set_points += 1
+            self.last_set = self.now
             if self.params.speed == 0.0:
                 self.angle = angle
             return encode("ACK", "SET", request[1])
+        if len(request) == 2 and request[0] == "TIMEOUT":
+            if not request[1].isdigit():
+                self.refused += 1
+                return encode("ERR", "2", "timeout is not a whole number of ms")
+            self.timeout = int(request[1]) / 1000.0
+            self.last_set = self.now if self.timeout else None
+            return encode("ACK", "TIMEOUT", request[1])
         self.refused += 1
         return encode("ERR", "4", "unknown request")
 

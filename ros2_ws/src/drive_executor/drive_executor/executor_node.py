@@ -57,7 +57,13 @@ from drive_executor.params import ExecutorParams
 from drive_executor.primitives import Pose2D, Twist2D
 from excavation_common.errors import FieldError
 from excavation_common.ros import LATCHED, declare_params, diagnostics, init_rclpy
-from excavation_common.safety import ENABLED_TOPIC, ESTOP_TOPIC, HEARTBEAT_TOPIC, MotionGate
+from excavation_common.safety import (
+    ARMED_TOPIC,
+    ENABLED_TOPIC,
+    ESTOP_TOPIC,
+    HEARTBEAT_TOPIC,
+    MotionGate,
+)
 
 STEADY = ClockType.STEADY_TIME
 
@@ -89,7 +95,9 @@ class ExecutorNode(LifecycleNode):
         super().__init__("executor", **kwargs)
         self.params = declare_params(self, ExecutorParams)
         self.frame = f"{self.get_namespace().strip('/') or 'robot'}/base_link"
-        self.gate = MotionGate(deadman=self.params.deadman)
+        self.gate = MotionGate(
+            deadman=self.params.deadman, rearm_after_loss=self.params.rearm_after_loss
+        )
         self.core = DriveExecutorCore(self.params, self.gate)
         self.errors: dict[str, str] = {}
         self._entities: list = []
@@ -117,6 +125,7 @@ class ExecutorNode(LifecycleNode):
             sub(TwistStamped, "drive/override", self.on_override, 10),
             sub(Bool, ESTOP_TOPIC, self.on_estop, LATCHED),
             sub(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10),
+            sub(Header, ARMED_TOPIC, self.on_armed, LATCHED),
             sub(Bool, ENABLED_TOPIC, self.on_enabled, LATCHED),
             self.create_timer(1.0 / self.params.rate, self.enforce),
             # wall clock: a node on use_sim_time reports even while the simulator waits
@@ -249,6 +258,11 @@ class ExecutorNode(LifecycleNode):
     def on_enabled(self, msg: Bool) -> None:
         """``enabled``: this robot may move."""
         self.gate.on_enabled(msg.data)
+        self.enforce()
+
+    def on_armed(self, msg: Header) -> None:
+        """``/team/armed``: an arming (a re-arm ends a latched link loss)."""
+        self.gate.on_armed(msg.stamp.sec, msg.stamp.nanosec, msg.frame_id)
         self.enforce()
 
     # --- outputs ----------------------------------------------------------------------------

@@ -71,6 +71,11 @@ class ExecutorParams:
     deadman: float = param(
         0.5, "heartbeat age that stops the robot, s (the team deadman)", low=0.05, high=10.0
     )
+    rearm_after_loss: bool = param(
+        False,
+        "on a robot's own computer: after a lost heartbeat (a dropped link) nothing moves "
+        "until a newer arming on /team/armed (the operator re-arms)",
+    )
     mode: str = param(
         "tick",
         "tick: run the team tick's goals (drive/goal); free: run each behaviour word when idle",

@@ -570,6 +570,8 @@ def blade_driver(dep: Deployment, k: int, profile: TimingProfile, files: RunFile
     if backend == "serial":
         params["port"] = str(files.board_link(k)) if dep.emulated else robot.port
     params |= _sim_deadman(dep, profile)
+    if robot_host(dep, k):
+        params["rearm_after_loss"] = True
     return NodeSpec(
         f"blade_driver_{k}",
         "blade_driver",
@@ -605,6 +607,8 @@ def executor(dep: Deployment, k: int, profile: TimingProfile, geometry: Geometry
         robot = dep.site.robots[k]
         params |= DOME_EXECUTOR | {"drive_type": robot.drive_type}
         remaps = (f"{ns}/cmd_vel:={robot.drive_topic}",)
+    if robot_host(dep, k):
+        params["rearm_after_loss"] = True
     return NodeSpec(
         f"executor_{k}",
         "executor",

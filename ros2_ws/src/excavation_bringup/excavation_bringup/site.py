@@ -828,12 +828,17 @@ DERIVED = {
         "height_unit": "worksite.soil_unit",
         "tilt_source": "robots[k].imu",
     },
-    "blade_driver": {"backend": "robots[k].blade.backend", "port": "robots[k].blade.port"},
+    "blade_driver": {
+        "backend": "robots[k].blade.backend",
+        "port": "robots[k].blade.port",
+        "rearm_after_loss": "robots[k].host (on the robot's own computer)",
+    },
     "executor": {
         "cell_size": "worksite.cell_size",
         "seed": "sim.seed",
         "pose_topic": "robots (the localiser's /robot_k/pose)",
         "drive_type": "robots[k].drive_type",
+        "rearm_after_loss": "robots[k].host (on the robot's own computer)",
         "cmd_vel_stamp": "--sim (now in the dome; the simulator's step with --sim)",
     },
     "team_tick": {

@@ -7,6 +7,10 @@ The supervisor (``team_supervisor``) owns the team state and announces it on two
 * ``/team/heartbeat`` (``std_msgs/Header``, 10 Hz): ``stamp`` = the supervisor's clock,
   ``frame_id`` = the team state (:data:`TEAM_STATES`);
 
+* ``/team/armed`` (``std_msgs/Header``, reliable, transient local): stamped at the newest
+  arming on the supervisor's clock, ``frame_id`` = the count of armings (a re-arm of an
+  armed team counts);
+
 and, per robot, ``/robot_k/enabled`` (``std_msgs/Bool``, reliable, transient local).
 
 :class:`MotionGate` is the pure rule a drive executor or a blade driver applies before it
@@ -14,6 +18,12 @@ moves anything: motion is allowed only while the node is active (lifecycle), no 
 latched, the last heartbeat is younger than the deadman limit and says ``armed``, and the
 robot is enabled. Everything else means: zero twist, blade home. The gate starts closed:
 nothing moves before the first ``armed`` heartbeat.
+
+On a robot's own computer (``rearm_after_loss``) a lost heartbeat is a link that dropped
+as often as a supervisor that died, and the supervisor, on the other side of the link,
+may still say ``armed`` when the link returns. There the gate latches the loss: it stays
+closed, whatever the heartbeats say, until an arming newer than the loss comes on
+``/team/armed`` (the operator re-arms, having seen why the robot stopped).
 
 A ROS-level stop is not a safety function: a dome still needs a hardware e-stop that cuts
 motor power (docs/operator.md).
@@ -25,6 +35,7 @@ from dataclasses import dataclass
 
 ESTOP_TOPIC = "/team/estop"
 HEARTBEAT_TOPIC = "/team/heartbeat"
+ARMED_TOPIC = "/team/armed"
 ENABLED_TOPIC = "enabled"
 """Relative: ``/robot_k/enabled`` in robot k's namespace."""
 
@@ -56,6 +67,12 @@ class MotionGate:
         enabled: The robot is enabled (``/robot_k/enabled``); ``None`` = never heard.
         team_state: ``frame_id`` of the last heartbeat (``None`` = never heard).
         heartbeat_time: Local time of the last heartbeat, seconds.
+        rearm_after_loss: A lost heartbeat keeps the gate closed until a newer arming
+            (module docstring): set on a robot's own computer.
+        arming: The newest arming heard on ``/team/armed`` (its stamp as ``(sec, nanosec)``
+            and count), or ``None``.
+        link_lost: A lost heartbeat is latched (``rearm_after_loss``).
+        lost_arming: :attr:`arming` when the loss was latched.
     """
 
     deadman: float = DEADMAN_TIMEOUT
@@ -64,11 +81,21 @@ class MotionGate:
     enabled: bool | None = None
     team_state: str | None = None
     heartbeat_time: float | None = None
+    rearm_after_loss: bool = False
+    arming: tuple[int, int, str] | None = None
+    link_lost: bool = False
+    lost_arming: tuple[int, int, str] | None = None
 
     def on_heartbeat(self, state: str, now: float) -> None:
         """A heartbeat arrived at local time ``now``."""
         self.team_state = state
         self.heartbeat_time = now
+
+    def on_armed(self, sec: int, nanosec: int, count: str) -> None:
+        """``/team/armed``: an arming (stamp and count); one newer than a latched loss clears it."""
+        self.arming = (int(sec), int(nanosec), str(count))
+        if self.link_lost and self.arming != self.lost_arming:
+            self.link_lost = False
 
     def on_estop(self, latched: bool) -> None:
         """``/team/estop`` changed."""
@@ -79,7 +106,11 @@ class MotionGate:
         self.enabled = bool(enabled)
 
     def reason(self, now: float) -> str | None:
-        """Why the robot must stand still at ``now``, or ``None`` when it may move."""
+        """Why the robot must stand still at ``now``, or ``None`` when it may move.
+
+        With ``rearm_after_loss``, the first call that finds the heartbeat lost latches the
+        loss (:attr:`link_lost`); the nodes ask at least every safety-loop period.
+        """
         if not self.active:
             return "not active (lifecycle)"
         if self.estop:
@@ -88,7 +119,11 @@ class MotionGate:
             return "no heartbeat yet"
         age = now - self.heartbeat_time
         if age > self.deadman or age < -self.deadman:
+            if self.rearm_after_loss and not self.link_lost:
+                self.link_lost, self.lost_arming = True, self.arming
             return f"heartbeat lost ({age:.2f} s old)"
+        if self.link_lost:
+            return "heartbeat lost earlier: waiting for the operator to re-arm"
         if self.team_state != ARMED:
             return f"team {self.team_state}"
         if self.enabled is not True:

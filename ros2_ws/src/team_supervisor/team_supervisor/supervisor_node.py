@@ -7,15 +7,16 @@ r"""``ros2 run team_supervisor supervisor``: the team's e-stop, heartbeat, arm a
 
 Publishes ``/team/estop`` (std_msgs/Bool, reliable, transient local: ``True`` from an e-stop
 until a reset), ``/team/heartbeat`` (std_msgs/Header at ``heartbeat_rate``: stamp = this
-node's clock, ``frame_id`` = the team state), ``/robot_k/enabled`` (std_msgs/Bool, latched)
-and ``/diagnostics`` (the team state and one value per robot). Every change goes out at
-once, not at the next heartbeat. Services (std_srvs/Trigger): ``~/estop``, ``~/reset``,
-``~/arm``, ``~/pause``, ``~/resume`` and ``~/status`` (the state in words); per robot
-``/robot_k/enable`` (std_srvs/SetBool). With ``watch_poses`` it subscribes every
-``/robot_k/pose`` (best effort, newest only) and ``/robot_k/drive/status``
+node's clock, ``frame_id`` = the team state), ``/team/armed`` (std_msgs/Header, latched:
+stamped at the newest arming, ``frame_id`` = the count of armings; a re-arm of an armed team
+counts, which robot-side nodes wait for after their link dropped), ``/robot_k/enabled``
+(std_msgs/Bool, latched) and ``/diagnostics`` (the team state and one value per robot).
+Every change goes out at once, not at the next heartbeat. Services (std_srvs/Trigger):
+``~/estop``, ``~/reset``, ``~/arm``, ``~/pause``, ``~/resume`` and ``~/status`` (the state
+in words); per robot ``/robot_k/enable`` (std_srvs/SetBool). With ``watch_poses`` it
+subscribes every ``/robot_k/pose`` (best effort, newest only) and ``/robot_k/drive/status``
 (action_msgs/GoalStatus: a robot whose executor runs a goal is not lost for a late frame)
-and applies the lost-robot policy of
-:class:`team_supervisor.team.Team`.
+and applies the lost-robot policy of :class:`team_supervisor.team.Team`.
 
 The logic is :class:`team_supervisor.team.Team`; this node moves messages.
 """
@@ -36,6 +37,7 @@ from excavation_common.params import param
 from excavation_common.ros import LATCHED, LATEST_FRAME, declare_params, diagnostics, spin_node
 from excavation_common.safety import (
     ARMED,
+    ARMED_TOPIC,
     ENABLED_TOPIC,
     ESTOP_TOPIC,
     ESTOPPED,
@@ -92,6 +94,8 @@ class SupervisorNode(Node):
         )
         self.estop_pub = self.create_publisher(Bool, ESTOP_TOPIC, LATCHED)
         self.heartbeat_pub = self.create_publisher(Header, HEARTBEAT_TOPIC, 10)
+        self.armed_pub = self.create_publisher(Header, ARMED_TOPIC, LATCHED)
+        self.published_armings = 0
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.enabled_pubs = [
             self.create_publisher(Bool, f"/robot_{k}/{ENABLED_TOPIC}", LATCHED)
@@ -139,6 +143,11 @@ class SupervisorNode(Node):
         if self.team.estopped != self.published_estop:
             self.published_estop = self.team.estopped
             self.estop_pub.publish(Bool(data=self.team.estopped))
+        if self.team.armings != self.published_armings:
+            self.published_armings = self.team.armings
+            msg = Header(frame_id=str(self.team.armings))
+            msg.stamp = self.get_clock().now().to_msg()
+            self.armed_pub.publish(msg)
         for k in range(self.team.robots):
             enabled = self.team.enabled(k)
             if enabled != self.published_enabled[k]:

@@ -122,6 +122,9 @@ class Team:
     busy_timeout: float = 60.0
     state: str = DISARMED
     estop_reason: str = ""
+    armings: int = 0
+    """Successful :meth:`arm` calls, re-arms included (the node announces each on
+    ``/team/armed``)."""
     members: list[RobotState] = field(default_factory=list)
     _first_stamp: float | None = None
     _newest_stamp: float | None = None
@@ -164,14 +167,21 @@ class Team:
         return Reply(True, "e-stop reset: team disarmed; arm to move")
 
     def arm(self) -> Reply:
-        """Allow motion (from ``disarmed`` only)."""
-        if self.state == ARMED:
-            return Reply(True, "team already armed")
+        """Allow motion (from ``disarmed``), or re-arm an armed team.
+
+        A re-arm is the operator's word that robots whose link to the dome PC dropped may
+        move again (robot-side nodes with ``rearm_after_loss`` wait for a new arming after
+        they lost the heartbeat; :class:`excavation_common.safety.MotionGate`).
+        """
         if self.state == ESTOPPED:
             return Reply(False, f"e-stop latched ({self.estop_reason}): reset first")
         if self.state == PAUSED:
             return Reply(False, "team is paused: resume it")
+        again = self.state == ARMED
         self.state = ARMED
+        self.armings += 1
+        if again:
+            return Reply(True, "team re-armed: robots that lost the link may move again")
         return Reply(True, "team armed: robots enabled and seen may move")
 
     def pause(self) -> Reply:
