@@ -193,7 +193,11 @@ class Arming:
 
 
 def bring_up(args: argparse.Namespace, hardware: str) -> int:
-    """``ant-dome up`` (``dome`` or ``sim`` hardware) and ``ant-dome rehearse`` (``emulated``)."""
+    """``ant-dome up`` (``dome`` or ``sim`` hardware) and ``ant-dome rehearse`` (``emulated``).
+
+    A rehearsal of a site with robots on their own hosts (and no ``--host``) runs each host
+    in a network namespace of its own (:mod:`excavation_bringup.host_rehearsal`).
+    """
     site, errors = sitefile.check_site(
         args.site, sim=hardware == "sim", emulated=hardware == "emulated"
     )
@@ -202,6 +206,12 @@ def bring_up(args: argparse.Namespace, hardware: str) -> int:
             print(f"ant-dome: error: {e}", file=sys.stderr)
         return 2
     run_dir = Path(args.run_dir or Path("dome_runs") / time.strftime("%Y%m%d-%H%M%S")).resolve()
+    several = hardware == "emulated" and len(site.hosts) > 1 and not args.host
+    if several and not args.netns:
+        from excavation_bringup.host_rehearsal import rehearse_hosts
+
+        args.run_dir = str(run_dir)
+        return rehearse_hosts(args, site, args.argv)
     record = str(Path(args.record).resolve()) if args.record else None
     graph = dome_graph(
         site, run_dir, hardware, record, args.view, args.ticks, args.view_port, args.domain
@@ -221,7 +231,13 @@ def bring_up(args: argparse.Namespace, hardware: str) -> int:
         )
         return 2
     env = dict(os.environ, **sitefile.environment(site, args.domain))
-    dome = ProcessLauncher(graph, env, echo=not args.json)
+    prefixes: dict[str, list[str]] = {}
+    if several:  # inside the dome PC's namespace: each robot host's share in its own
+        from excavation_bringup.virtual_hosts import VirtualHosts
+
+        hosts = VirtualHosts([(h.name, h.address) for h in site.hosts], args.netns)
+        prefixes = {n.name: hosts.prefix(n.host) for n in graph.nodes if n.host}
+    dome = ProcessLauncher(graph, env, echo=not args.json, prefixes=prefixes)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda s, _f: dome.request_stop(signal.Signals(s).name))
     dome.report(
@@ -319,13 +335,23 @@ def parser() -> argparse.ArgumentParser:
             "default: every node here)",
         )
     u.set_defaults(run=cmd_up)
+    r.add_argument(
+        "--drop-link",
+        metavar="HOST:AFTER:FOR",
+        help="robots on their own hosts: take HOST's link down AFTER s after arming, for FOR "
+        "s, then re-arm (a drill; RUN/drill.json)",
+    )
+    r.add_argument("--netns", default="", help=argparse.SUPPRESS)  # the inner run's tag
+    u.set_defaults(netns="", drop_link=None)
     r.set_defaults(run=cmd_rehearse)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ant-dome``."""
+    argv = list(sys.argv[1:] if argv is None else argv)
     args = parser().parse_args(argv)
+    args.argv = argv
     return args.run(args)
 
 

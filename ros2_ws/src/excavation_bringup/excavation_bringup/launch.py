@@ -161,6 +161,8 @@ class ProcessLauncher:
             deployment unless ``env`` sets it; discovery stays on this machine unless set.
         policy: The supervisor's restart policy (:meth:`run`).
         echo: :meth:`report` also prints.
+        prefixes: Per node name, what its command line starts with (a rehearsal runs a
+            robot host's nodes in that host's network namespace: ``ip netns exec NS``).
     """
 
     def __init__(
@@ -169,8 +171,10 @@ class ProcessLauncher:
         env: dict[str, str] | None = None,
         policy: RestartPolicy | None = None,
         echo: bool = False,
+        prefixes: dict[str, list[str]] | None = None,
     ) -> None:
         self.graph = graph
+        self.prefixes = dict(prefixes or {})
         self.run_dir = graph.files.run_dir
         self.specs: dict[str, NodeSpec] = {s.name: s for s in graph.nodes}
         self.env = dict(os.environ if env is None else env)
@@ -205,8 +209,8 @@ class ProcessLauncher:
         self.write_params(name)
 
     def command(self, name: str) -> list[str]:
-        """Node ``name``'s command line."""
-        return self.specs[name].command(self.params_file(name))
+        """Node ``name``'s command line (after its prefix, if any)."""
+        return [*self.prefixes.get(name, []), *self.specs[name].command(self.params_file(name))]
 
     @property
     def commands(self) -> dict[str, list[str]]:

@@ -625,8 +625,41 @@ def consistency(site: Site, sim: bool = False, emulated: bool = False) -> list[S
     errors += _check_camera(site, sim, emulated)
     errors += _check_laser(site, sim, emulated)
     errors += _check_robots(site, sim, emulated)
+    errors += _check_hosts(site, emulated)
     errors += _check_overrides(site)
     return errors
+
+
+def _check_hosts(site: Site, emulated: bool = False) -> list[SiteError]:
+    """Hosts that can reach each other; a rehearsal's in its address range."""
+    out = []
+    if len(site.hosts) < 2:
+        return out
+    net = site.network
+    if net.discovery_range == "OFF":
+        out.append(
+            SiteError(site.path, "network.discovery_range", "OFF", "no host would find another")
+        )
+    elif net.discovery_range == "LOCALHOST":
+        for i, h in enumerate(site.hosts):
+            if h.address != LOCAL and h.address not in net.static_peers:
+                out.append(
+                    SiteError(
+                        site.path,
+                        f"hosts[{i}].address",
+                        h.address,
+                        "not among network.static_peers: with discovery_range LOCALHOST the "
+                        "other hosts would not find it",
+                    )
+                )
+    if emulated:
+        from excavation_bringup.virtual_hosts import rehearsal_address_problem
+
+        for i, h in enumerate(site.hosts):
+            problem = rehearsal_address_problem(h.address)
+            if problem:
+                out.append(SiteError(site.path, f"hosts[{i}].address", h.address, problem))
+    return out
 
 
 def _check_camera(site: Site, sim: bool, emulated: bool = False) -> list[SiteError]:

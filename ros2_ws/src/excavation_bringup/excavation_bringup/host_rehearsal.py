@@ -1,0 +1,251 @@
+"""``ant-dome rehearse SITE`` with robots on their own hosts: every host in its namespace.
+
+The rehearsal makes one network namespace per host of the site
+(:class:`~excavation_bringup.virtual_hosts.VirtualHosts`), then runs ``ant-dome rehearse``
+again inside the dome PC's namespace (``--netns TAG``), which starts the whole graph as
+usual, each robot host's share through ``ip netns exec`` into that host's namespace: the
+processes of different hosts reach each other only across the virtual links, by unicast to
+the site's static peers. When the inner run ends (or Ctrl-C), the namespaces go.
+
+A drill (``--drop-link HOST:AFTER:FOR``) takes robot host ``HOST``'s link down ``AFTER``
+seconds after the team is armed, for ``FOR`` seconds, then up again, and re-arms the team
+``--rearm-after`` seconds later, as an operator would once the robot's stop was seen. A
+recorder on that host (``RUN/robot_bags/HOST``) keeps what the robot's own nodes did
+meanwhile, and ``RUN/drill.json`` the drill's times (wall clock, as the bags' stamps) and
+what the robot-side bag shows: when its wheels and blade stopped after the drop, and
+whether anything moved between the link's return and the re-arm.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from excavation_bringup import site as sitefile
+from excavation_bringup.virtual_hosts import VirtualHosts, VirtualHostsError
+
+REARM_AFTER = 3.0
+"""Seconds after a drill's link returns that the operator re-arms (the robot stands still)."""
+
+
+def parse_drop(text: str) -> tuple[str, float, float]:
+    """``HOST:AFTER:FOR`` -> ``(host, after s, for s)``.
+
+    Raises:
+        ValueError: Not three fields, or a time that is not a positive number.
+    """
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise ValueError(f"--drop-link {text!r}: expected HOST:AFTER:FOR (seconds)")
+    host, after, span = parts[0], float(parts[1]), float(parts[2])
+    if not (after >= 0 and span > 0):
+        raise ValueError(f"--drop-link {text!r}: AFTER >= 0 and FOR > 0 seconds")
+    return host, after, span
+
+
+def _tag() -> str:
+    """A short tag, unique among the rehearsals running on this machine (the pid)."""
+    return f"{os.getpid() % 1_000_000}"
+
+
+def robot_topics(site: sitefile.Site, host: str) -> list[str]:
+    """What a robot host's recorder keeps: its robots' drives, wheels, blades, team state."""
+    topics = ["/team/heartbeat", "/team/armed", "/team/estop"]
+    for k, robot in enumerate(site.robots):
+        if site.robot_host(k) == host:
+            ns = f"/robot_{k}"
+            topics += [
+                robot.drive_topic_resolved,
+                f"/sim{ns}/cmd_vel",
+                f"{ns}/blade/joint_states",
+                f"{ns}/drive/status",
+            ]
+    return topics
+
+
+class Drill:
+    """A dropped link (a thread): down, up, re-arm, and a robot-side recorder meanwhile."""
+
+    def __init__(self, hosts: VirtualHosts, site, run_dir: Path, domain: int, drop, echo):
+        self.hosts, self.site, self.run_dir, self.domain = hosts, site, run_dir, domain
+        self.host, self.after, self.span = drop
+        self.echo = echo
+        self.times: dict[str, float] = {}
+        self.recorder: subprocess.Popen | None = None
+        self.bag = run_dir / "robot_bags" / self.host
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="ant-dome-drill", daemon=True)
+
+    def start(self) -> None:
+        """Begin (waits for the arming in the run's events)."""
+        self._thread.start()
+
+    def stop(self) -> None:
+        """End the drill and its recorder."""
+        self._stop.set()
+        self._thread.join(timeout=60.0)
+        if self.recorder is not None and self.recorder.poll() is None:
+            self.recorder.send_signal(signal.SIGINT)
+            try:
+                self.recorder.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                self.recorder.kill()
+                self.recorder.wait()
+
+    def _armed(self) -> bool:
+        events = self.run_dir / "events.log"
+        return events.exists() and "armed the team" in events.read_text(errors="replace")
+
+    def _operator(self, command: str) -> str:
+        cmd = self.hosts.prefix(self.site.dome_host) + [
+            sys.executable,
+            "-m",
+            "team_supervisor.operator",
+            "--domain",
+            str(self.domain),
+            command,
+        ]
+        result = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+        return (result.stdout + result.stderr).strip()
+
+    def _run(self) -> None:
+        while not self._stop.is_set() and not self._armed():
+            self._stop.wait(0.5)
+        if self._stop.is_set():
+            return
+        self.bag.parent.mkdir(parents=True, exist_ok=True)
+        self.recorder = subprocess.Popen(
+            self.hosts.prefix(self.host)
+            + [sys.executable, "-m", "excavation_bags.cli", "record", "--out", str(self.bag)]
+            + ["--domain", str(self.domain), "--topics", *robot_topics(self.site, self.host)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+        self.times["armed"] = time.time()
+        if self._stop.wait(self.after):
+            return
+        self.hosts.set_link(self.host, False)
+        self.times["link_down"] = time.time()
+        self.echo(f"drill: {self.host}'s link down")
+        self._stop.wait(self.span)
+        self.hosts.set_link(self.host, True)
+        self.times["link_up"] = time.time()
+        self.echo(f"drill: {self.host}'s link up")
+        if self._stop.wait(REARM_AFTER):
+            return
+        self.times["rearm"] = time.time()
+        self.echo(f"drill: re-arm: {self._operator('arm')}")
+
+    def report(self) -> dict:
+        """The drill's times and what the robot-side bag shows (``RUN/drill.json``)."""
+        out: dict = {"host": self.host, "after": self.after, "for": self.span} | self.times
+        if self.bag.exists() and "link_down" in self.times:
+            out |= robot_side(self.bag, self.site, self.host, self.times)
+        return out
+
+
+def robot_side(bag: Path, site, host: str, times: dict[str, float]) -> dict:
+    """From a robot host's bag: wheels and blade after the drop, motion before the re-arm."""
+    from excavation_bags.reader import open_bag
+
+    b = open_bag(bag)
+    down, up = times["link_down"], times.get("link_up")
+    rearm = times.get("rearm")
+    robots = [k for k in range(site.n_robots) if site.robot_host(k) == host]
+    result: dict = {}
+    for k in robots:
+        wheels, drive = f"/sim/robot_{k}/cmd_vel", site.robots[k].drive_topic_resolved
+        blade = f"/robot_{k}/blade/joint_states"
+        first_zero: dict[str, float] = {}
+        moved_before_rearm = 0
+        blade_home = None
+        for topic, t_ns, raw in b.messages([wheels, drive, blade]):
+            t = t_ns * 1e-9
+            if t < down:
+                continue
+            msg = b.decode(topic, raw)
+            if topic == blade:
+                if blade_home is None and abs(msg.position[0] - 0.10) < 0.005:
+                    blade_home = t - down
+                continue
+            tw = msg.twist if hasattr(msg, "twist") else msg
+            zero = tw.linear.x == 0.0 and tw.angular.z == 0.0
+            if zero and topic not in first_zero:
+                first_zero[topic] = t - down
+            if up is not None and up <= t and (rearm is None or t < rearm) and not zero:
+                moved_before_rearm += 1
+        result[f"robot_{k}"] = {
+            "drive_zero_after_drop_s": first_zero.get(drive),
+            "wheels_zero_after_drop_s": first_zero.get(wheels),
+            "blade_home_after_drop_s": blade_home,
+            "non_zero_commands_between_link_up_and_rearm": moved_before_rearm,
+        }
+    return result
+
+
+def rehearse_hosts(args, site: sitefile.Site, argv: list[str]) -> int:
+    """The outer run: namespaces, the inner ``ant-dome`` in the dome PC's, the drill."""
+    drop = None
+    if args.drop_link:
+        try:
+            drop = parse_drop(args.drop_link)
+        except ValueError as exc:
+            print(f"ant-dome: error: {exc}", file=sys.stderr)
+            return 2
+        robot_hosts = [h.name for h in site.hosts[1:]]
+        if drop[0] not in robot_hosts:
+            print(
+                f"ant-dome: error: --drop-link {drop[0]}: not a robot host ({robot_hosts})",
+                file=sys.stderr,
+            )
+            return 2
+    hosts = VirtualHosts([(h.name, h.address) for h in site.hosts], _tag())
+    try:
+        hosts.create()
+    except VirtualHostsError as exc:
+        print(f"ant-dome: error: {exc}", file=sys.stderr)
+        return 2
+    run_dir = Path(args.run_dir).resolve()
+    run_dir.mkdir(parents=True, exist_ok=True)
+    domain = args.domain if args.domain is not None else site.network.domain
+    inner = hosts.prefix(site.dome_host) + [
+        sys.executable,
+        "-m",
+        "excavation_bringup.dome",
+        *argv,
+        "--run-dir",
+        str(run_dir),
+        "--netns",
+        hosts.tag,
+    ]
+    echo = (lambda text: None) if args.json else (lambda text: print(f"ant-dome: {text}"))
+    echo(
+        "hosts: "
+        + ", ".join(f"{h.name} {h.address} (namespace {h.namespace})" for h in hosts.hosts)
+    )
+    proc = subprocess.Popen(inner, start_new_session=True)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda s, _f: proc.send_signal(s))
+    drill = Drill(hosts, site, run_dir, domain, drop, echo) if drop else None
+    try:
+        if drill is not None:
+            drill.start()
+        code = proc.wait()
+    finally:
+        if drill is not None:
+            drill.stop()
+            report = drill.report()
+            (run_dir / "drill.json").write_text(json.dumps(report, indent=1))
+            echo(f"drill: {json.dumps(report)}")
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        hosts.remove()
+    return code
