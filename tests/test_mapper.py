@@ -125,17 +125,13 @@ def test_tilted_mount_elsewhere_is_followed():
     assert np.abs(est[known] - heights[known]).max() < 1e-3
 
 
-def test_config_file_states_the_defaults():
-    import yaml
-
+def test_the_mappers_default_mount_is_the_simulated_lasers():
+    """mapper.yaml itself is checked with every node's file (tests/test_node_params.py)."""
     from terrain_mapper.mapper import MapperParams
+    from terrain_mapper.params import MapperNodeParams
 
-    path = "ros2_ws/src/terrain_mapper/config/mapper.yaml"
-    shipped = yaml.safe_load(open(path))["mapper"]["ros__parameters"]
-    for name, value in MapperParams().__dict__.items():
-        assert shipped[name] == value or (math.isnan(value) and math.isnan(shipped[name])), name
-    assert shipped["mount_z"] == LaserParams().mount[2]
-    assert shipped["sweep_scans"] == LaserParams().sweep_scans
+    assert MapperParams().mount_z == LaserParams().mount[2]
+    assert MapperNodeParams().sweep_scans == LaserParams().sweep_scans
 
 
 def test_body_height_stands_in_for_the_cells_under_a_robot():

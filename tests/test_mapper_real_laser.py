@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
+from helpers.rigs import MapperRig
 
 from excavation_common.messages import image_to_grid
 from excavation_sim.laser import LaserParams, OverheadLaser
@@ -23,60 +24,14 @@ LEVER = (0.03, -0.05, -0.12)
 NOD = 2**-15  # s between beams: 241 beams in 7.4 ms of a 10 ms scan
 
 
-class Rig:
-    """A mapper node with ``params`` (sweeps of 64 scans, reliable) and a probe feeding it.
-
-    Attributes:
-        mapper: The :class:`~terrain_mapper.mapper_node.MapperNode`.
-        maps: Height maps it published, in order.
-        status: Its latest ``/diagnostics`` status.
-    """
+class Rig(MapperRig):
+    """The mapper rig (tests/helpers/rigs.py) with sweeps of 64 scans and a real laser's
+    messages: mount states with both joints, scans with their beam timing."""
 
     def __init__(self, ros, **params):
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.node import Node
-        from rclpy.parameter import Parameter
-        from rclpy.qos import QoSProfile, ReliabilityPolicy
-        from sensor_msgs.msg import Image, JointState, LaserScan
+        super().__init__(ros, **({"sweep_scans": SCANS, "mount_wait": 0.5} | params))
 
-        from excavation_common.ros import LATCHED
-        from terrain_mapper.mapper_node import MOUNT_TOPIC, SCAN_TOPIC, MapperNode
-
-        settings = dict(
-            robots=0, sweep_scans=SCANS, reliable=True, diagnostics_period=0.1, mount_wait=0.5
-        )
-        settings.update(params)
-        overrides = [Parameter(k, value=v) for k, v in settings.items()]
-        self.ros = ros
-        self.mapper = ros.add(MapperNode(context=ros.context, parameter_overrides=overrides))
-        node = ros.add(Node("probe", context=ros.context))
-        qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
-        self.scan_pub = node.create_publisher(LaserScan, SCAN_TOPIC, qos)
-        self.mount_pub = node.create_publisher(JointState, MOUNT_TOPIC, qos)
-        self.maps: list[Image] = []
-        node.create_subscription(Image, "/worksite/height_map", self.maps.append, LATCHED)
-        self.status = None
-        node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
-        ros.spin_until(
-            lambda: (
-                self.scan_pub.get_subscription_count() > 0
-                and self.mount_pub.get_subscription_count() > 0
-            )
-        )
-
-    def on_diag(self, msg) -> None:
-        for s in msg.status:
-            if s.name == "/mapper":
-                self.status = s
-
-    @staticmethod
-    def stamp(t_ns: int):
-        from builtin_interfaces.msg import Time
-
-        t_ns += EPOCH_S * 10**9
-        return Time(sec=t_ns // 10**9, nanosec=t_ns % 10**9)
-
-    def mount(self, t_ns: int, pan: float, tilt: float, joints=(PAN_JOINT, TILT_JOINT)) -> None:
+    def mount_at(self, t_ns: int, pan: float, tilt: float, joints=(PAN_JOINT, TILT_JOINT)) -> None:
         """A mount state stamped ``t_ns`` after the epoch."""
         from sensor_msgs.msg import JointState
 
@@ -84,7 +39,7 @@ class Rig:
         msg.header.stamp = self.stamp(t_ns)
         self.mount_pub.publish(msg)
 
-    def scan(self, t_ns: int, ranges, laser: LaserParams, time_increment=None, scan_time=None):
+    def scan_of(self, t_ns: int, ranges, laser: LaserParams, time_increment=None, scan_time=None):
         """A scan stamped ``t_ns`` after the epoch, laid out as ``laser``'s."""
         from sensor_msgs.msg import LaserScan
 
@@ -99,7 +54,7 @@ class Rig:
         msg.ranges = [float(r) for r in ranges]
         self.scan_pub.publish(msg)
 
-    def sweep(self, laser: LaserParams, heights, clock_lag: float = 0.0) -> None:
+    def sweep_of(self, laser: LaserParams, heights, clock_lag: float = 0.0) -> None:
         """One sweep of ``laser`` over ``heights``: its mount's states at every scan's start
         and one more after the last, named as the laser's joints; the scans stamped by the
         scanner's clock, ``clock_lag`` seconds behind the mount's."""
@@ -108,10 +63,10 @@ class Rig:
         scans = OverheadLaser(laser, 0.25).sweep(heights, np.random.default_rng(0))
         joints = (laser.pan_joint, laser.tilt_joint)
         for i, (pan, _, ranges) in enumerate(scans):
-            self.mount(i * period, pan, laser.tilt_at(i * laser.scan_period), joints)
-            self.scan(i * period - lag, ranges, laser)
+            self.mount_at(i * period, pan, laser.tilt_at(i * laser.scan_period), joints)
+            self.scan_of(i * period - lag, ranges, laser)
         end = len(scans) * laser.scan_period
-        self.mount(len(scans) * period, laser.pan, laser.tilt_at(end), joints)
+        self.mount_at(len(scans) * period, laser.pan, laser.tilt_at(end), joints)
 
     def grid(self) -> np.ndarray:
         """The first map, once published."""
@@ -140,9 +95,9 @@ def max_error(grid: np.ndarray, heights: np.ndarray) -> float:
 def test_mount_joint_names_are_parameters(ros):
     rig = Rig(ros, pan_joint="ptu/pan", tilt_joint="ptu/tilt")
     heights = terrain(1)
-    rig.sweep(LaserParams(pan_joint="ptu/pan", tilt_joint="ptu/tilt", **EXACT), heights)
+    rig.sweep_of(LaserParams(pan_joint="ptu/pan", tilt_joint="ptu/tilt", **EXACT), heights)
     assert max_error(rig.grid(), heights) < 1e-3
-    rig.mount(10**9, 0.0, 0.0)  # laser_pan, laser_tilt: not this mount's joints
+    rig.mount_at(10**9, 0.0, 0.0)  # laser_pan, laser_tilt: not this mount's joints
     assert ros.spin_until(
         rig.reported(DiagnosticStatus.ERROR, "has no 'ptu/pan' joint (the pan_joint)")
     )
@@ -167,7 +122,7 @@ def test_lever_arm_and_upside_down_scanner(ros):
     x, y, z = LEVER
     rig = Rig(ros, laser_offset_x=x, laser_offset_y=y, laser_offset_z=z, scanner_flip=True)
     heights = terrain(2)
-    rig.sweep(LaserParams(lever=LEVER, flip=True, **EXACT), heights)
+    rig.sweep_of(LaserParams(lever=LEVER, flip=True, **EXACT), heights)
     assert max_error(rig.grid(), heights) < 1e-3
 
 
@@ -177,7 +132,7 @@ def test_lever_arm_and_upside_down_scanner(ros):
 def test_every_beam_gets_the_mount_angles_of_its_own_time(ros):
     rig = Rig(ros)
     heights = terrain(3)
-    rig.sweep(LaserParams(time_increment=NOD, **EXACT), heights)
+    rig.sweep_of(LaserParams(time_increment=NOD, **EXACT), heights)
     # one tilt for the whole scan (the stamp's) is up to 4 cm off at the cell borders
     assert max_error(rig.grid(), heights) < 1e-3
     assert rig.mapper.unbracketed == 0
@@ -186,12 +141,12 @@ def test_every_beam_gets_the_mount_angles_of_its_own_time(ros):
 def test_beam_timing_that_does_not_fit_the_scan_is_reported(ros):
     rig = Rig(ros)
     laser = LaserParams(**EXACT)
-    rig.mount(0, 0.0, 0.0)
-    rig.scan(0, [4.0] * laser.beams, laser, time_increment=1e-3, scan_time=0.01)
+    rig.mount_at(0, 0.0, 0.0)
+    rig.scan_of(0, [4.0] * laser.beams, laser, time_increment=1e-3, scan_time=0.01)
     assert ros.spin_until(
         rig.reported(DiagnosticStatus.ERROR, "241 beams span 0.24 s, longer than scan_time 0.01 s")
     )
-    rig.scan(1, [4.0] * laser.beams, laser, time_increment=float("nan"))
+    rig.scan_of(1, [4.0] * laser.beams, laser, time_increment=float("nan"))
     assert ros.spin_until(rig.reported(DiagnosticStatus.ERROR, "time_increment = nan"))
     assert rig.mapper.core.scans == 0 and not rig.mapper.scans
 
@@ -202,7 +157,7 @@ def test_beam_timing_that_does_not_fit_the_scan_is_reported(ros):
 def test_scan_stamp_offset_moves_scans_onto_the_mount_clock(ros):
     rig = Rig(ros, scan_stamp_offset=0.04)
     heights = terrain(4)
-    rig.sweep(LaserParams(**EXACT), heights, clock_lag=0.04)  # 4 scans' worth of tilt
+    rig.sweep_of(LaserParams(**EXACT), heights, clock_lag=0.04)  # 4 scans' worth of tilt
     assert max_error(rig.grid(), heights) < 1e-3
     stamp = rig.maps[0].header.stamp  # the map is stamped on the mount's clock
     assert (stamp.sec, stamp.nanosec) == (EPOCH_S, 0)
@@ -233,5 +188,5 @@ def test_a_real_laser_with_every_quirk_at_once(ros):
         **EXACT,
     )
     heights = terrain(5)
-    rig.sweep(laser, heights, clock_lag=-0.013)  # the scanner's clock 13 ms ahead
+    rig.sweep_of(laser, heights, clock_lag=-0.013)  # the scanner's clock 13 ms ahead
     assert max_error(rig.grid(), heights) < 1e-3

@@ -104,6 +104,23 @@ def test_no_stale_dependency_on_our_packages(package):
     assert not stale, f"{package}/package.xml depends on {stale} but never imports them"
 
 
+def test_the_bring_up_depends_on_every_package_it_launches():
+    """``ros2 run`` in an installed workspace needs each launched package installed too."""
+    from excavation_bringup.kinds import KINDS
+
+    launched = {k.package for k in KINDS.values()} & set(PACKAGES)
+    missing = sorted(launched - exec_depends("excavation_bringup"))
+    assert not missing, f"excavation_bringup/package.xml lacks exec_depend {missing}"
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_no_dependency_is_listed_twice(package):
+    xml = (SRC / package / "package.xml").read_text(encoding="utf-8")
+    listed = re.findall(r"<(?:exec_|test_|build_)?depend>([^<]+)</", xml)
+    twice = sorted({d for d in listed if listed.count(d) > 1})
+    assert not twice, f"{package}/package.xml lists {twice} twice"
+
+
 def test_no_package_imports_another_packages_private_names():
     """``from other_pkg.mod import _name`` couples two packages through an internal detail."""
     ours = set(PACKAGES) | {"ant_evolution"}

@@ -285,6 +285,7 @@ def test_each_robot_names_its_base_type_and_imu_and_a_dome_tunes_executor_and_te
         assert executor.get("cmd_vel_stamp", "now") == "now"  # the base times it from sending
         assert executor["time_allowance"] == 20.0 and executor["progress_window"] == 2.0
         assert executor["position_tolerance"] >= 0.0115 and executor["min_progress"] >= 0.0115
+        assert executor["pose_timeout"] == 0.6  # the dome profile's: a localiser's pose
         validate(ExecutorParams, executor, f"executor_{k}")
         assert by_name[f"controller_{k}"].params["tilt_source"] == tilt
     tick = by_name["team_tick"].params
@@ -294,6 +295,7 @@ def test_each_robot_names_its_base_type_and_imu_and_a_dome_tunes_executor_and_te
     executor = sim["executor_1"].params
     assert executor["cmd_vel_stamp"] == "pose" and "drive_type" not in executor
     assert "position_tolerance" not in executor and "min_progress" not in executor
+    assert "pose_timeout" not in executor
 
 
 def test_a_rehearsal_is_the_dome_table_behind_emulated_drivers(tmp_path):
@@ -359,3 +361,57 @@ def test_repeated_keys_are_refused_anywhere():
     with pytest.raises(sitefile.SiteError, match=r"a = 'line 3 column 3': is given twice"):
         sitefile.safe_load_unique("x:\n  a: 1\n  a: 2\n", "t.yaml")
     assert sitefile.safe_load_unique("x: {a: 1, b: 2}", "t.yaml") == {"x": {"a": 1, "b": 2}}
+
+
+VARIANTS = [
+    ("seed: 0", "seed: 3"),
+    ("scenario: 0", "scenario: 2"),
+    ("ticks: 20", "ticks: 7"),
+    ("command_timeout: 60.0", "command_timeout: 50.0"),
+    ("sweep_scans: 32", "sweep_scans: 48"),
+    ("mount: [2.0, 2.0, 4.0]", "mount: [2.0, 2.1, 3.9]"),
+    ("imu: true", "imu: false"),
+    ("drive_type: twist\n", "drive_type: twist_stamped\n"),
+    ("drive_topic: /robot_1/cmd_vel_unstamped", "drive_topic: /robot_1/base/cmd_vel"),
+    ("leds: [blue, yellow]", "leds: [blue, yellow]\n    genome: hand-coded"),
+]
+
+
+@pytest.mark.parametrize(("old", "new"), VARIANTS, ids=[v[1].split(":")[0] for v in VARIANTS])
+def test_every_parameter_the_site_changes_is_declared_derived(tmp_path, old, new):
+    """A parameter that follows a site field is in ``DERIVED`` (an override of it is refused).
+
+    Each variant changes one field of the shipped rehearsal site; every node parameter that
+    changes with it, of a node kind a site may override, must be listed in ``DERIVED``.
+    """
+    text = (CONFIG / "site_rehearsal.yaml").read_text()
+    assert old in text
+    genomes = str(CONFIG.parents[3] / "genomes") + "/"
+    variant = text.replace(old, new).replace("../../../../genomes/", genomes)
+    if "genome: hand-coded" in variant:  # the variant's robot_1: drop its file genome
+        head, tail = variant.split("genome: hand-coded", 1)
+        variant = head + "genome: hand-coded" + tail.replace(f"genome: {genomes}best.json", "", 1)
+    base = tmp_path / "base.yaml"
+    base.write_text(text.replace("../../../../genomes/", genomes))
+    changed = tmp_path / "changed.yaml"
+    changed.write_text(variant)
+    run = tmp_path / "run"
+    graphs = [
+        dome_graph(sitefile.load_site(p, emulated=True), run, "emulated") for p in (base, changed)
+    ]
+    moved, elsewhere = set(), False  # a topic or a genome moves remaps or arguments
+    for a, b in zip(graphs[0].nodes, graphs[1].nodes, strict=True):
+        assert a.name == b.name
+        elsewhere |= (a.remaps, a.args) != (b.remaps, b.args)
+        moved |= {
+            (a.kind, k)
+            for k in a.params.keys() | b.params.keys()
+            if a.params.get(k) != b.params.get(k)
+        }
+    assert moved or elsewhere, f"{new!r} changed nothing in the graph"
+    undeclared = sorted(
+        (kind, name)
+        for kind, name in moved
+        if kind in sitefile.DERIVED and name not in sitefile.DERIVED[kind]
+    )
+    assert not undeclared, f"{new!r} sets {undeclared}: add them to site.DERIVED"

@@ -26,7 +26,7 @@ class MapperRig:
         status: The mapper's latest ``/diagnostics`` status (None before the first).
     """
 
-    def __init__(self, ros, mount_wait: float | None = None, wait: float = 10.0):
+    def __init__(self, ros, mount_wait: float | None = None, wait: float = 10.0, **params):
         """Start both nodes; wait (up to ``wait`` s) until the mapper subscribes to both
         of the probe's topics.
 
@@ -34,6 +34,7 @@ class MapperRig:
             ros: The ``ros`` fixture.
             mount_wait: The mapper's ``mount_wait`` (its own default unless given).
             wait: Longest wait for the subscriptions, seconds (not asserted on).
+            params: Further mapper parameters (they win over the rig's).
         """
         from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
         from rclpy.node import Node
@@ -44,16 +45,15 @@ class MapperRig:
         from excavation_common.ros import LATCHED
         from terrain_mapper.mapper_node import MOUNT_TOPIC, SCAN_TOPIC, MapperNode
 
-        params = [
-            Parameter("robots", value=0),
-            Parameter("sweep_scans", value=LASER.sweep_scans),
-            Parameter("reliable", value=True),
-            Parameter("diagnostics_period", value=0.1),
-        ]
+        settings = dict(
+            robots=0, sweep_scans=LASER.sweep_scans, reliable=True, diagnostics_period=0.1
+        )
         if mount_wait is not None:
-            params.append(Parameter("mount_wait", value=mount_wait))
+            settings["mount_wait"] = mount_wait
+        settings.update(params)
+        overrides = [Parameter(k, value=v) for k, v in settings.items()]
         self.ros = ros
-        self.mapper = ros.add(MapperNode(context=ros.context, parameter_overrides=params))
+        self.mapper = ros.add(MapperNode(context=ros.context, parameter_overrides=overrides))
         node = self.node = ros.add(Node("probe", context=ros.context))
         qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
         self.scan_pub = node.create_publisher(LaserScan, SCAN_TOPIC, qos)

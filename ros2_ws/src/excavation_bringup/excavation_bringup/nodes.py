@@ -84,19 +84,16 @@ every simulated trial runs exactly as before these parameters existed."""
 DOME_EXECUTOR: dict[str, Any] = {
     "position_tolerance": 0.012,
     "min_progress": 0.012,
-    "pose_timeout": 0.6,
     "predict_pose": True,
 }
 """The dome's executors close their loop on the localiser, whose median position error is
 0.046 cell, 11.5 mm (docs/benchmarks.md, "Perception"): a drive ends within 12 mm of the
 cell centre (not the simulator's 8 mm, where the pose noise is 2 mm) and must make 12 mm of
 progress per ``progress_window`` (not 4 mm, which a stalled robot's pose noise alone can
-show). A pose counts as stale after 0.6 s, not the simulator's 0.3 s: a localiser pose
-reaches the executor a frame's latency after its stamp (median 0.12 s, at most 0.41 s in a
-recorded rehearsal on 2 cores, docs/benchmarks.md, "Rehearsal") and the next one a frame
-period later, so 0.3 s stopped most drives of a 10 Hz camera for a pose of ordinary age.
-Each pose is advanced by its age along the twist last sent (``predict_pose``): acted on as
-it was, a drive overshot its cell by the distance covered while the frame was processed.
+show). When a pose is stale is the dome timing profile's ``pose_timeout``
+(:data:`excavation_bringup.profiles.DOME`). Each pose is advanced by its age along the
+twist last sent (``predict_pose``): acted on as it was, a drive overshot its cell by the
+distance covered while the frame was processed.
 Only here, so that no simulated trial changes; a site tunes them under ``overrides:
 {executor: ...}``."""
 
@@ -609,6 +606,8 @@ def executor(dep: Deployment, k: int, profile: TimingProfile, geometry: Geometry
         remaps = (f"{ns}/cmd_vel:={robot.drive_topic}",)
     if robot_host(dep, k):
         params["rearm_after_loss"] = True
+    if profile.pose_timeout is not None:
+        params["pose_timeout"] = profile.pose_timeout
     return NodeSpec(
         f"executor_{k}",
         "executor",

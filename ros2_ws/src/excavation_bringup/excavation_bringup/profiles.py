@@ -43,6 +43,9 @@ class TimingProfile:
             so a process held up for some wall time misses that many times more sim time.
         idle_time_factor: ``dynamics`` runs at most this many times real time while the
             team stands still (controllers deciding, a snapshot rendering).
+        pose_timeout: Age (by its stamp) at which an executor's pose is stale and stops the
+            robot, s (``None``: the executor's 0.3 s). The dome's executors close their loop
+            on the localiser, whose poses arrive a frame's latency after their stamps.
         pose_wait: Wall seconds a finished laser sweep waits for the localiser's poses of
             its instant before the mapper fuses it with the poses it has.
         mount_wait: Seconds a laser scan waits for the mount state of its stamp (stamps, or
@@ -62,6 +65,7 @@ class TimingProfile:
     first_word_timeout: float | None = None
     dynamics_command_timeout: float | None = None
     max_time_factor: float | None = None
+    pose_timeout: float | None = None
     idle_time_factor: float = 10.0
     pose_wait: float = 2.0
     mount_wait: float = 10.0
@@ -86,11 +90,14 @@ PROCESSES = TimingProfile(
 """A process per node on one loaded machine under the simulator's clock (``ant-trial
 --processes``, ``ant-dome up --sim``)."""
 
-DOME = TimingProfile("dome", first_word_timeout=300.0, mount_wait=1.0)
+DOME = TimingProfile("dome", first_word_timeout=300.0, mount_wait=1.0, pose_timeout=0.6)
 """The dome: every node on the wall clock with the field's 0.5 s deadman; tick 0 waits up to
 300 s for the words (a dome PC on a cold numba cache compiles every controller's kernels
 first: over a minute each on a loaded 2-core machine, docs/benchmarks.md); a best-effort
-laser, whose lost mount state is not repaired, so a scan waits 1 s for it."""
+laser, whose lost mount state is not repaired, so a scan waits 1 s for it; a localiser pose
+reaches an executor a frame's latency after its stamp (median 0.12 s, at most 0.41 s in a
+recorded rehearsal on 2 cores) and the next one a frame period later, so a pose is stale
+after 0.6 s, not the simulator's 0.3 s (which stopped most drives of a 10 Hz camera)."""
 
 PROFILES = {p.name: p for p in (COMPOSED, PROCESSES, DOME)}
 """The profiles by name."""
