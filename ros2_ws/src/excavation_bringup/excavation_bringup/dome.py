@@ -211,6 +211,7 @@ def bring_up(args: argparse.Namespace, hardware: str) -> int:
         from excavation_bringup.host_rehearsal import rehearse_hosts
 
         args.run_dir = str(run_dir)
+        os.environ.update(sitefile.environment(site, args.domain))
         return rehearse_hosts(args, site, args.argv)
     record = str(Path(args.record).resolve()) if args.record else None
     graph = dome_graph(
@@ -230,7 +231,10 @@ def bring_up(args: argparse.Namespace, hardware: str) -> int:
             file=sys.stderr,
         )
         return 2
-    env = dict(os.environ, **sitefile.environment(site, args.domain))
+    # ant-dome's own nodes (the launcher watching /diagnostics, a rehearsal's operator) are
+    # on the site's network too, not the shell's: a node on another host reports across it.
+    os.environ.update(sitefile.environment(site, args.domain))
+    env = dict(os.environ)
     prefixes: dict[str, list[str]] = {}
     if several:  # inside the dome PC's namespace: each robot host's share in its own
         from excavation_bringup.virtual_hosts import VirtualHosts

@@ -1,0 +1,58 @@
+"""Robots on their own hosts, rehearsed on one machine: a network namespace per host.
+
+A short rehearsal of ``config/site_rehearsal_hosts.yaml`` (make test-system): the dome PC and
+each robot host in a namespace of their own, joined by veth links on 198.18.0.0/15, every
+process discovering the others across the links by unicast to the site's static peers. A
+drill takes robot0's link down for 2 s and re-arms the team 3 s after it returns; the
+robot's own nodes must hold it still until then.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = [pytest.mark.serial, pytest.mark.system]
+
+ROOT = Path(__file__).resolve().parents[1]
+SITE = ROOT / "ros2_ws/src/excavation_bringup/config/site_rehearsal_hosts.yaml"
+TICKS = 2
+
+
+def _namespaces() -> set[str]:
+    out = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+    return {line.split()[0] for line in out.splitlines() if re.match(r"ant\d+-\d", line)}
+
+
+def test_hosts_in_their_namespaces_take_every_tick_and_a_dropped_link_waits_for_a_re_arm(
+    tmp_path, domain
+):
+    before = _namespaces()
+    run = tmp_path / "run"
+    command = [sys.executable, "-m", "excavation_bringup.dome", "rehearse", str(SITE)]
+    command += ["--ticks", str(TICKS), "--run-dir", str(run), "--domain", str(domain)]
+    command += ["--timeout", "900", "--json", "--drop-link", "robot0:30:2"]
+    out = subprocess.run(command, capture_output=True, text=True, timeout=1200, env=os.environ)
+    lines = out.stdout.strip().splitlines()
+    assert out.returncode == 0 and lines, (out.stdout[-2000:], out.stderr[-4000:])
+    summary = json.loads(lines[-1])
+    assert summary["ok"] and summary["ticks"] == TICKS, summary
+    result = json.loads((run / "result.json").read_text())
+    assert result["missed"] == {"0": 0, "1": 0}, result
+    events = (run / "events.log").read_text()
+    assert "armed the team" in events and "starting executor_0" in events
+    # The robot host's own recorder heard its executor (same host) and the heartbeat (across).
+    drill = json.loads((run / "drill.json").read_text())
+    assert drill["link_down"] < drill["link_up"] < drill["rearm"], drill
+    robot = drill["robot_0"]
+    assert robot["drive_zero_after_drop_s"] is not None, drill  # the executor stopped it
+    assert robot["blade_home_after_drop_s"] is not None, drill  # the driver homed the blade
+    assert robot["non_zero_commands_between_link_up_and_rearm"] == 0, drill
+    # The namespaces went with the run.
+    assert _namespaces() <= before
