@@ -441,3 +441,22 @@ def test_the_core_emits_no_tagged_tuples():
         and isinstance(node.elts[0].value, str)
     ]
     assert tagged == []
+
+
+def test_a_restarted_executor_ends_its_robots_goal_as_stuck_at_once():
+    """The killed executor's goal has no status to come: the tick does not wait motion_limit."""
+    tt = make(robots=2, motion_limit=120.0, word_timeout=0.5, first_word_timeout=0.5)
+    tt.start(0.0)
+    feed_snapshot(tt, 0.1, [(2, 2, 0), (8, 8, 0)])
+    tt.step(0.2, 0.0)
+    tt.on_word(0, FWD)
+    tt.on_word(1, FWD)
+    assert len(of(SendGoal, tt.step(0.3, 1.0))) == 2
+    report = tt.executor_restarted(1, 0.4)
+    assert kinds(report) == [Report] and "robot 1's executor restarted" in report[0].message
+    assert tt.executor_restarted(1, 0.5) == []  # once
+    tt.on_status(0, 0, terminal=True, aborted=False, now=1.0)
+    actions = tt.step(1.1, 2.0)
+    assert RequestSnapshot in kinds(actions)  # robot 1 counted done: the tick ended
+    assert tt.stuck == [False, True] and tt.late == [0, 0]
+    assert tt.executor_restarted(0, 1.2) == []  # no goal of robot 0 runs now

@@ -388,6 +388,24 @@ class TeamTick:
                 self._done.add(k)
                 self.stuck[k] = aborted
 
+    def executor_restarted(self, k: int, now: float) -> list[TickAction]:
+        """Robot k's executor was replaced while its goal ran (a new one is on the graph).
+
+        The new executor never heard the old one's goal, so no status of it will come:
+        the robot is done for this tick and stuck (U1), as a goal that ended aborted, and
+        the tick does not wait ``motion_limit`` for it.
+        """
+        if self.phase is not Phase.MOTION or k not in self._granted or k in self._done:
+            return []
+        self._done.add(k)
+        self.stuck[k] = True
+        return [
+            Report(
+                f"tick {self.tick}: robot {k}'s executor restarted while its goal ran; the "
+                "goal is lost (stuck) and the tick goes on"
+            )
+        ]
+
     def summary(self) -> dict:
         """What the ticks so far did, as JSON-ready values (the trial's result).
 

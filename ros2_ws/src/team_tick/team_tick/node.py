@@ -25,6 +25,12 @@ move; ``/team/snapshot`` (Header: ``stamp`` = the earliest time the snapshot may
 the simulator's ``dynamics`` took the snapshot ``frame_id`` at ``stamp``) and sends a
 request again only while it is not acknowledged.
 
+A robot whose executor is replaced while its goal runs (a new writer on its
+``drive/status``: the old one crashed and ``ant-dome`` restarted it) is done for the tick
+and stuck at once (:meth:`~team_tick.core.TeamTick.executor_restarted`): the new executor
+never heard that goal, and the tick would otherwise wait ``motion_limit`` for it (120 s,
+seen in a rehearsal that killed a robot computer's processes).
+
 With ``result_file`` set, the node writes :meth:`TeamTick.summary` (and its reports) there
 when the last tick ends, then exits (``ant-trial --drive continuous --processes``, ``ant-dome
 up --sim``).
@@ -80,6 +86,8 @@ from team_tick.core import (
 
 SNAPSHOT_TOPIC = "/team/snapshot"
 SNAPSHOT_ACK_TOPIC = "/team/snapshot_ack"
+EXECUTOR_CHECK_PERIOD = 0.5
+"""Wall seconds between looks at the graph for a restarted executor."""
 """Latched: the simulator acknowledges the snapshot request it took (``dynamics``)."""
 
 
@@ -127,6 +135,8 @@ class TeamTickNode(Node):
         self.geometry = BladeGeometry()
         self.errors: dict[str, str] = {}
         self.ready_since: float | None = None
+        self.executors_checked = 0.0
+        self.executor_writers: dict[int, set[bytes]] = {}  # drive/status writers seen
         self.reports: list[str] = []
         out = t.output_prefix.rstrip("/")
         self.pose_pubs, self.stuck_pubs, self.blade_pubs, self.goal_pubs = [], [], [], []
@@ -299,7 +309,27 @@ class TeamTickNode(Node):
             if wall - self.ready_since >= self.topics.startup_period:
                 self.execute(self.core.start(now, wall))
             return
+        if wall - self.executors_checked >= EXECUTOR_CHECK_PERIOD:
+            self.executors_checked = wall
+            for k in self.replaced_executors():
+                self.execute(self.core.executor_restarted(k, now))
         self.execute(self.core.step(now, wall))
+
+    def replaced_executors(self) -> list[int]:
+        """Robots whose ``drive/status`` has a publisher the last check did not see.
+
+        A new writer is a restarted executor (a crashed one's writer may stay on the graph
+        until its lease runs out, so a count would not tell). The first check only learns.
+        """
+        out = []
+        for k in range(self.n):
+            topic = f"/robot_{k}/drive/status"
+            gids = {bytes(i.endpoint_gid) for i in self.get_publishers_info_by_topic(topic)}
+            known = self.executor_writers.get(k)
+            if known is not None and gids - known:
+                out.append(k)
+            self.executor_writers[k] = gids
+        return out
 
     def execute(self, actions: list[TickAction]) -> None:
         """Publish what the state machine decided, in its order."""
