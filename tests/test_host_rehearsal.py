@@ -51,8 +51,8 @@ def test_hosts_in_their_namespaces_take_every_tick_and_a_dropped_link_waits_for_
     drill = json.loads((run / "drill.json").read_text())
     assert drill["link_down"] < drill["link_up"] < drill["rearm"], drill
     robot = drill["robot_0"]
-    assert robot["drive_zero_after_drop_s"] is not None, drill  # the executor stopped it
-    assert robot["blade_home_after_drop_s"] is not None, drill  # the driver homed the blade
+    assert robot["drive_zero_after_fault_s"] is not None, drill  # the executor stopped it
+    assert robot["blade_home_after_fault_s"] is not None, drill  # the driver homed the blade
     assert robot["non_zero_commands_between_link_up_and_rearm"] == 0, drill
     # The namespaces went with the run.
     assert _namespaces() <= before

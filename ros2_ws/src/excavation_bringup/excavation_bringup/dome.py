@@ -339,14 +339,21 @@ def parser() -> argparse.ArgumentParser:
             "default: every node here)",
         )
     u.set_defaults(run=cmd_up)
-    r.add_argument(
+    drills = r.add_mutually_exclusive_group()
+    drills.add_argument(
         "--drop-link",
         metavar="HOST:AFTER:FOR",
         help="robots on their own hosts: take HOST's link down AFTER s after arming, for FOR "
         "s, then re-arm (a drill; RUN/drill.json)",
     )
+    drills.add_argument(
+        "--kill-host",
+        metavar="HOST:AFTER",
+        help="robots on their own hosts: SIGKILL HOST's executors and blade drivers AFTER s "
+        "after arming (a drill; RUN/drill.json)",
+    )
     r.add_argument("--netns", default="", help=argparse.SUPPRESS)  # the inner run's tag
-    u.set_defaults(netns="", drop_link=None)
+    u.set_defaults(netns="", drop_link=None, kill_host=None)
     r.set_defaults(run=cmd_rehearse)
     return p
 

@@ -9,11 +9,14 @@ the site's static peers. When the inner run ends (or Ctrl-C), the namespaces go.
 
 A drill (``--drop-link HOST:AFTER:FOR``) takes robot host ``HOST``'s link down ``AFTER``
 seconds after the team is armed, for ``FOR`` seconds, then up again, and re-arms the team
-``--rearm-after`` seconds later, as an operator would once the robot's stop was seen. A
-recorder on that host (``RUN/robot_bags/HOST``) keeps what the robot's own nodes did
-meanwhile, and ``RUN/drill.json`` the drill's times (wall clock, as the bags' stamps) and
-what the robot-side bag shows: when its wheels and blade stopped after the drop, and
-whether anything moved between the link's return and the re-arm.
+:data:`REARM_AFTER` seconds later, as an operator would once the robot's stop was seen.
+``--kill-host HOST:AFTER`` instead SIGKILLs the processes of ``HOST``'s share (its robots'
+executors and blade drivers; the emulated base and board are the robot's hardware and stay)
+``AFTER`` seconds after the arming, as a crashed robot computer would lose them; ``ant-dome``
+restarts them. A recorder on that host (``RUN/robot_bags/HOST``) keeps what the robot's own
+nodes did meanwhile, and ``RUN/drill.json`` the drill's times (wall clock, as the bags'
+stamps) and what the robot-side bag shows: when its wheels and blade stopped after the
+fault, and whether anything moved between the link's return and the re-arm.
 """
 
 from __future__ import annotations
@@ -49,6 +52,21 @@ def parse_drop(text: str) -> tuple[str, float, float]:
     return host, after, span
 
 
+def parse_kill(text: str) -> tuple[str, float, float]:
+    """``HOST:AFTER`` -> ``(host, after s, 0.0)``.
+
+    Raises:
+        ValueError: Not two fields, or a time that is not a number >= 0.
+    """
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise ValueError(f"--kill-host {text!r}: expected HOST:AFTER (seconds)")
+    after = float(parts[1])
+    if not after >= 0:
+        raise ValueError(f"--kill-host {text!r}: AFTER >= 0 seconds")
+    return parts[0], after, 0.0
+
+
 def _tag() -> str:
     """A short tag, unique among the rehearsals running on this machine (the pid)."""
     return f"{os.getpid() % 1_000_000}"
@@ -70,11 +88,17 @@ def robot_topics(site: sitefile.Site, host: str) -> list[str]:
 
 
 class Drill:
-    """A dropped link (a thread): down, up, re-arm, and a robot-side recorder meanwhile."""
+    """A fault on a robot host (a thread), with a robot-side recorder meanwhile.
 
-    def __init__(self, hosts: VirtualHosts, site, run_dir: Path, domain: int, drop, echo):
+    ``kind`` ``drop``: the link down, up, re-arm; ``kill``: the host's nodes SIGKILLed.
+    """
+
+    def __init__(
+        self, hosts: VirtualHosts, site, run_dir: Path, domain: int, drop, echo, kind="drop"
+    ):
         self.hosts, self.site, self.run_dir, self.domain = hosts, site, run_dir, domain
         self.host, self.after, self.span = drop
+        self.kind = kind
         self.echo = echo
         self.times: dict[str, float] = {}
         self.recorder: subprocess.Popen | None = None
@@ -131,6 +155,9 @@ class Drill:
         self.times["armed"] = time.time()
         if self._stop.wait(self.after):
             return
+        if self.kind == "kill":
+            self._kill()
+            return
         self.hosts.set_link(self.host, False)
         self.times["link_down"] = time.time()
         self.echo(f"drill: {self.host}'s link down")
@@ -143,20 +170,45 @@ class Drill:
         self.times["rearm"] = time.time()
         self.echo(f"drill: re-arm: {self._operator('arm')}")
 
+    def _kill(self) -> None:
+        """SIGKILL the host's share (from the run's ``state.json``), as a crash would."""
+        state = json.loads((self.run_dir / "state.json").read_text())
+        robots = [k for k in range(self.site.n_robots) if self.site.robot_host(k) == self.host]
+        self.times["killed"] = time.time()
+        for k in robots:
+            for name in (f"executor_{k}", f"blade_driver_{k}"):
+                pid = (state.get(name) or {}).get("pid")
+                if pid:
+                    try:
+                        os.kill(int(pid), signal.SIGKILL)
+                    except ProcessLookupError:
+                        continue
+                    self.echo(f"drill: killed {name} (pid {pid}) on {self.host}")
+
     def report(self) -> dict:
         """The drill's times and what the robot-side bag shows (``RUN/drill.json``)."""
-        out: dict = {"host": self.host, "after": self.after, "for": self.span} | self.times
-        if self.bag.exists() and "link_down" in self.times:
-            out |= robot_side(self.bag, self.site, self.host, self.times)
+        out: dict = {"host": self.host, "kind": self.kind, "after": self.after} | self.times
+        if self.kind == "drop":
+            out["for"] = self.span
+        start = "link_down" if self.kind == "drop" else "killed"
+        if self.bag.exists() and start in self.times:
+            out |= robot_side(self.bag, self.site, self.host, self.times, start)
         return out
 
 
-def robot_side(bag: Path, site, host: str, times: dict[str, float]) -> dict:
-    """From a robot host's bag: wheels and blade after the drop, motion before the re-arm."""
+def robot_side(
+    bag: Path, site, host: str, times: dict[str, float], start: str = "link_down"
+) -> dict:
+    """From a robot host's bag: what its robots did after a fault.
+
+    When the drive and the wheels were first at zero and the blade home after
+    ``times[start]``, and how many non-zero commands came between the link's return and
+    the re-arm (a dropped link).
+    """
     from excavation_bags.reader import open_bag
 
     b = open_bag(bag)
-    down, up = times["link_down"], times.get("link_up")
+    down, up = times[start], times.get("link_up")
     rearm = times.get("rearm")
     robots = [k for k in range(site.n_robots) if site.robot_host(k) == host]
     result: dict = {}
@@ -182,9 +234,9 @@ def robot_side(bag: Path, site, host: str, times: dict[str, float]) -> dict:
             if up is not None and up <= t and (rearm is None or t < rearm) and not zero:
                 moved_before_rearm += 1
         result[f"robot_{k}"] = {
-            "drive_zero_after_drop_s": first_zero.get(drive),
-            "wheels_zero_after_drop_s": first_zero.get(wheels),
-            "blade_home_after_drop_s": blade_home,
+            "drive_zero_after_fault_s": first_zero.get(drive),
+            "wheels_zero_after_fault_s": first_zero.get(wheels),
+            "blade_home_after_fault_s": blade_home,
             "non_zero_commands_between_link_up_and_rearm": moved_before_rearm,
         }
     return result
@@ -192,17 +244,18 @@ def robot_side(bag: Path, site, host: str, times: dict[str, float]) -> dict:
 
 def rehearse_hosts(args, site: sitefile.Site, argv: list[str]) -> int:
     """The outer run: namespaces, the inner ``ant-dome`` in the dome PC's, the drill."""
-    drop = None
-    if args.drop_link:
+    drop, kind = None, "drop"
+    if args.drop_link or args.kill_host:
+        kind, option = ("drop", "--drop-link") if args.drop_link else ("kill", "--kill-host")
         try:
-            drop = parse_drop(args.drop_link)
+            drop = parse_drop(args.drop_link) if args.drop_link else parse_kill(args.kill_host)
         except ValueError as exc:
             print(f"ant-dome: error: {exc}", file=sys.stderr)
             return 2
         robot_hosts = [h.name for h in site.hosts[1:]]
         if drop[0] not in robot_hosts:
             print(
-                f"ant-dome: error: --drop-link {drop[0]}: not a robot host ({robot_hosts})",
+                f"ant-dome: error: {option} {drop[0]}: not a robot host ({robot_hosts})",
                 file=sys.stderr,
             )
             return 2
@@ -233,7 +286,7 @@ def rehearse_hosts(args, site: sitefile.Site, argv: list[str]) -> int:
     proc = subprocess.Popen(inner, start_new_session=True)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda s, _f: proc.send_signal(s))
-    drill = Drill(hosts, site, run_dir, domain, drop, echo) if drop else None
+    drill = Drill(hosts, site, run_dir, domain, drop, echo, kind) if drop else None
     try:
         if drill is not None:
             drill.start()
