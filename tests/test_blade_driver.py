@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import threading
-import time
 
 import pytest
 from helpers.blades import blade_driver_node, blade_probe, word
@@ -348,9 +347,7 @@ def test_the_board_homes_the_servo_when_its_set_points_stop(board):
         for _ in range(5):  # set-points keep coming: the blade stays down
             link.set_position(-0.02)
         assert fake.target == cal.angle(-0.02) and fake.timeouts == 0
-        deadline = time.monotonic() + 5.0
-        while fake.target != fake.home_deg and time.monotonic() < deadline:
-            time.sleep(0.05)  # the host is gone: the board's own loop times it out
+        assert fake.timed_out.wait(5.0)  # the host is gone: the board's own loop times it out
         assert fake.target == fake.home_deg == cal.angle(0.10) and fake.timeouts == 1
         link.set_position(0.0)  # the host is back: its set-points rule again
         assert fake.target == cal.angle(0.0)
@@ -379,9 +376,7 @@ def test_the_driver_arms_the_boards_timeout_and_a_dead_driver_leaves_the_blade_h
     assert words_until(lambda: fake.target == cal.angle(0.0))
     ros.executor.remove_node(driver)  # its computer hangs: no set-point, no driver to home it
     try:
-        deadline = time.monotonic() + 5.0
-        while fake.target != fake.home_deg and time.monotonic() < deadline:
-            time.sleep(0.05)
+        assert fake.timed_out.wait(5.0)
         assert fake.target == cal.angle(0.10) and fake.timeouts == 1
     finally:
         driver.destroy_node()

@@ -91,19 +91,25 @@ class Base(Node):
         )
 
 
-@pytest.fixture
-def rig(ros):
+def make_rig(ros, **params):
+    """The test's base and supervisor, and robot 0's executor with ``params``."""
     base = ros.add(Base(ros.context))
+    overrides = {"progress_window": 5.0} | params
     node = ros.add(
         ExecutorNode(
             context=ros.context,
             namespace="/robot_0",
-            parameter_overrides=[Parameter("progress_window", value=5.0)],
+            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
         )
     )
     base.estop_pub.publish(Bool(data=False))
     base.enabled_pub.publish(Bool(data=True))
     return ros, base, node
+
+
+@pytest.fixture
+def rig(ros):
+    return make_rig(ros)
 
 
 def wait_matched(ros, base, node):
@@ -363,21 +369,9 @@ def test_a_pose_clock_ahead_is_reported_with_its_offset(ros):
 
 def test_on_a_robot_host_a_returning_link_moves_nothing_until_a_re_arm(ros):
     """``rearm_after_loss``: the heartbeat stops (the link dropped) and comes back armed."""
-    base = ros.add(Base(ros.context))
-    node = ros.add(
-        ExecutorNode(
-            context=ros.context,
-            namespace="/robot_0",
-            parameter_overrides=[
-                Parameter("progress_window", value=5.0),
-                Parameter("rearm_after_loss", value=True),
-            ],
-        )
-    )
+    _, base, node = make_rig(ros, rearm_after_loss=True)
     armed_pub = base.create_publisher(Header, "/team/armed", LATCHED)
     armed_pub.publish(Header(stamp=Time(seconds=100).to_msg(), frame_id="1"))
-    base.estop_pub.publish(Bool(data=False))
-    base.enabled_pub.publish(Bool(data=True))
     node.trigger_configure()
     node.trigger_activate()
     wait_matched(ros, base, node)

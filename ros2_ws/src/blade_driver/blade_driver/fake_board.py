@@ -18,6 +18,7 @@ import argparse
 import os
 import select
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -43,6 +44,7 @@ class FakeBoard:
         home_deg: The angle a set-point timeout sends the servo to (the blade home).
         timeout: The set-point timeout the host armed (``TIMEOUT``), s; 0: off.
         timeouts: Set-point timeouts that fired.
+        timed_out: Set each time the set-point timeout fires (what a test waits on).
     """
 
     calibration: ServoCalibration = field(default_factory=ServoCalibration)
@@ -58,6 +60,7 @@ class FakeBoard:
     home_deg: float = 150.0
     timeout: float = 0.0
     timeouts: int = 0
+    timed_out: threading.Event = field(default_factory=threading.Event)
     requests: int = 0
     set_points: list[float] = field(default_factory=list)
     _rng: np.random.Generator | None = None
@@ -81,6 +84,7 @@ class FakeBoard:
         if self.target != self.home_deg:
             self.timeouts += 1
         self.target = self.home_deg
+        self.timed_out.set()
         if self.speed == float("inf"):
             self.angle = self.home_deg
         self._last_set = None  # fired: the next SET takes over again
