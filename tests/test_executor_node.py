@@ -367,6 +367,23 @@ def test_a_pose_clock_ahead_is_reported_with_its_offset(ros):
     assert {v.key: v.value for v in status.values}["pose_clock_ahead"] == "0.030"
 
 
+def test_poses_all_older_than_the_timeout_are_reported_as_a_lag_or_a_clock_ahead(ros):
+    """Every pose 1 s old (this node's clock 1 s ahead of the localiser's): the robot stays
+    still and /diagnostics names the youngest pose's age and both causes."""
+    probe, node = clocked_executor(ros)
+    name = node.get_fully_qualified_name()
+
+    def warned():
+        probe.pose(NOW - 1.0)
+        return any(d.name == name and "youngest" in d.message for d in probe.diagnostics)
+
+    assert ros.spin_until(warned, 5), [d.message for d in probe.diagnostics]
+    status = next(d for d in probe.diagnostics if "youngest" in d.message)
+    assert status.level == DiagnosticStatus.WARN
+    assert "1.000 s old" in status.message and "clock runs ahead" in status.message
+    assert all(c.twist.linear.x == 0.0 and c.twist.angular.z == 0.0 for c in probe.cmds)
+
+
 def test_on_a_robot_host_a_returning_link_moves_nothing_until_a_re_arm(ros):
     """``rearm_after_loss``: the heartbeat stops (the link dropped) and comes back armed."""
     _, base, node = make_rig(ros, rearm_after_loss=True)

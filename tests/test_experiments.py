@@ -435,3 +435,19 @@ def test_section_table():
     assert table(["a", "b"], "lr", [["x", "1"]]) == "| a | b |\n|---|---:|\n| x | 1 |"
     with pytest.raises(ValueError):
         table(["a", "b"], "l", [])
+
+
+def _profile_ctx(tmp_path, profile):
+    from ant_evolution.experiments.core import SCALES, Context
+
+    return Context(out=tmp_path, scale=SCALES["quick"], runs=1, profile=profile)
+
+
+def test_a_paper_profile_experiment_writes_beside_the_v1_one(tmp_path):
+    from ant_evolution.experiments.core import run_dir
+
+    v1, paper = _profile_ctx(tmp_path, "v1"), _profile_ctx(tmp_path, "paper")
+    assert v1.dir("compare") == tmp_path / "compare"
+    assert paper.dir("compare") == tmp_path / "compare-paper"
+    assert run_dir(paper, "ant", 4, 0).parent.name == "quick-paper"
+    assert run_dir(v1, "ant", 4, 0).parent.name == "quick"

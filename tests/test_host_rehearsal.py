@@ -4,7 +4,8 @@ A short rehearsal of ``config/site_rehearsal_hosts.yaml`` (make test-system): th
 each robot host in a namespace of their own, joined by veth links on 198.18.0.0/15, every
 process discovering the others across the links by unicast to the site's static peers. A
 drill takes robot0's link down for 2 s and re-arms the team 3 s after it returns; the
-robot's own nodes must hold it still until then.
+robot's own nodes must hold it still until then. Another runs robot0's processes on a clock a
+second ahead of the dome PC's.
 """
 
 from __future__ import annotations
@@ -56,3 +57,25 @@ def test_hosts_in_their_namespaces_take_every_tick_and_a_dropped_link_waits_for_
     assert robot["non_zero_commands_between_link_up_and_rearm"] == 0, drill
     # The namespaces went with the run.
     assert _namespaces() <= before
+
+
+def test_a_robot_host_whose_clock_runs_a_second_ahead_stands_still_and_says_why(tmp_path, domain):
+    """``--clock-offset robot0:1.0``: robot0's processes (libfaketime) see every pose 1 s
+    old, past the executor's ``pose_timeout``: the robot never moves, its executor names
+    the clock on /diagnostics, and the team's ticks complete without it."""
+    run = tmp_path / "run"
+    command = [sys.executable, "-m", "excavation_bringup.dome", "rehearse", str(SITE)]
+    command += ["--ticks", str(TICKS), "--run-dir", str(run), "--domain", str(domain)]
+    command += ["--timeout", "900", "--json", "--clock-offset", "robot0:1.0"]
+    out = subprocess.run(command, capture_output=True, text=True, timeout=1200, env=os.environ)
+    lines = out.stdout.strip().splitlines()
+    assert out.returncode == 0 and lines, (out.stdout[-2000:], out.stderr[-4000:])
+    summary = json.loads(lines[-1])
+    assert summary["ok"] and summary["ticks"] == TICKS, summary
+    assert json.loads((run / "result.json").read_text())["missed"] == {"0": 0, "1": 0}
+    drill = json.loads((run / "drill.json").read_text())
+    robot = drill["robot_0"]
+    assert robot["drive_commands"] > 0 and robot["drive_commands_not_zero"] == 0, drill
+    assert robot["wheel_commands_not_zero"] == 0, drill
+    said = " ".join(robot["diagnostics"].get("/robot_0/executor", []))
+    assert "clock runs ahead of the pose's" in said, drill

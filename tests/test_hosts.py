@@ -134,3 +134,50 @@ def test_up_refuses_an_unknown_host_and_recording_off_the_dome_pc(tmp_path, caps
     assert "--host robot7: no host 'robot7' in the site" in capsys.readouterr().err
     assert main([*args, "--host", "robot0", "--record", str(tmp_path / "bag")]) == 2
     assert "--record and --view run on the dome PC (dome)" in capsys.readouterr().err
+
+
+def test_a_clock_offset_shifts_only_the_wall_clock_of_the_process_it_prefixes():
+    """``--clock-offset``'s prefix: ``time.time`` 5 s ahead (or behind) in the child,
+    the monotonic clock (timers, timeouts) the same as here."""
+    import subprocess
+    import sys
+    import time
+
+    from excavation_bringup.host_rehearsal import clock_prefix
+
+    probe = "import time; print(time.time(), time.monotonic())"
+    for offset in (5.0, -5.0):
+        before = time.time()
+        out = subprocess.run(
+            clock_prefix(offset) + [sys.executable, "-c", probe],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=60,
+        ).stdout.split()
+        wall, mono = float(out[0]), float(out[1])
+        assert before + offset <= wall <= time.time() + offset
+        assert abs(mono - time.monotonic()) < 2.5  # the same clock, not shifted 5 s
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("robot0", "expected HOST:SECONDS"),
+        ("robot0:soon", "not a number"),
+        ("robot0:0", "non-zero"),
+        ("robot0:7200", "at most 3600"),
+    ],
+)
+def test_a_bad_clock_offset_is_named(text, message):
+    from excavation_bringup.host_rehearsal import parse_offset
+
+    with pytest.raises(ValueError, match=message):
+        parse_offset(text)
+    assert parse_offset("robot1:-0.5") == ("robot1", -0.5, 0.0)
+
+
+def test_a_clock_offset_on_the_dome_pc_is_refused(tmp_path, capsys):
+    code = main(["rehearse", str(HOSTS), "--clock-offset", "dome:1.0", "--run-dir", str(tmp_path)])
+    assert code == 2
+    assert "--clock-offset dome: not a robot host" in capsys.readouterr().err

@@ -169,7 +169,7 @@ class Context:
         generations: ``behaviours``: replay only this many generations.
         profile: The readings of the paper (``v1`` or ``paper``,
             :mod:`ant_evolution.profiles`); training runs of another profile than ``v1``
-            live under ``runs/SCALE-PROFILE``.
+            live under ``runs/SCALE-PROFILE``, its results under ``NAME-PROFILE``.
         switches: Every switch (the profile's, with ``--set`` applied); ``None``: the
             profile's.
         only_methods: Train only these methods (``--method``); ``None``: every one.
@@ -216,8 +216,8 @@ class Context:
         return world_rules_of(self.readings)
 
     def dir(self, name: str) -> Path:
-        """Output directory of experiment ``name``."""
-        d = self.out / name
+        """Output directory of experiment ``name`` (``NAME-PROFILE`` but under ``v1``)."""
+        d = self.out / (name if self.profile == "v1" else f"{name}-{self.profile}")
         d.mkdir(parents=True, exist_ok=True)
         return d
 

@@ -22,7 +22,8 @@ continuous simulator's lockstep takes ``pose``, the stamp of the pose answered),
 U1, once per goal), ``drive/throttle`` (Bool, latched: the power mode of the running goal,
 for the base) and ``/diagnostics`` (every wall second, also while a simulator's clock stands
 still; WARN when poses come stamped more than ``clock_offset_limit`` ahead of the node's
-clock, naming the offset).
+clock, naming the offset, or when every pose of the last second was older than
+``pose_timeout``, naming the youngest: a lagging localiser or a clock that runs ahead).
 
 Lifecycle (ros2/demos ``lifecycle_py``): ``on_configure`` builds the core, publishers,
 subscriptions and timers; ``on_activate`` opens the gate's ``active`` input and starts
@@ -323,6 +324,13 @@ class ExecutorNode(LifecycleNode):
             message += (
                 f"; pose clock offset: poses stamped {lead:.3f} s ahead of this node's clock "
                 "(synchronise the clocks)"
+            )
+        elif lead is not None and -lead > self.params.pose_timeout:
+            level = max(level, DiagnosticStatus.WARN)
+            message += (
+                f"; poses arrive but the youngest of the last second was {-lead:.3f} s old "
+                f"(pose_timeout {self.params.pose_timeout:g} s): the localiser lags, or this "
+                "node's clock runs ahead of the pose's (synchronise the clocks)"
             )
         self.diag_pub.publish(
             diagnostics(

@@ -236,11 +236,22 @@ def bring_up(args: argparse.Namespace, hardware: str) -> int:
     os.environ.update(sitefile.environment(site, args.domain))
     env = dict(os.environ)
     prefixes: dict[str, list[str]] = {}
+    clock_note = ""
     if several:  # inside the dome PC's namespace: each robot host's share in its own
         from excavation_bringup.virtual_hosts import VirtualHosts
 
         hosts = VirtualHosts([(h.name, h.address) for h in site.hosts], args.netns)
         prefixes = {n.name: hosts.prefix(n.host) for n in graph.nodes if n.host}
+        if args.clock_offset:  # that host's processes on a clock off the dome PC's
+            from excavation_bringup.host_rehearsal import clock_prefix, parse_offset
+
+            off_host, offset, _ = parse_offset(args.clock_offset)
+            clock_note = (
+                f"drill: {off_host}'s processes run {offset:+.3f} s off the dome PC's clock"
+            )
+            for n in graph.nodes:
+                if n.host == off_host:
+                    prefixes[n.name] = prefixes[n.name] + clock_prefix(offset)
     dome = ProcessLauncher(graph, env, echo=not args.json, prefixes=prefixes)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda s, _f: dome.request_stop(signal.Signals(s).name))
@@ -248,6 +259,8 @@ def bring_up(args: argparse.Namespace, hardware: str) -> int:
         f"bringing up {args.site} ({len(graph.nodes)} nodes, domain {env['ROS_DOMAIN_ID']}) "
         f"in {run_dir}"
     )
+    if clock_note:
+        dome.report(clock_note)
     rehearsal_pc = hardware == "emulated" and on_dome_pc
     arming = Arming(int(env["ROS_DOMAIN_ID"]), dome.report) if rehearsal_pc else None
     if arming is not None:
@@ -352,8 +365,14 @@ def parser() -> argparse.ArgumentParser:
         help="robots on their own hosts: SIGKILL HOST's executors and blade drivers AFTER s "
         "after arming (a drill; RUN/drill.json)",
     )
+    drills.add_argument(
+        "--clock-offset",
+        metavar="HOST:SECONDS",
+        help="robots on their own hosts: run HOST's processes with the wall clock SECONDS off "
+        "the dome PC's (negative: behind; a drill; RUN/drill.json)",
+    )
     r.add_argument("--netns", default="", help=argparse.SUPPRESS)  # the inner run's tag
-    u.set_defaults(netns="", drop_link=None, kill_host=None)
+    u.set_defaults(netns="", drop_link=None, kill_host=None, clock_offset=None)
     r.set_defaults(run=cmd_rehearse)
     return p
 

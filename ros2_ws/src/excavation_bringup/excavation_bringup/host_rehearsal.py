@@ -13,10 +13,13 @@ seconds after the team is armed, for ``FOR`` seconds, then up again, and re-arms
 ``--kill-host HOST:AFTER`` instead SIGKILLs the processes of ``HOST``'s share (its robots'
 executors and blade drivers; the emulated base and board are the robot's hardware and stay)
 ``AFTER`` seconds after the arming, as a crashed robot computer would lose them; ``ant-dome``
-restarts them. A recorder on that host (``RUN/robot_bags/HOST``) keeps what the robot's own
-nodes did meanwhile, and ``RUN/drill.json`` the drill's times (wall clock, as the bags'
-stamps) and what the robot-side bag shows: when its wheels and blade stopped after the
-fault, and whether anything moved between the link's return and the re-arm.
+restarts them. ``--clock-offset HOST:SECONDS`` runs every process of ``HOST``'s share with its
+wall clock ``SECONDS`` off the dome PC's from the start (libfaketime's ``LD_PRELOAD`` library
+shifts ``CLOCK_REALTIME`` only; a robot computer that never synchronised its clock). A
+recorder on that host (``RUN/robot_bags/HOST``) keeps what the robot's own nodes did
+meanwhile, and ``RUN/drill.json`` the drill's times (wall clock, as the bags' stamps) and
+what the robot-side bag shows: when its wheels and blade stopped after the fault, and
+whether anything moved between the link's return and the re-arm.
 """
 
 from __future__ import annotations
@@ -67,6 +70,54 @@ def parse_kill(text: str) -> tuple[str, float, float]:
     return parts[0], after, 0.0
 
 
+def parse_offset(text: str) -> tuple[str, float, float]:
+    """``HOST:SECONDS`` -> ``(host, seconds, 0.0)``; ``SECONDS`` may be negative (behind).
+
+    Raises:
+        ValueError: Not two fields, or an offset that is zero, not finite or over an hour.
+    """
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise ValueError(f"--clock-offset {text!r}: expected HOST:SECONDS")
+    try:
+        offset = float(parts[1])
+    except ValueError:
+        raise ValueError(f"--clock-offset {text!r}: SECONDS is not a number") from None
+    if not (0.0 < abs(offset) <= 3600.0):
+        raise ValueError(f"--clock-offset {text!r}: SECONDS non-zero, at most 3600 either way")
+    return parts[0], offset, 0.0
+
+
+def clock_prefix(offset: float) -> list[str]:
+    """The ``env`` words that run a process with its wall clock ``offset`` s off.
+
+    libfaketime's library, preloaded, shifts ``CLOCK_REALTIME`` (Python's ``time.time``,
+    the ROS clock, DDS source stamps) and leaves the monotonic clocks (timers, timeouts) as
+    they are, as an unsynchronised computer's clocks would be.
+
+    Raises:
+        VirtualHostsError: The library is not where the ``libfaketime`` package says.
+    """
+    import libfaketime
+
+    _, extra = libfaketime.get_reload_information()
+    library = Path(extra["LD_LIBRARY_PATH"]) / extra["LD_PRELOAD"].split(":")[0]
+    if not library.is_file():
+        raise VirtualHostsError(f"--clock-offset: libfaketime's library {library} is missing")
+    preload = ":".join(p for p in (str(library), os.environ.get("LD_PRELOAD", "")) if p)
+    # The package's own settings (monotonic clocks left alone; FAKETIME_FORCE_MONOTONIC_FIX=0,
+    # without which timed waits on monotonic condition variables, Python's GIL among them,
+    # run late: a thread waited 50-100 ms for the GIL), less its LD_LIBRARY_PATH.
+    settings = {k: v for k, v in extra.items() if k not in ("LD_PRELOAD", "LD_LIBRARY_PATH")}
+    return [
+        "env",
+        f"LD_PRELOAD={preload}",
+        *(f"{k}={v}" for k, v in sorted(settings.items())),
+        "FAKETIME_DONT_FAKE_MONOTONIC=1",
+        f"FAKETIME={offset:+.6f}",
+    ]
+
+
 def _tag() -> str:
     """A short tag, unique among the rehearsals running on this machine (the pid)."""
     return f"{os.getpid() % 1_000_000}"
@@ -74,7 +125,7 @@ def _tag() -> str:
 
 def robot_topics(site: sitefile.Site, host: str) -> list[str]:
     """What a robot host's recorder keeps: its robots' drives, wheels, blades, team state."""
-    topics = ["/team/heartbeat", "/team/armed", "/team/estop"]
+    topics = ["/team/heartbeat", "/team/armed", "/team/estop", "/diagnostics"]
     for k, robot in enumerate(site.robots):
         if site.robot_host(k) == host:
             ns = f"/robot_{k}"
@@ -90,7 +141,11 @@ def robot_topics(site: sitefile.Site, host: str) -> list[str]:
 class Drill:
     """A fault on a robot host (a thread), with a robot-side recorder meanwhile.
 
-    ``kind`` ``drop``: the link down, up, re-arm; ``kill``: the host's nodes SIGKILLed.
+    ``kind`` ``drop``: the link down, up, re-arm; ``kill``: the host's nodes SIGKILLed;
+    ``clock``: nothing more (the host's clock runs off from the start). The recorder runs on
+    the host's clock too, as any process there would: Fast DDS's shared-memory transport
+    between processes of one host stalled delivery for up to 0.6 s while participants were
+    discovered when their clocks differed by a second, which no real host has.
     """
 
     def __init__(
@@ -144,8 +199,10 @@ class Drill:
         if self._stop.is_set():
             return
         self.bag.parent.mkdir(parents=True, exist_ok=True)
+        on_host_clock = clock_prefix(self.after) if self.kind == "clock" else []
         self.recorder = subprocess.Popen(
             self.hosts.prefix(self.host)
+            + on_host_clock
             + [sys.executable, "-m", "excavation_bags.cli", "record", "--out", str(self.bag)]
             + ["--domain", str(self.domain), "--topics", *robot_topics(self.site, self.host)],
             stdout=subprocess.DEVNULL,
@@ -153,7 +210,7 @@ class Drill:
             start_new_session=True,
         )
         self.times["armed"] = time.time()
-        if self._stop.wait(self.after):
+        if self.kind == "clock" or self._stop.wait(self.after):
             return
         if self.kind == "kill":
             self._kill()
@@ -187,7 +244,14 @@ class Drill:
 
     def report(self) -> dict:
         """The drill's times and what the robot-side bag shows (``RUN/drill.json``)."""
-        out: dict = {"host": self.host, "kind": self.kind, "after": self.after} | self.times
+        if self.kind == "clock":
+            out: dict = {"host": self.host, "kind": "clock", "offset": self.after} | self.times
+            if self.bag.exists() and "armed" in self.times:
+                # the bag's stamps are on the host's clock
+                armed = self.times["armed"] + self.after
+                out |= clock_side(self.bag, self.site, self.host, armed)
+            return out
+        out = {"host": self.host, "kind": self.kind, "after": self.after} | self.times
         if self.kind == "drop":
             out["for"] = self.span
         start = "link_down" if self.kind == "drop" else "killed"
@@ -242,14 +306,73 @@ def robot_side(
     return result
 
 
+def clock_side(bag: Path, site, host: str, armed: float) -> dict:
+    """From a robot host's bag: how its robots drove with the host's clock off.
+
+    Per robot, after the arming: drive commands and wheel commands sent (and how many were
+    not zero), and each distinct message its executor and blade driver put on
+    ``/diagnostics`` (what an operator reads to find the cause).
+    """
+    from excavation_bags.reader import open_bag
+
+    b = open_bag(bag)
+    robots = [k for k in range(site.n_robots) if site.robot_host(k) == host]
+    result: dict = {}
+    for k in robots:
+        wheels, drive = f"/sim/robot_{k}/cmd_vel", site.robots[k].drive_topic_resolved
+        counts = {drive: [0, 0], wheels: [0, 0]}
+        said: dict[str, list[str]] = {}
+        for topic, t_ns, raw in b.messages([wheels, drive, "/diagnostics"]):
+            if t_ns * 1e-9 < armed:
+                continue
+            msg = b.decode(topic, raw)
+            if topic == "/diagnostics":
+                for status in msg.status:
+                    level = status.level
+                    level = level[0] if isinstance(level, bytes) else int(level)
+                    if f"robot_{k}" in status.name and level > 0:
+                        seen = said.setdefault(status.name, [])
+                        text = _without_numbers(status.message)
+                        if text not in (_without_numbers(m) for m in seen):
+                            seen.append(status.message)
+                continue
+            tw = msg.twist if hasattr(msg, "twist") else msg
+            counts[topic][0] += 1
+            counts[topic][1] += int(tw.linear.x != 0.0 or tw.angular.z != 0.0)
+        result[f"robot_{k}"] = {
+            "drive_commands": counts[drive][0],
+            "drive_commands_not_zero": counts[drive][1],
+            "wheel_commands": counts[wheels][0],
+            "wheel_commands_not_zero": counts[wheels][1],
+            "diagnostics": said,
+        }
+    return result
+
+
+def _without_numbers(text: str) -> str:
+    """``text`` with its numbers blanked (one message per kind, not per value)."""
+    import re
+
+    return re.sub(r"-?\d+(\.\d+)?", "#", text)
+
+
 def rehearse_hosts(args, site: sitefile.Site, argv: list[str]) -> int:
     """The outer run: namespaces, the inner ``ant-dome`` in the dome PC's, the drill."""
     drop, kind = None, "drop"
-    if args.drop_link or args.kill_host:
-        kind, option = ("drop", "--drop-link") if args.drop_link else ("kill", "--kill-host")
+    drills = {
+        "drop": ("--drop-link", args.drop_link, parse_drop),
+        "kill": ("--kill-host", args.kill_host, parse_kill),
+        "clock": ("--clock-offset", args.clock_offset, parse_offset),
+    }
+    for name, (option, value, parse) in drills.items():
+        if not value:
+            continue
+        kind = name
         try:
-            drop = parse_drop(args.drop_link) if args.drop_link else parse_kill(args.kill_host)
-        except ValueError as exc:
+            drop = parse(value)
+            if kind == "clock":
+                clock_prefix(drop[1])
+        except (ValueError, VirtualHostsError) as exc:
             print(f"ant-dome: error: {exc}", file=sys.stderr)
             return 2
         robot_hosts = [h.name for h in site.hosts[1:]]
