@@ -152,3 +152,64 @@ def test_robots_gene_mutates_within_its_range():
         g = mutate(rng, g, GAParams(mutation_prob=0.5, robots_range=(1, 3)))
         seen.add(g.tissue.robots)
     assert seen == {1, 2, 3}
+
+
+# --- the compiled per-parameter mutation (ant_evolution.ga_kernel) ------------------------
+
+
+def _twin(rng: np.random.Generator) -> np.random.Generator:
+    other = np.random.Generator(np.random.PCG64())
+    other.bit_generator.state = rng.bit_generator.state
+    return other
+
+
+@pytest.mark.parametrize("p", [0.0, 0.025, 0.3, 1.0])
+def test_compiled_mutation_gives_mutate_cells_genes_and_generator_state(p):
+    """Gene for gene and state for state: ``mutate_cells`` is ``mutate_cell`` in a loop, also
+    from a state that keeps half a 32-bit draw (``has_uint32``)."""
+    from ant_controller.genome import MAX_EXTENT
+    from ant_controller.layout import N_BEHAVIOURS
+    from ant_evolution.ga_kernel import mutate_cells
+
+    for seed in range(12):
+        genome = random_genome(np.random.default_rng(seed))
+        python = np.random.Generator(np.random.PCG64(100 + seed))
+        if seed % 2:
+            python.integers(0, 5)  # leaves the high half of a 64-bit output kept
+        compiled = _twin(python)
+        expected = tuple(mutate_cell(python, g, p) for g in genome.cells)
+        got = mutate_cells(compiled, genome.cells, p, N_BEHAVIOURS, MAX_EXTENT + 1)
+        assert got == expected
+        assert compiled.bit_generator.state == python.bit_generator.state
+        assert compiled.random() == python.random()
+
+
+def test_compiled_bounded_integers_follow_numpy_through_rejections():
+    """Lemire's method with a bound whose rejections are frequent (3e9 of 2**32)."""
+    from ant_evolution.ga_kernel import _integer
+
+    rng = np.random.Generator(np.random.PCG64(7))
+    expected = [int(rng.integers(0, 3_000_000_000)) for _ in range(200)]
+    raw = np.random.Generator(np.random.PCG64(7)).bit_generator.random_raw(1000)
+    cache, pos, got = np.zeros(2, dtype=np.int64), 0, []
+    for _ in range(200):
+        value, pos = _integer(raw, pos, cache, 3_000_000_000)
+        got.append(int(value))
+    assert got == expected
+
+
+def test_a_generation_bred_with_the_compiled_mutation_equals_the_python_one(monkeypatch):
+    """``next_generation`` under ``v1``: the same children and the same generator state as
+    with the Python loop (the fallback), so checkpoints and histories resume unchanged."""
+    import ant_evolution.ga as ga
+
+    rng = np.random.default_rng(4)
+    population = [random_genome(rng) for _ in range(12)]
+    fitness = rng.random(12)
+    params = GAParams(population=12)
+    fast = np.random.Generator(np.random.PCG64(9))
+    slow = _twin(fast)
+    children = next_generation(fast, population, fitness, params)
+    monkeypatch.setattr(ga, "mutate_cells", lambda *args: None)
+    assert next_generation(slow, population, fitness, params) == children
+    assert fast.bit_generator.state == slow.bit_generator.state

@@ -58,6 +58,7 @@ from ant_controller.genome import (
 )
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS
 from ant_evolution.errors import ConfigError
+from ant_evolution.ga_kernel import mutate_cells, with_fields
 
 MUTATION_SCOPES = ("parameter", "gene")
 MUTATION_OPERATORS = ("redraw", "perturb")
@@ -167,7 +168,9 @@ def mutate(rng: np.random.Generator, genome: Genome, params: GAParams) -> Genome
 
 def _mutate_v1(rng: np.random.Generator, genome: Genome, params: GAParams) -> Genome:
     p = params.mutation_prob
-    cells = tuple(mutate_cell(rng, g, p) for g in genome.cells)
+    cells = mutate_cells(rng, genome.cells, p, N_BEHAVIOURS, MAX_EXTENT + 1)
+    if cells is None:  # not a PCG64 generator, or genes of several vector lengths
+        cells = tuple(mutate_cell(rng, g, p) for g in genome.cells)
     t = genome.tissue
     robots = t.robots
     if robots is not None and rng.random() < p:
@@ -371,7 +374,7 @@ def crossover(rng: np.random.Generator, a: Genome, b: Genome) -> tuple[Genome, G
 
 
 def _relocate(gene: CellGene, absolute, seed) -> CellGene:
-    return replace(gene, position=tuple(absolute[k] - seed[k] for k in range(3)))
+    return with_fields(gene, {"position": tuple(absolute[k] - seed[k] for k in range(3))})
 
 
 # --- selection and generations ----------------------------------------------------------------
