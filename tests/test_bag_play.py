@@ -19,6 +19,7 @@ from excavation_bags.metadata import qos_from_profile
 from excavation_bags.player_node import PlayerNode
 from excavation_bags.reader import open_bag
 from excavation_bags.writer import BagWriter
+from excavation_common.params import ParameterError
 from excavation_common.ros import LATCHED
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -145,6 +146,51 @@ def test_loop_and_topic_selection(ros, tmp_path):
     with pytest.raises(MissingTopicError, match="/clock"):
         PlayerNode(
             bag, context=ros.context, parameter_overrides=[Parameter("lockstep", value=True)]
+        )
+
+
+def test_clock_start_offset_and_exclude(ros, tmp_path):
+    """``clock``: /clock carries the bag time, rising from the first played message to the
+    last; ``start_offset``: 0.1 s in, the latched topic's message still goes first;
+    ``exclude``: a topic not played."""
+    from rosgraph_msgs.msg import Clock
+
+    bag = small_bag(tmp_path / "b")
+    probe = ros.add(__import__("rclpy").create_node("probe", context=ros.context))
+    got, clocks, latched_seen = [], [], []
+    probe.create_subscription(UInt16, "/count", lambda m: got.append(m.data), 100)
+    probe.create_subscription(
+        Clock, "/clock", lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec), 100
+    )
+    probe.create_subscription(UInt16, "/latched", lambda m: latched_seen.append(m.data), LATCHED)
+    overrides = [
+        Parameter("rate", value=0.5),
+        Parameter("clock", value=True),
+        Parameter("clock_rate", value=100.0),
+        Parameter("start_offset", value=0.1),
+    ]
+    player = ros.add(PlayerNode(bag, context=ros.context, parameter_overrides=overrides))
+    assert ros.spin_until(lambda: player.finished and len(got) == 11, timeout=20.0)
+    assert got == list(range(9, 20))  # /count i at (i + 1) 10 ms; the bag starts at 0
+    assert ros.spin_until(lambda: latched_seen == [42], timeout=10.0)
+    assert clocks == sorted(clocks) and len(set(clocks)) > 3
+    assert clocks[0] >= 100_000_000 and clocks[-1] <= 200_000_000
+    assert player.bag_time == 200_000_000
+    excluded = ros.add(
+        PlayerNode(
+            bag,
+            context=ros.context,
+            parameter_overrides=[Parameter("exclude", value=["/count"])],
+            node_name="player_2",
+        )
+    )
+    assert set(excluded.publishers_) == {"/latched"}
+    with pytest.raises(ParameterError, match="recorded timing only"):
+        PlayerNode(
+            bag,
+            context=ros.context,
+            parameter_overrides=[Parameter("lockstep", value=True), Parameter("clock", value=True)],
+            node_name="player_3",
         )
 
 

@@ -220,7 +220,7 @@ def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path, domain
 
 
 @pytest.mark.system
-def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag(tmp_path, domain):
+def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag_which_replays(tmp_path, domain, ros):
     from excavation_bags.reader import open_bag
 
     bag = tmp_path / "bag"
@@ -255,6 +255,56 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag(tmp_path, domain):
     assert not recorded.warnings  # closed properly: summary and footer written
     assert recorded.topics["/worksite/height_map"].count > 0
     assert recorded.topics["/overhead/image_raw/compressed"].count > 0  # the recorder compresses
+    _replay_with_clock(recorded, ros)
+
+
+def _replay_with_clock(recorded, ros) -> None:
+    """``ant-bag play --clock --rate 8`` of the dome's bag, as a subscriber sees it: each
+    topic's messages in the bag's order and number, the latched map info to a late
+    subscriber, and ``/clock`` rising through the bag's span at the replay's pace."""
+    import rclpy
+    from nav_msgs.msg import MapMetaData
+    from rclpy.parameter import Parameter
+    from rosgraph_msgs.msg import Clock
+
+    from excavation_bags.player_node import PlayerNode
+    from excavation_bags.recorder_node import message_class
+    from excavation_common.ros import LATCHED
+
+    topics = ["/team/heartbeat", "/robot_0/pose", "/worksite/height_map"]
+    expected = {t: [raw for _, _, raw in recorded.messages([t])] for t in topics}
+    assert all(expected.values()), {t: len(v) for t, v in expected.items()}
+    probe = ros.add(rclpy.create_node("replay_probe", context=ros.context))
+    got: dict[str, list[bytes]] = {t: [] for t in topics}
+    clocks: list[tuple[float, int]] = []
+    for t in topics:
+        cls = message_class(recorded.topics[t].msgtype)
+        probe.create_subscription(cls, t, lambda raw, t=t: got[t].append(raw), 1000, raw=True)
+
+    def on_clock(m: Clock) -> None:
+        clocks.append((time.monotonic(), m.clock.sec * 10**9 + m.clock.nanosec))
+
+    probe.create_subscription(Clock, "/clock", on_clock, 100)
+    overrides = [
+        Parameter("topics", value=[*topics, "/worksite/map_info"]),
+        Parameter("rate", value=8.0),
+        Parameter("clock", value=True),
+        Parameter("delay", value=2.0),  # the probe's subscriptions match first
+    ]
+    player = ros.add(PlayerNode(recorded, context=ros.context, parameter_overrides=overrides))
+    assert ros.spin_until(lambda: player.finished, timeout=300.0)
+    assert ros.spin_until(lambda: all(len(got[t]) >= len(expected[t]) for t in topics), 30.0)
+    for t in topics:
+        assert got[t] == expected[t], t  # order and count, byte for byte
+    late = []
+    probe.create_subscription(MapMetaData, "/worksite/map_info", late.append, LATCHED)
+    assert ros.spin_until(lambda: late, timeout=10.0)  # replayed latched
+    stamps = [c for _, c in clocks]
+    assert stamps == sorted(stamps)
+    span = (stamps[-1] - stamps[0]) * 1e-9
+    assert span > 0
+    wall = clocks[-1][0] - clocks[0][0]
+    assert wall >= span / 8.0 * 0.5  # paced by the bag at 8 x, not a flood (a lower bound)
 
 
 def test_the_real_dome_wires_executor_team_tick_and_controller(tmp_path, ros, ros_env):

@@ -27,6 +27,7 @@ THIRD_PARTY = {
     "mcap_ros2": ("python3-mcap-ros2", "mcap-ros2-support"),
     "foxglove": ("python3-foxglove-sdk", "foxglove-sdk"),
     "websockets": ("python3-websockets", "websockets"),
+    "libfaketime": ("python3-libfaketime-pip", "libfaketime"),
 }
 ROS_PACKAGES = re.compile(
     r"^(rclpy|rcl_interfaces|builtin_interfaces|std_srvs|ament_index_python|\w+_msgs)$"

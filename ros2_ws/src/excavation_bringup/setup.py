@@ -28,6 +28,7 @@ setup(
         "team_tick",
         "excavation_bags",
         "numpy",
+        "libfaketime",
         "pyyaml",
         "foxglove-sdk",
     ],

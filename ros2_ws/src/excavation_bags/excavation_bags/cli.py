@@ -134,15 +134,60 @@ def cmd_play(args: argparse.Namespace) -> int:
         overrides.append(Parameter("topics", value=list(args.topics)))
     if args.wait_for:
         overrides.append(Parameter("wait_for", value=list(args.wait_for)))
+    if args.exclude:
+        overrides.append(Parameter("exclude", value=list(args.exclude)))
+    if args.clock is not None:
+        overrides += [Parameter("clock", value=True), Parameter("clock_rate", value=args.clock)]
+    if args.start_offset is not None:
+        overrides.append(Parameter("start_offset", value=float(args.start_offset)))
+    progress = Progress(args.quiet)
     node = _spin(
         lambda ctx: PlayerNode(bag, context=ctx, parameter_overrides=overrides),
         args.domain,
-        lambda n: n.finished,
+        progress.update,
         args.ros_args,
     )
+    progress.close()
     if node is not None:
         print(f"ant-bag: published {node.published} messages from {args.bag}")
     return 0
+
+
+class Progress:
+    """The progress line of ``ant-bag play``: messages published and the bag time.
+
+    ``update`` is the spin loop's stop test: true once the player finished.
+    """
+
+    def __init__(self, quiet: bool) -> None:
+        self.quiet = quiet
+        self.bar = None
+        self.first = 0
+
+    def update(self, node) -> bool:
+        """Advance the line to ``node``'s position; the player finished."""
+        if not self.quiet:
+            if self.bar is None:
+                from tqdm import tqdm
+
+                total = len(node.messages) if not node.loop else None
+                self.bar = tqdm(
+                    total=total, unit="msg", desc="ant-bag play", mininterval=0.5, leave=True
+                )
+                self.first = node.bag.start_ns
+            self.bar.update(node.published - self.bar.n)
+            t = node.bag_time
+            if t is not None:
+                self.bar.set_postfix_str(
+                    f"bag time {(t - self.first) * 1e-9:.1f} of {node.bag.duration_s:.1f} s",
+                    refresh=False,
+                )
+        return node.finished
+
+    def close(self) -> None:
+        """End the line."""
+        if self.bar is not None:
+            self.bar.close()
 
 
 def size_per_minute(bag) -> str:
@@ -243,6 +288,18 @@ def parser() -> argparse.ArgumentParser:
     pl.add_argument("--delay", type=float, default=None, metavar="S", help="default 0.5")
     pl.add_argument("--lockstep", action="store_true", help="tick by tick, waiting for replies")
     pl.add_argument("--wait-for", nargs="+", metavar="TOPIC")
+    pl.add_argument(
+        "--clock",
+        type=float,
+        nargs="?",
+        const=40.0,
+        default=None,
+        metavar="HZ",
+        help="publish /clock from the bag's time (default 40 Hz), for nodes on use_sim_time",
+    )
+    pl.add_argument("--start-offset", type=float, default=None, metavar="S", help="start S s in")
+    pl.add_argument("--exclude", nargs="+", metavar="TOPIC", help="names or globs not to play")
+    pl.add_argument("--quiet", action="store_true", help="no progress line")
     pl.add_argument("--domain", type=int, default=None)
     pl.add_argument(
         "--site",

@@ -20,6 +20,14 @@ Two ways to pace the replay:
   inputs this way into fresh controllers reproduces their recorded behaviours
   (``tests/test_bag_play.py``).
 
+Options as ``ros2 bag play`` users know them: ``clock`` publishes ``/clock``
+(``rosgraph_msgs/Clock``, ``clock_rate`` Hz) with the bag time of the playback position, so
+that nodes on ``use_sim_time`` follow the replay (the bag's own ``/clock``, if any, is then
+not played); ``start_offset`` starts that many seconds into the bag, the latest message of
+each latched topic before it going out first (a late node still gets the maps);
+``exclude`` names topics (or globs) not to play. ``bag_time`` is the playback position,
+for a progress line.
+
 Camera frames recorded as ``<topic>/compressed`` (``sensor_msgs/CompressedImage``, see
 :mod:`excavation_bags.recorder_node`) are played as recorded and, with ``decode_images``
 (default), also decoded with OpenCV and published as ``<topic>`` (``sensor_msgs/Image``,
@@ -39,6 +47,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rosbags.interfaces import QosReliability
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CompressedImage, Image
 
 from excavation_bags.errors import BagError, MissingTopicError
@@ -79,6 +88,13 @@ class PlayerParams:
     decode_images: bool = param(
         True, "also publish <topic> (Image) decoded from a recorded <topic>/compressed"
     )
+    clock: bool = param(False, "publish /clock with the bag time of the playback position")
+    clock_rate: float = param(40.0, "Hz of /clock with clock: true", low=0.1, high=1000.0)
+    start_offset: float = param(
+        0.0, "s into the bag to start (latched topics' last message before it goes first)",
+        low=0.0, high=1e6,
+    )  # fmt: skip
+    exclude: tuple[str, ...] = param(("",), 'names or globs not to play; [""] = none')
 
 
 def playback_qos(info: TopicInfo) -> QoSProfile:
@@ -117,6 +133,9 @@ class PlayerNode(Node):
         super().__init__(kwargs.pop("node_name", "bag_player"), **kwargs)
         self.params = declare_params(self, PlayerParams, on_change=self._on_params)
         patterns = [t for t in self.params.topics if t]
+        excluded = [t for t in self.params.exclude if t]
+        if self.params.clock:
+            excluded.append("/clock")  # the player's own /clock replaces the recorded one
         if bag is None and not self.params.bag:
             raise ParameterError(
                 self.get_fully_qualified_name(), "bag", "", "required: the bag directory to play"
@@ -126,13 +145,16 @@ class PlayerNode(Node):
         self.publishers_ = {}
         self.decoded = {}  # bag topic X/compressed -> publisher of X (decoded frames)
         for name, info in self.bag.topics.items():
-            selected = not patterns or topic_selected(name, patterns)
+            selected = (not patterns or topic_selected(name, patterns)) and not (
+                excluded and topic_selected(name, excluded)
+            )
             raw = raw_topic(name) if info.msgtype == COMPRESSED_TYPE else None
             if (
                 self.params.decode_images
                 and raw is not None
                 and raw not in self.bag.topics
                 and (selected or topic_selected(raw, patterns))
+                and not (excluded and topic_selected(raw, excluded))
             ):
                 self.decoded[name] = self.create_publisher(Image, raw, playback_qos(info))
             if not selected:
@@ -156,12 +178,24 @@ class PlayerNode(Node):
         self.frame_error = ""
         wanted = set(self.publishers_) | set(self.decoded)
         if self.lockstep:
+            for name in ("clock", "start_offset"):
+                if getattr(self.params, name):
+                    raise ParameterError(
+                        self.get_fully_qualified_name(), name, getattr(self.params, name),
+                        "recorded timing only: a lockstep replay goes tick by tick",
+                    )  # fmt: skip
             wanted.add("/clock")
             if "/clock" not in self.bag.topics:
                 raise MissingTopicError(
                     self.bag.path, "topics", "/clock", "lockstep replay splits ticks at /clock"
                 )
         self.messages = list(self.bag.messages(wanted))
+        if self.params.start_offset > 0.0:
+            self.messages = self._from_offset(self.messages, self.params.start_offset)
+        self.clock_pub = None
+        if self.params.clock:
+            self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+            self.create_timer(1.0 / self.params.clock_rate, self.publish_clock)
         self.published = 0
         self.finished = False
         self.loops = 0
@@ -199,6 +233,53 @@ class PlayerNode(Node):
         self.create_timer(0.001, self.step)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(1.0, self.publish_diagnostics)
+
+    def _from_offset(self, messages: list, offset: float) -> list:
+        """The messages from ``offset`` s after the first on, latched ones before them.
+
+        Each latched topic's latest message before that instant goes first, stamped with it.
+        """
+        if not messages:
+            return messages
+        cut = messages[0][1] + int(round(offset * 1e9))
+        first = {}
+        for topic, ts, raw in messages:
+            if ts >= cut:
+                break
+            if latched(self.bag.topics[topic].qos):
+                first[topic] = (topic, cut, raw)
+        return list(first.values()) + [m for m in messages if m[1] >= cut]
+
+    @property
+    def bag_time(self) -> int | None:
+        """The playback position in the bag's time, ns (``None`` for an empty bag).
+
+        Recorded timing: the first message's time until playback starts, then that plus
+        the time played times ``rate``; the last message's once finished. Lockstep: the
+        time of the last message published.
+        """
+        if not self.messages:
+            return None
+        first, last = self.messages[0][1], self.messages[-1][1]
+        if self.finished:
+            return last
+        if self.lockstep:
+            done = self.ticks[: self.tick]
+            stamps = [m[1] for tick in done for m in tick[-1:]]
+            return stamps[-1] if stamps else first
+        if self.started is None:
+            return first
+        played = (time.monotonic() - self.started) * self.rate
+        return min(first + int(played * 1e9), last)
+
+    def publish_clock(self) -> None:
+        """``/clock`` = :attr:`bag_time` (``clock: true``)."""
+        stamp = self.bag_time
+        if stamp is None or self.clock_pub is None:
+            return
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(int(stamp), 1_000_000_000)
+        self.clock_pub.publish(msg)
 
     @property
     def rate(self) -> float:
