@@ -53,9 +53,13 @@ def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> objec
             previous[sig] = signal.signal(sig, lambda signum, _frame: stopping.append(signum))
     executor = SingleThreadedExecutor(context=context)
     node = None
+    extras: list = []
     try:
         node = node_factory(context)
-        executor.add_node(node)
+        if isinstance(node, tuple):  # (the node the loop watches, nodes spun beside it)
+            node, extras = node
+        for n in (node, *extras):
+            executor.add_node(n)
         while context.ok() and not stopping and not until(node):
             executor.spin_once(timeout_sec=0.05)
     except ExternalShutdownException:
@@ -65,8 +69,9 @@ def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> objec
             close = getattr(node, "close", None)
             if close is not None:
                 close()
-            executor.remove_node(node)
-            node.destroy_node()
+        for n in ([node] if node is not None else []) + list(extras):
+            executor.remove_node(n)
+            n.destroy_node()
         executor.shutdown()
         rclpy.try_shutdown(context=context)
         for sig, handler in previous.items():
@@ -123,6 +128,8 @@ def cmd_play(args: argparse.Namespace) -> int:
     bag = open_bag(args.bag)
     for w in bag.warnings:
         print(f"ant-bag: warning: {w}", file=sys.stderr)
+    if args.genome or args.hand_coded:
+        return tick_replay(args, bag)
     overrides = [Parameter("bag", value=str(args.bag))]
     for name, value in (("rate", args.rate), ("delay", args.delay)):
         if value is not None:
@@ -151,6 +158,65 @@ def cmd_play(args: argparse.Namespace) -> int:
     if node is not None:
         print(f"ant-bag: published {node.published} messages from {args.bag}")
     return 0
+
+
+def tick_replay(args: argparse.Namespace, bag) -> int:
+    """``ant-bag play BAG --genome G`` (or ``--hand-coded``): the tick replay.
+
+    Fresh controllers decide every recorded tick again; exit 0 when every word came again,
+    1 when some differ or are missing (as ``diff``).
+    """
+    import json
+
+    from ant_controller.controller import Controller
+    from excavation_bags.tick_replay import compare, recorded_robots, recorded_words, replay_nodes
+
+    controller = Controller.hand_coded() if args.hand_coded else Controller.from_file(args.genome)
+    parts: dict = {}
+
+    def make(ctx):
+        player, controllers, log, probe = replay_nodes(
+            bag, controller, ctx, height_unit=args.height_unit, timeout=args.tick_timeout
+        )
+        parts.update(player=player, log=log)
+        return player, [*controllers, probe]
+
+    settle: list[float] = []
+
+    def done(player) -> bool:  # finished, and a moment for the last words to arrive
+        if not player.finished:
+            return False
+        settle.append(time.monotonic())
+        return time.monotonic() - settle[0] > 1.0
+
+    _spin(make, args.domain, done, args.ros_args)
+    if "player" not in parts:
+        return 1
+    robots = recorded_robots(bag)
+    log = parts["log"]
+    result = compare(recorded_words(bag, robots), log.words, log.sensors)
+    result["unanswered_ticks"] = parts["player"].missed
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(
+            f"ant-bag: tick replay of {args.bag}: {result['ticks']} ticks x {len(robots)} robots "
+            f"with {args.genome or 'the hand-coded rules'}"
+        )
+        if result["missing"] or result["unanswered_ticks"]:
+            print(f"ant-bag: words missing: {result['missing']}; ticks not answered in "
+                  f"{args.tick_timeout:g} s: {result['unanswered_ticks']}")  # fmt: skip
+        if not result["differing"]:
+            print("ant-bag: every recorded word came again")
+        for d in result["differing"][: args.show]:
+            print(
+                f"ant-bag: tick {d['tick']} robot {d['robot']}: recorded {d['recorded']}, "
+                f"replayed {d['replayed']} (sensor codes {d['sensors']})"
+            )
+        if len(result["differing"]) > args.show:
+            print(f"ant-bag: ... {len(result['differing']) - args.show} more differing words")
+    same = not result["differing"] and not result["missing"]
+    return 0 if same else 1
 
 
 class Progress:
@@ -300,6 +366,20 @@ def parser() -> argparse.ArgumentParser:
     pl.add_argument("--start-offset", type=float, default=None, metavar="S", help="start S s in")
     pl.add_argument("--exclude", nargs="+", metavar="TOPIC", help="names or globs not to play")
     pl.add_argument("--quiet", action="store_true", help="no progress line")
+    who = pl.add_mutually_exclusive_group()
+    who.add_argument(
+        "--genome",
+        metavar="FILE",
+        help="tick replay: fresh controllers with this genome decide every recorded tick "
+        "again; reports the ticks whose words differ (exit 1 if any)",
+    )
+    who.add_argument("--hand-coded", action="store_true", help="tick replay with the rules")
+    pl.add_argument("--height-unit", type=float, default=0.05, metavar="M", help="tick replay")
+    pl.add_argument(
+        "--tick-timeout", type=float, default=30.0, metavar="S", help="tick replay: wait per tick"
+    )
+    pl.add_argument("--show", type=int, default=20, metavar="N", help="differing words shown")
+    pl.add_argument("--json", action="store_true", help="tick replay: the comparison as JSON")
     pl.add_argument("--domain", type=int, default=None)
     pl.add_argument(
         "--site",

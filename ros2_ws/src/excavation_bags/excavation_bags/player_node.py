@@ -9,8 +9,10 @@ Two ways to pace the replay:
 * **recorded timing** (default): message i goes out ``(t_i - t_0) / rate`` seconds after
   the start; ``loop`` starts over at the end.
 * **lockstep** (``lockstep: true``): as fast as the subscribers take it, for lockstep
-  trials. A tick is the run of messages from one ``/clock`` message to the next (the
-  simulator publishes ``/clock`` first in every tick). The player publishes one tick, then
+  trials. A tick is the run of messages from one ``tick_topic`` message to the next: the
+  lockstep simulator publishes ``/clock`` first in every tick, and the team tick of a
+  continuous or dome run ``/team/tick`` before its snapshot (``/tick/*``), the default
+  where the bag has it. The player publishes one tick, then
   waits until each topic of ``wait_for`` (default: every ``*/behaviour`` topic of the bag
   that is not played) has carried one message, or ``lockstep_timeout`` passes, exactly
   as the simulator node waits for the controllers' commands. Messages before the first
@@ -69,6 +71,10 @@ class PlayerParams:
     rate: float = param(1.0, "playback speed factor (recorded timing)", low=0.01, high=1000.0)
     loop: bool = param(False, "start over at the end", read_only=False)
     lockstep: bool = param(False, "tick by tick, waiting for the replies on wait_for")
+    tick_topic: str = param(
+        "", 'a lockstep tick starts at each message of this topic; "" = /team/tick if the '
+        "bag has it (continuous and dome runs), else /clock (a lockstep trial)",
+    )  # fmt: skip
     wait_for: tuple[str, ...] = param(
         ("",), 'reply topics of a lockstep tick; [""] = every */behaviour topic not played'
     )
@@ -126,6 +132,20 @@ def lockstep_ticks(
     return ticks
 
 
+def split_at_replies(tick: list, replies: set[str]) -> tuple[list, list]:
+    """A tick's messages before its last reply and after it, the replies left out.
+
+    In a continuous or dome run a tick goes on after the controllers answered (the robots
+    move: IMU readings, blade states); those messages must reach fresh controllers after
+    they answered, as they did, or a controller could decide on a later reading.
+    """
+    last = max((i for i, m in enumerate(tick) if m[0] in replies), default=-1)
+    if last < 0:  # nothing answered this tick in the recording: all of it before the wait
+        return list(tick), []
+    before = [m for m in tick[: last + 1] if m[0] not in replies]
+    return before, tick[last + 1 :]
+
+
 class PlayerNode(Node):
     """Republishes a bag."""
 
@@ -177,6 +197,7 @@ class PlayerNode(Node):
         self.decoded_frames = 0
         self.frame_error = ""
         wanted = set(self.publishers_) | set(self.decoded)
+        self.tick_topic = ""
         if self.lockstep:
             for name in ("clock", "start_offset"):
                 if getattr(self.params, name):
@@ -184,11 +205,20 @@ class PlayerNode(Node):
                         self.get_fully_qualified_name(), name, getattr(self.params, name),
                         "recorded timing only: a lockstep replay goes tick by tick",
                     )  # fmt: skip
-            wanted.add("/clock")
-            if "/clock" not in self.bag.topics:
+            self.tick_topic = self.params.tick_topic or (
+                "/team/tick" if "/team/tick" in self.bag.topics else "/clock"
+            )
+            if self.tick_topic not in self.bag.topics:
                 raise MissingTopicError(
-                    self.bag.path, "topics", "/clock", "lockstep replay splits ticks at /clock"
+                    self.bag.path,
+                    "tick_topic",
+                    self.tick_topic,
+                    "lockstep replay splits ticks at it (/clock of a lockstep trial, /team/tick "
+                    "of a continuous or dome run)",
                 )
+            wanted.add(self.tick_topic)
+            replies = self._reply_topics(patterns)
+            wanted |= replies
         self.messages = list(self.bag.messages(wanted))
         if self.params.start_offset > 0.0:
             self.messages = self._from_offset(self.messages, self.params.start_offset)
@@ -199,14 +229,19 @@ class PlayerNode(Node):
         self.published = 0
         self.finished = False
         self.loops = 0
-        self.ticks = lockstep_ticks(self.messages) if self.lockstep else []
+        self.ticks, self.after = [], []
+        if self.lockstep:
+            for tick in lockstep_ticks(self.messages, self.tick_topic):
+                before, after = split_at_replies(tick, replies)
+                self.ticks.append(before)
+                self.after.append(after)
+            self.messages = [m for m in self.messages if m[0] not in replies]
         self.tick = 0
+        self.missed: list[int] = []
         self.replies: set[str] = set()
         self.reply_subs = []
         if self.lockstep:
-            self.wait_for = [t for t in self.params.wait_for if t] or [
-                t for t in self.bag.topics if t.endswith("/behaviour") and t not in self.publishers_
-            ]
+            self.wait_for = sorted(replies)
             if not self.wait_for:
                 self.get_logger().warning(
                     "lockstep: no reply topic to wait for (every */behaviour topic is played or "
@@ -249,6 +284,17 @@ class PlayerNode(Node):
             if latched(self.bag.topics[topic].qos):
                 first[topic] = (topic, cut, raw)
         return list(first.values()) + [m for m in messages if m[1] >= cut]
+
+    def _reply_topics(self, patterns: list[str]) -> set[str]:
+        """``wait_for``, or every ``*/behaviour`` topic of the bag that is not played."""
+        named = [t for t in self.params.wait_for if t]
+        if named:
+            return set(named)
+        return {
+            t
+            for t in self.bag.topics
+            if t.endswith("/behaviour") and not (patterns and topic_selected(t, patterns))
+        }
 
     @property
     def bag_time(self) -> int | None:
@@ -394,7 +440,10 @@ class PlayerNode(Node):
             if not done:
                 missing = sorted(set(self.wait_for) - self.replies)
                 self.get_logger().warning(f"tick {self.tick - 1}: no reply on {missing}")
+                self.missed.append(self.tick - 1)
             self.waiting_since = None
+            for topic, _ts, raw in self.after[self.tick - 1]:
+                self._publish(topic, raw)
         if self.tick >= len(self.ticks):
             if self.loop:
                 self.tick = 0
@@ -407,6 +456,9 @@ class PlayerNode(Node):
         self.replies.clear()
         for topic, _ts, raw in self.ticks[self.tick]:
             self._publish(topic, raw)
+        if not self.wait_for or self.tick == 0:  # no reply to wait for: the rest at once
+            for topic, _ts, raw in self.after[self.tick]:
+                self._publish(topic, raw)
         self.tick += 1
         if self.tick == 1:
             # the group before the first /clock (latched maps) needs no reply, but the
