@@ -84,6 +84,19 @@ def test_the_composed_continuous_trial_records_a_bag_that_replays_tick_by_tick(
     assert recorded.topics["/robot_1/behaviour"].count == STEPS
     assert recorded.topics["/team/tick"].count == STEPS
     assert len(result.commands) == STEPS
+    # the field figures of ant-bag report: goals, aborts and U1 per robot as the trial saw
+    from excavation_bags.field_report import field_figures
+
+    _, _, raw = next(iter(recorded.messages(["/worksite/map_info"])))
+    cell = float(recorded.decode("/worksite/map_info", raw).resolution)
+    field = field_figures(recorded, cell)
+    robots = field["robots"]
+    assert sorted(robots) == ["0", "1"] and field["ticks"]["count"] == STEPS
+    assert sum(r["stuck_events"] for r in robots.values()) == result.stuck_events, field
+    for r in robots.values():
+        assert r["goals_aborted"] == r["stuck_events"], field  # U1: the goal was aborted
+        assert 0 < r["goals_ended"] <= STEPS and r["track_m"] > 0, field
+        assert 0 <= r["drift_cm_max"] < cell * 50, field  # within half a cell of the lattice
     # tick replay: the recorded genome gives every word again; the hand-coded rules part
     # from it at some tick, which the comparison names with the inputs decided on
     same = _tick_replay(recorded, Controller.from_file(SPEC), ros, "a")

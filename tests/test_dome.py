@@ -257,6 +257,15 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag_which_replays(tmp_pa
     assert recorded.topics["/overhead/image_raw/compressed"].count > 0  # the recorder compresses
     _replay_with_clock(recorded, ros)
     _tick_replay(recorded, ros)
+    from excavation_bags.report import make_report
+
+    report = make_report(recorded, tmp_path / "report", gif=False)
+    assert "tracks.png" in report.files, report.skipped
+    field = report.numbers["field"]
+    assert sorted(field["robots"]) == ["0", "1"] and field["ticks"]["count"] >= 2
+    for robot in field["robots"].values():  # the camera's frames, each with its pose or not
+        assert robot["frames"] > 0 and 0 <= robot["frames_without_pose"] <= robot["frames"]
+        assert robot["goals_ended"] >= 2 and robot["drift_cm_max"] is not None
 
 
 def _tick_replay(recorded, ros) -> None:

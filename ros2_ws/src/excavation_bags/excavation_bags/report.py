@@ -13,6 +13,9 @@ output directory:
   and the last height map, with the difference heat map;
 * ``camera.png`` (only for a bag with camera frames): five overhead camera frames over the
   trial, decoded from ``/overhead/image_raw/compressed`` (or raw ``/overhead/image_raw``);
+* ``tracks.png`` and the field figures (only for a continuous or dome run: the robots'
+  tracks, drift at each goal's end, lost tracks, stuck events, aborted goals and
+  primitives, time per tick; :mod:`excavation_bags.field_report`);
 * ``summary.md`` and ``report.json``: the numbers (with the bag's size per minute of
   recording), the bag's topics, and every warning.
 
@@ -270,6 +273,28 @@ def field_metrics_section(data: TrialData, report: Report) -> None:
     }
 
 
+def field_section(bag: Bag, data: TrialData, report: Report) -> None:
+    """``tracks.png`` and the field figures (:mod:`excavation_bags.field_report`).
+
+    Only for a continuous or dome run (poses and drive executors' statuses in the bag).
+    """
+    from excavation_bags.field_report import field_figures, field_robots, plot_tracks
+
+    if not field_robots(bag):
+        report.skipped["field"] = "no /robot_k/pose with /robot_k/drive/status (not a field run)"
+        return
+    if data.cell_size is None:
+        report.skipped["field"] = "no /worksite/map_info: the cell size is unknown"
+        return
+    tracks: dict = {}
+    figures = field_figures(bag, data.cell_size, tracks)
+    plot_tracks(figures, tracks, report.out / "tracks.png")
+    report.files.append("tracks.png")
+    for robot in figures["robots"].values():
+        robot.pop("goal_ends")
+    report.numbers["field"] = figures
+
+
 def _save(fig, report: Report, name: str) -> None:
     fig.tight_layout()
     fig.savefig(report.out / name)
@@ -378,6 +403,35 @@ def summary_markdown(bag: Bag, data: TrialData, report: Report) -> str:
         lines += [
             f"![{f}]({f})" if f.endswith((".png", ".gif")) else f"- {f}" for f in report.files
         ]
+    field_run = report.numbers.get("field")
+    if field_run:
+        lines += [
+            "",
+            "## Robots in the field (tracks.png)",
+            "",
+            "| robot | poses | track, m | goals ended | aborted | stuck | primitives "
+            "aborted | drift at goal end, cm (mean / max) | heading error, deg (max) | frames "
+            "without a pose | longest lost, s |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+
+        def n(v, spec: str = "") -> str:
+            return "n/a" if v is None else format(v, spec)
+
+        for k, r in field_run["robots"].items():
+            lines.append(
+                f"| {k} | {r['poses']} | {r['track_m']:.2f} | {r['goals_ended']} | "
+                f"{r['goals_aborted']} | {r['stuck_events']} | {n(r['primitives_aborted'])} "
+                f"| {n(r['drift_cm_mean'], '.1f')} / {n(r['drift_cm_max'], '.1f')} | "
+                f"{n(r['heading_error_deg_max'], '.1f')} | {n(r['frames_without_pose'])} of "
+                f"{r['frames']} | {n(r['longest_lost_s'], '.2f')} |"
+            )
+        t = field_run["ticks"]
+        lines += [
+            "",
+            f"{t['count']} ticks; wall time per tick mean {n(t['wall_mean_s'], '.2f')} s, "
+            f"median {n(t['wall_median_s'], '.2f')} s, longest {n(t['wall_max_s'], '.2f')} s.",
+        ]
     if report.skipped:
         lines += ["", "## Skipped", ""]
         lines += [f"- {k}: {v}" for k, v in report.skipped.items()]
@@ -419,6 +473,7 @@ def make_report(
     plot_detectors(data, report)
     field_metrics_section(data, report)
     camera_section(data, report)
+    field_section(bag, data, report)
     report.files.append("summary.md")
     report.files.append("report.json")
     write_text_atomic(report.out / "summary.md", summary_markdown(bag, data, report))
