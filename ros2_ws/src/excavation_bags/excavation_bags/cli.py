@@ -7,7 +7,10 @@ Examples::
     ant-bag info bags/sample
     ant-bag play bags/sample --rate 2 --loop
     ant-bag play bags/sample --lockstep --topics /blueprint/* /worksite/* '/robot_*/pose'
+    ant-bag play runs/dome1 --clock --rate 4                   # a dome run, on its clock
+    ant-bag play runs/dome1 --genome genomes/best.json         # tick replay: same words?
     ant-bag report bags/sample --out report/
+    ant-bag diff runs/dome1 runs/dome1-reperceived             # topic by topic
     ant-bag recover crashed_bag --out repaired_bag      # a bag whose recorder was killed
 
 ``ros2 run excavation_bags ant-bag ...`` is the same program. ROS traffic stays on this machine
@@ -262,6 +265,22 @@ def size_per_minute(bag) -> str:
     return "-" if rate is None else f"{rate / 1e6:.2f} MB/min"
 
 
+def cmd_diff(args: argparse.Namespace) -> int:
+    """``ant-bag diff A B``: 0 when the bags are the same, 1 when they differ (as ``diff``)."""
+    import json
+
+    from excavation_bags.diff import diff_bags, diff_lines
+    from excavation_bags.reader import open_bag
+
+    a, b = open_bag(args.a), open_bag(args.b)
+    result = diff_bags(a, b, args.topics, args.tolerance)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print("\n".join(diff_lines(result)))
+    return 0 if result["same"] else 1
+
+
 def cmd_info(args: argparse.Namespace) -> int:
     """``ant-bag info``."""
     from excavation_bags.metadata import latched
@@ -387,6 +406,16 @@ def parser() -> argparse.ArgumentParser:
         help="take the domain and discovery range from this site file (as ant-dome up does)",
     )
     pl.set_defaults(run=cmd_play)
+
+    d = sub.add_parser("diff", help="two bags compared topic by topic (exit 1 if they differ)")
+    d.add_argument("a", metavar="A")
+    d.add_argument("b", metavar="B")
+    d.add_argument("--topics", nargs="+", metavar="TOPIC", help="names or globs (default: all)")
+    d.add_argument(
+        "--tolerance", type=float, default=1e-6, help="height map cells: a difference above it"
+    )
+    d.add_argument("--json", action="store_true")
+    d.set_defaults(run=cmd_diff)
 
     i = sub.add_parser("info", help="topics, counts and QoS of a bag")
     i.add_argument("bag", metavar="DIR")
