@@ -257,6 +257,7 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag_which_replays(tmp_pa
     assert recorded.topics["/overhead/image_raw/compressed"].count > 0  # the recorder compresses
     _replay_with_clock(recorded, ros)
     _tick_replay(recorded, ros)
+    _reperceive(recorded, tmp_path, ros)
     from excavation_bags.report import make_report
 
     report = make_report(recorded, tmp_path / "report", gif=False)
@@ -266,6 +267,33 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag_which_replays(tmp_pa
     for robot in field["robots"].values():  # the camera's frames, each with its pose or not
         assert robot["frames"] > 0 and 0 <= robot["frames_without_pose"] <= robot["frames"]
         assert robot["goals_ended"] >= 2 and robot["drift_cm_max"] is not None
+
+
+def _reperceive(recorded, tmp_path, ros) -> None:
+    """``ant-bag play BAG --reperceive --run-dir RUN``: a fresh localiser and mapper with the
+    run's parameters give the recorded poses again, within the camera frames' JPEG noise
+    (``ant-bag diff``)."""
+    from excavation_bags.diff import diff_bags
+    from excavation_bags.reader import open_bag
+    from excavation_bags.reperceive import parameter_files, reperceive_nodes
+
+    localizer, mapper = parameter_files(str(tmp_path / "run"), None, None)
+    out = tmp_path / "reperceived"
+    player, others = reperceive_nodes(recorded, out, ros.context, localizer, mapper)
+    for node in (player, *others):
+        ros.add(node)
+    assert ros.spin_until(lambda: player.finished, timeout=600.0)
+    ros.spin_until(lambda: False, timeout=2.0)  # the last poses and maps
+    for node in (player, *others):
+        getattr(node, "close", lambda: None)()
+        ros.executor.remove_node(node)
+        node.destroy_node()
+    result = diff_bags(recorded, open_bag(out), ["/robot_*/pose", "/worksite/height_map"])
+    for k in (0, 1):
+        pose = result["topics"][f"/robot_{k}/pose"]
+        assert pose["matched"] >= 2 and pose["only_in_a"] <= 1, result
+        assert pose["position_cm_max"] < 1.0 and pose["heading_deg_max"] < 1.0, result
+    assert result["topics"]["/worksite/height_map"]["largest_difference"] < 0.01, result
 
 
 def _tick_replay(recorded, ros) -> None:

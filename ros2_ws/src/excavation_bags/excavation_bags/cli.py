@@ -72,6 +72,10 @@ def _spin(node_factory, domain: int | None, until, ros_args: list[str]) -> objec
             close = getattr(node, "close", None)
             if close is not None:
                 close()
+        for n in extras:  # a recorder among them finishes its bag
+            close = getattr(n, "close", None)
+            if close is not None:
+                close()
         for n in ([node] if node is not None else []) + list(extras):
             executor.remove_node(n)
             n.destroy_node()
@@ -133,6 +137,8 @@ def cmd_play(args: argparse.Namespace) -> int:
         print(f"ant-bag: warning: {w}", file=sys.stderr)
     if args.genome or args.hand_coded:
         return tick_replay(args, bag)
+    if args.reperceive:
+        return reperceive(args, bag)
     overrides = [Parameter("bag", value=str(args.bag))]
     for name, value in (("rate", args.rate), ("delay", args.delay)):
         if value is not None:
@@ -160,6 +166,34 @@ def cmd_play(args: argparse.Namespace) -> int:
     progress.close()
     if node is not None:
         print(f"ant-bag: published {node.published} messages from {args.bag}")
+    return 0
+
+
+def reperceive(args: argparse.Namespace, bag) -> int:
+    """``ant-bag play BAG --reperceive --out NEW``: the run's sensors, perceived again.
+
+    A fresh localiser and mapper take the recorded sensor data; their poses and height maps
+    go into ``NEW``.
+    """
+    from excavation_bags.reperceive import parameter_files, reperceive_nodes
+
+    if not args.out:
+        print("ant-bag: error: --reperceive needs --out NEW (the bag it records)", file=sys.stderr)
+        return 2
+    localizer, mapper = parameter_files(args.run_dir, args.localizer_params, args.mapper_params)
+    progress = Progress(args.quiet)
+
+    def make(ctx):
+        return reperceive_nodes(bag, args.out, ctx, localizer, mapper, args.rate or 1.0)
+
+    node = _spin(make, args.domain, progress.update, args.ros_args)
+    progress.close()
+    if node is None:
+        return 1
+    print(
+        f"ant-bag: re-perceived {args.bag} into {args.out} (compare: ant-bag diff {args.bag} "
+        f"{args.out} --topics '/robot_*/pose' /worksite/height_map)"
+    )
     return 0
 
 
@@ -399,6 +433,16 @@ def parser() -> argparse.ArgumentParser:
     )
     pl.add_argument("--show", type=int, default=20, metavar="N", help="differing words shown")
     pl.add_argument("--json", action="store_true", help="tick replay: the comparison as JSON")
+    pl.add_argument(
+        "--reperceive",
+        action="store_true",
+        help="play the sensor topics into a fresh localiser and mapper; record their poses "
+        "and height maps into --out",
+    )
+    pl.add_argument("--out", metavar="DIR", help="re-perception: the bag it records")
+    pl.add_argument("--run-dir", metavar="RUN", help="re-perception: ant-dome's run directory")
+    pl.add_argument("--localizer-params", metavar="FILE", help="re-perception: instead of RUN's")
+    pl.add_argument("--mapper-params", metavar="FILE", help="re-perception: instead of RUN's")
     pl.add_argument("--domain", type=int, default=None)
     pl.add_argument(
         "--site",
