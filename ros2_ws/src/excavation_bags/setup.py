@@ -19,6 +19,8 @@ setup(
         "excavation_common",
         "ant_controller",
         "excavation_sim",
+        "overhead_localizer",
+        "drive_executor",
         "numpy",
         "pyyaml",
         "matplotlib",
