@@ -31,8 +31,16 @@ def continuous(domain, spec, robots, steps, seed, **kw):
     )
 
 
-@pytest.mark.parametrize("spec", ["hand-coded", "genomes/best.json"])
-@pytest.mark.parametrize(("robots", "steps"), [(1, 100), (4, 60)])
+@pytest.mark.parametrize(
+    ("spec", "robots", "steps"),
+    [
+        ("hand-coded", 1, 100),
+        ("genomes/best.json", 1, 100),
+        ("genomes/best.json", 4, 60),
+        # the longest of the four (about a minute): in make test-system
+        pytest.param("hand-coded", 4, 60, marks=pytest.mark.system),
+    ],
+)
 def test_continuous_without_slip_equals_the_grid(spec, robots, steps, domain):
     seed = 3
     result = continuous(domain, spec, robots, steps, seed, exact=True)
