@@ -229,3 +229,24 @@ def test_config_files_set_every_parameter(ros, tmp_path, kind):
             assert node.rate == 2.5 and set(node.publishers_) == {"/latched", "/count"}
     finally:
         node.destroy_node()
+
+
+def test_a_tick_splits_at_its_last_recorded_reply():
+    """Tick replay: what came after the controllers answered goes out after the fresh ones
+    answer; a tick nobody answered goes out whole before the wait."""
+    from excavation_bags.player_node import split_at_replies
+
+    tick = [
+        ("/team/tick", 1, b"t"),
+        ("/tick/robot_0/pose", 2, b"p"),
+        ("/robot_0/imu", 3, b"i1"),
+        ("/robot_0/behaviour", 4, b"w0"),
+        ("/robot_1/behaviour", 5, b"w1"),
+        ("/robot_0/imu", 6, b"i2"),
+    ]
+    replies = {"/robot_0/behaviour", "/robot_1/behaviour"}
+    before, after = split_at_replies(tick, replies)
+    assert [m[2] for m in before] == [b"t", b"p", b"i1"]
+    assert [m[2] for m in after] == [b"i2"]
+    unanswered = [m for m in tick if m[0] not in replies]
+    assert split_at_replies(unanswered, replies) == (unanswered, [])
