@@ -31,19 +31,25 @@ def _namespaces() -> set[str]:
     return {line.split()[0] for line in out.splitlines() if re.match(r"ant\d+-\d", line)}
 
 
-def test_hosts_in_their_namespaces_take_every_tick_and_a_dropped_link_waits_for_a_re_arm(
-    tmp_path, domain
-):
-    before = _namespaces()
+def _rehearse(tmp_path, domain, *drill: str) -> Path:
+    """A ``TICKS``-tick rehearsal of the hosts' site with ``drill``; its run directory."""
     run = tmp_path / "run"
     command = [sys.executable, "-m", "excavation_bringup.dome", "rehearse", str(SITE)]
     command += ["--ticks", str(TICKS), "--run-dir", str(run), "--domain", str(domain)]
-    command += ["--timeout", "900", "--json", "--drop-link", "robot0:30:2"]
+    command += ["--timeout", "900", "--json", *drill]
     out = subprocess.run(command, capture_output=True, text=True, timeout=1200, env=os.environ)
     lines = out.stdout.strip().splitlines()
     assert out.returncode == 0 and lines, (out.stdout[-2000:], out.stderr[-4000:])
     summary = json.loads(lines[-1])
     assert summary["ok"] and summary["ticks"] == TICKS, summary
+    return run
+
+
+def test_hosts_in_their_namespaces_take_every_tick_and_a_dropped_link_waits_for_a_re_arm(
+    tmp_path, domain
+):
+    before = _namespaces()
+    run = _rehearse(tmp_path, domain, "--drop-link", "robot0:30:2")
     result = json.loads((run / "result.json").read_text())
     assert result["missed"] == {"0": 0, "1": 0}, result
     events = (run / "events.log").read_text()
@@ -63,15 +69,7 @@ def test_a_robot_host_whose_clock_runs_a_second_ahead_stands_still_and_says_why(
     """``--clock-offset robot0:1.0``: robot0's processes (libfaketime) see every pose 1 s
     old, past the executor's ``pose_timeout``: the robot never moves, its executor names
     the clock on /diagnostics, and the team's ticks complete without it."""
-    run = tmp_path / "run"
-    command = [sys.executable, "-m", "excavation_bringup.dome", "rehearse", str(SITE)]
-    command += ["--ticks", str(TICKS), "--run-dir", str(run), "--domain", str(domain)]
-    command += ["--timeout", "900", "--json", "--clock-offset", "robot0:1.0"]
-    out = subprocess.run(command, capture_output=True, text=True, timeout=1200, env=os.environ)
-    lines = out.stdout.strip().splitlines()
-    assert out.returncode == 0 and lines, (out.stdout[-2000:], out.stderr[-4000:])
-    summary = json.loads(lines[-1])
-    assert summary["ok"] and summary["ticks"] == TICKS, summary
+    run = _rehearse(tmp_path, domain, "--clock-offset", "robot0:1.0")
     assert json.loads((run / "result.json").read_text())["missed"] == {"0": 0, "1": 0}
     drill = json.loads((run / "drill.json").read_text())
     robot = drill["robot_0"]

@@ -433,7 +433,7 @@ def parser() -> argparse.ArgumentParser:
     )
     pl.add_argument("--show", type=int, default=20, metavar="N", help="differing words shown")
     pl.add_argument("--json", action="store_true", help="tick replay: the comparison as JSON")
-    pl.add_argument(
+    who.add_argument(
         "--reperceive",
         action="store_true",
         help="play the sensor topics into a fresh localiser and mapper; record their poses "

@@ -25,24 +25,18 @@ import math
 
 import numpy as np
 
+from excavation_bags.field_report import header_ns, quaternion_yaw
+
 POSE_TYPE = "geometry_msgs/msg/PoseWithCovarianceStamped"
 IMAGE_TYPE = "sensor_msgs/msg/Image"
 WORD_TYPE = "std_msgs/msg/UInt16"
 
 
-def _stamp(header) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-
-
 def _by_stamp(bag, topic: str) -> dict[int, object]:
     return {
-        _stamp(msg.header): msg
+        header_ns(msg.header): msg
         for msg in (bag.decode(topic, raw) for _, _, raw in bag.messages([topic]))
     }
-
-
-def _yaw(q) -> float:
-    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
 
 
 def diff_poses(a, b, topic: str) -> dict:
@@ -53,7 +47,9 @@ def diff_poses(a, b, topic: str) -> dict:
     for t in common:
         x, y = pa[t].pose.pose.position, pb[t].pose.pose.position
         dist.append(math.hypot(x.x - y.x, x.y - y.y) * 100.0)
-        d = _yaw(pa[t].pose.pose.orientation) - _yaw(pb[t].pose.pose.orientation)
+        d = quaternion_yaw(pa[t].pose.pose.orientation) - quaternion_yaw(
+            pb[t].pose.pose.orientation
+        )
         turn.append(abs(math.degrees(math.atan2(math.sin(d), math.cos(d)))))
     return {
         "kind": "poses",

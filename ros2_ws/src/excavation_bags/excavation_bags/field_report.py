@@ -25,11 +25,13 @@ POSE = re.compile(r"^/robot_(\d+)/pose$")
 CAMERA_TOPICS = ("/overhead/image_raw/compressed", "/overhead/image_raw")
 
 
-def _stamp(header) -> int:
+def header_ns(header) -> int:
+    """A message header's stamp in nanoseconds."""
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
-def _yaw(q) -> float:
+def quaternion_yaw(q) -> float:
+    """The yaw (rad) of an orientation quaternion, as the executors and localiser read it."""
     return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
 
 
@@ -50,8 +52,10 @@ def field_figures(bag, cell_size: float, tracks: dict | None = None) -> dict:
     """
     out: dict = {"robots": {}, "cell_size": cell_size}
     frames = _frame_stamps(bag)
+    aborted = _primitives_aborted(bag)
     for k in field_robots(bag):
         out["robots"][str(k)] = _robot(bag, k, cell_size, frames, tracks)
+        out["robots"][str(k)]["primitives_aborted"] = aborted.get(k)
     ticks = []
     if "/team/tick" in bag.topics:
         ticks = [t * 1e-9 for _, t, _ in bag.messages(["/team/tick"])]
@@ -68,7 +72,7 @@ def field_figures(bag, cell_size: float, tracks: dict | None = None) -> dict:
 def _frame_stamps(bag) -> list[int]:
     for topic in CAMERA_TOPICS:
         if topic in bag.topics:
-            return [_stamp(bag.decode(topic, raw).header) for _, _, raw in bag.messages([topic])]
+            return [header_ns(bag.decode(topic, raw).header) for _, _, raw in bag.messages([topic])]
     return []
 
 
@@ -80,7 +84,7 @@ def _robot(bag, k: int, cell_size: float, frames: list[int], tracks: dict | None
     for _, t, raw in bag.messages([f"{ns}/pose"]):
         msg = bag.decode(f"{ns}/pose", raw)
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
-        track.append((t * 1e-9, _stamp(msg.header), p.x, p.y, _yaw(q)))
+        track.append((t * 1e-9, header_ns(msg.header), p.x, p.y, quaternion_yaw(q)))
     ends, aborted, seen = [], 0, set()
     for _, t, raw in bag.messages([f"{ns}/drive/status"]):
         msg = bag.decode(f"{ns}/drive/status", raw)
@@ -89,13 +93,14 @@ def _robot(bag, k: int, cell_size: float, frames: list[int], tracks: dict | None
             seen.add(key)
             ends.append(t * 1e-9)
             aborted += int(msg.status) == ABORTED
-    drift, turn = [], []
+    drift, turn, end_points = [], [], []
     times = np.array([p[0] for p in track])
     for te in ends:  # the first pose after the goal ended: where the robot stopped
         i = int(np.searchsorted(times, te)) if times.size else 0
         if i >= len(track):
             continue
         _, _, x, y, yaw = track[i]
+        end_points.append((float(te), float(x), float(y)))
         cx, cy = round(x / cell_size) * cell_size, round(y / cell_size) * cell_size
         drift.append(math.hypot(x - cx, y - cy) * 100.0)
         right = round(yaw / (math.pi / 2)) * (math.pi / 2)
@@ -121,36 +126,32 @@ def _robot(bag, k: int, cell_size: float, frames: list[int], tracks: dict | None
         "goals_ended": len(ends),
         "goals_aborted": aborted,
         "stuck_events": stuck,
-        "primitives_aborted": _primitives_aborted(bag, k),
         "drift_cm_mean": float(np.mean(drift)) if drift else None,
         "drift_cm_max": float(np.max(drift)) if drift else None,
         "heading_error_deg_max": float(np.max(turn)) if turn else None,
         "frames": len(frames),
         "frames_without_pose": len(lost) if frames else None,
         "longest_lost_s": longest if frames else None,
-        "goal_ends": [(float(t), float(x), float(y)) for t, x, y in _end_points(track, ends)],
+        "goal_ends": end_points,
     }
 
 
-def _end_points(track, ends):
-    times = np.array([p[0] for p in track])
-    for te in ends:
-        i = int(np.searchsorted(times, te)) if times.size else 0
-        if i < len(track):
-            yield te, track[i][2], track[i][3]
+def _primitives_aborted(bag) -> dict[int, int]:
+    """Per robot, its executor's last ``primitives_aborted`` on ``/diagnostics``.
 
-
-def _primitives_aborted(bag, k: int) -> int | None:
-    """The executor's last ``primitives_aborted`` on ``/diagnostics`` (None: not recorded)."""
+    Read once for all robots; a robot whose executor never reported is absent.
+    """
+    last: dict[int, int] = {}
     if "/diagnostics" not in bag.topics:
-        return None
-    last = None
+        return last
+    name = re.compile(r"robot_(\d+)/executor$")
     for _, _, raw in bag.messages(["/diagnostics"]):
         for status in bag.decode("/diagnostics", raw).status:
-            if status.name.endswith(f"robot_{k}/executor"):
+            m = name.search(status.name)
+            if m:
                 for kv in status.values:
                     if kv.key == "primitives_aborted":
-                        last = int(kv.value)
+                        last[int(m.group(1))] = int(kv.value)
     return last
 
 
