@@ -24,6 +24,15 @@ simulator's:
 State: the :class:`~excavation_sim.world.World` (heights, grid robots) plus ``bodies``
 ``float [n, 3]`` (x, y, yaw in ``map``), commands ``float [n, 2]``, throttle and stall
 flags. All randomness comes from one seeded generator.
+
+**Physical soil** (``soil: physical``, :mod:`excavation_sim.soil`): the soil is a fine
+height field instead. A robot's blade cuts and pushes it as the robot moves, the pile it
+gathers resists the push (McKyes's equation plus the grade), and a robot whose wheels
+cannot give that force slips in place (``slipping``). The grid events keep the footprints,
+headings and U1 of the world model (other robots, the grid's edge) but move no soil and
+check no push capacity or climb: the force does that. After every step the world's
+``heights`` are the cells' sub-cell means rounded to whole units (what the controllers
+sense); :meth:`Dynamics.fitness` reads the means themselves.
 """
 
 from __future__ import annotations
@@ -34,16 +43,34 @@ from dataclasses import dataclass
 import numpy as np
 
 from ant_controller.layout import (
+    BLADE_HOME,
     MOVE_BACKWARD,
     MOVE_FORWARD,
     THROTTLE_UP,
     TURN_LEFT,
     TURN_RIGHT,
 )
-from ant_controller.sensing import FORWARD, MAX_LOAD, blade_volume, is_tilted_down
+from ant_controller.sensing import (
+    FORWARD,
+    MAX_LOAD,
+    blade_offset,
+    blade_volume,
+    is_tilted_down,
+)
 from excavation_common.frames import heading_to_yaw, robot_center
 from excavation_common.params import param
-from excavation_sim.world import BLADE, COL, HEADING, ROW, STUCK, World, apply_behaviours
+from excavation_sim.rules import P_NORMAL_CLIMB, P_THROTTLE_CLIMB
+from excavation_sim.soil import Site, Soil, SoilParams
+from excavation_sim.world import (
+    BLADE,
+    COL,
+    HEADING,
+    ROW,
+    STUCK,
+    World,
+    apply_behaviours,
+    fitness,
+)
 
 
 @dataclass(frozen=True)
@@ -84,6 +111,7 @@ class Counters:
     refused: int = 0
     turns: int = 0
     blade_changes: int = 0
+    slips: int = 0  # robot-steps whose push the wheels could not give (soil: physical)
 
 
 class Dynamics:
@@ -95,6 +123,8 @@ class Dynamics:
         params: Physical parameters.
         cell_size: Grid cell size, m.
         rng: Source of slip and noise.
+        soil: The soil model; ``None`` or ``soil: grid``: the world model's rules.
+        height_unit: Metres per soil unit (the physical soil's scale).
     """
 
     def __init__(
@@ -103,11 +133,23 @@ class Dynamics:
         params: DynamicsParams,
         cell_size: float,
         rng: np.random.Generator,
+        soil: SoilParams | None = None,
+        height_unit: float = 0.05,
     ) -> None:
         self.world = world
         self.params = params
         self.cell = float(cell_size)
         self.rng = rng
+        self.soil: Soil | None = None
+        if soil is not None and soil.physical:
+            rows, cols = world.heights.shape
+            self.soil = Soil(world.heights, Site(rows, cols, self.cell, height_unit), soil)
+            self.soil.settle(self._bodies_at_start(), world.active)
+            self.soil.cell_heights(world.heights)
+            self.footprint_params = world.params.copy()
+            self.footprint_params[P_NORMAL_CLIMB] = self.footprint_params[P_THROTTLE_CLIMB] = (
+                1 << 40
+            )
         n = world.n_robots
         self.bodies = np.zeros((n, 3))
         for k in range(n):
@@ -117,6 +159,7 @@ class Dynamics:
         self.commands = np.zeros((n, 2))
         self.throttle = np.zeros(n, dtype=bool)
         self.stalled = np.zeros(n, dtype=np.int64)  # +1 forward refused, -1 backward refused
+        self.slipping = np.zeros(n, dtype=bool)  # the last step's push was too heavy
         self.time = 0.0
         self.counters = Counters()
 
@@ -124,6 +167,13 @@ class Dynamics:
     def n_robots(self) -> int:
         """Number of robots."""
         return self.world.n_robots
+
+    def _bodies_at_start(self) -> np.ndarray:
+        out = np.zeros((self.world.n_robots, 3))
+        for k, r in enumerate(self.world.robots):
+            x, y = robot_center(int(r[ROW]), int(r[COL]), self.cell)
+            out[k] = (x, y, heading_to_yaw(int(r[HEADING])))
+        return out
 
     # --- inputs -----------------------------------------------------------------------------
 
@@ -166,6 +216,8 @@ class Dynamics:
             if p.turn_noise and (v or w):
                 w += self.rng.normal(0.0, p.turn_noise)
             x, y, yaw = self.bodies[k]
+            if self.soil is not None:
+                v = self._push(k, v)
             if abs(w) < 1e-9:
                 x += v * math.cos(yaw) * p.dt
                 y += v * math.sin(yaw) * p.dt
@@ -174,8 +226,35 @@ class Dynamics:
                 y -= v / w * (math.cos(yaw + w * p.dt) - math.cos(yaw))
             yaw = math.atan2(math.sin(yaw + w * p.dt), math.cos(yaw + w * p.dt))
             self.bodies[k] = (x, y, yaw)
+            if self.soil is not None and v > 0 and self.world.robots[k, BLADE] != BLADE_HOME:
+                self.soil.cut(x, y, yaw, blade_offset(int(self.world.robots[k, BLADE])))
             self._events(k)
+        if self.soil is not None:
+            self.soil.settle(self.bodies, self.world.active)
+            self.soil.cell_heights(self.world.heights)
         self.time += p.dt
+
+    def resistance(self, k: int) -> float:
+        """What resists robot k's forward push now, N: the soil on its blade and the grade."""
+        soil = self.soil
+        if soil is None:
+            return 0.0
+        x, y, yaw = self.bodies[k]
+        blade = int(self.world.robots[k, BLADE])
+        force = 0.0 if blade == BLADE_HOME else soil.resistance(x, y, yaw, blade_offset(blade))
+        physics = soil.physics
+        return force + physics.mass * physics.gravity * math.sin(soil.pitch(x, y, yaw))
+
+    def _push(self, k: int, v: float) -> float:
+        """Robot k's forward speed after the soil: 0 when its wheels cannot give the push."""
+        self.slipping[k] = False
+        if v <= 0:
+            return v
+        if self.resistance(k) > self.soil.physics.available(bool(self.throttle[k])):
+            self.slipping[k] = True
+            self.counters.slips += 1
+            return 0.0
+        return v
 
     def offset(self, k: int) -> float:
         """Robot k's travel past its footprint centre along its grid heading, in cells."""
@@ -191,7 +270,15 @@ class Dynamics:
         if self.throttle[k]:
             word |= 1 << THROTTLE_UP
         w = self.world
-        apply_behaviours(w.heights, w.robots, w.active, k, word, w.rng, w.params)
+        if self.soil is None:
+            apply_behaviours(w.heights, w.robots, w.active, k, word, w.rng, w.params)
+            return not w.robots[k, STUCK]
+        # Physical soil: the footprint moves as with the blade home and no climb limit
+        # (the soil and the force decide those); the blade setting is kept.
+        blade = w.robots[k, BLADE]
+        w.robots[k, BLADE] = BLADE_HOME
+        apply_behaviours(w.heights, w.robots, w.active, k, word, w.rng, self.footprint_params)
+        w.robots[k, BLADE] = blade
         return not w.robots[k, STUCK]
 
     def _events(self, k: int) -> None:
@@ -247,6 +334,14 @@ class Dynamics:
             )
         self.blade_force(0, 1.0)
         self.tilted(0)
+        if self.soil is not None:
+            soil = self.soil
+            fine = soil.fine.copy()
+            x, y, yaw = self.bodies[0]
+            soil.cut(x, y, yaw, -1)
+            soil.settle(self.bodies, w.active)
+            soil.fine[...] = fine
+            self.fitness()
 
     # --- outputs ----------------------------------------------------------------------------
 
@@ -261,8 +356,26 @@ class Dynamics:
             yaw += self.rng.normal(0.0, p.yaw_noise)
         return float(x), float(y), float(yaw)
 
+    def fitness(self) -> float:
+        """The paper's fitness; with physical soil, of the cells' sub-cell means."""
+        if self.soil is None:
+            return self.world.fitness()
+        w = self.world
+        return float(fitness(self.soil.cell_means(), w.zones, w.goal))
+
     def blade_force(self, k: int, max_force: float) -> float:
-        """Push force on robot k's blade (N): the held soil, ``max_force`` at 24 units."""
+        """Push force on robot k's blade (N): the held soil, ``max_force`` at 24 units.
+
+        Physical soil: McKyes's force on the blade, scaled so that the level push the
+        throttle-up motor just gives (24-25 units) reads ``max_force``.
+        """
+        if self.soil is not None:
+            blade = int(self.world.robots[k, BLADE])
+            if blade == BLADE_HOME:
+                return 0.0
+            x, y, yaw = self.bodies[k]
+            force = self.soil.resistance(x, y, yaw, blade_offset(blade))
+            return force * max_force / self.soil.physics.motor[1]
         r = self.world.robots[k]
         volume = blade_volume(
             self.world.heights, int(r[ROW]), int(r[COL]), int(r[HEADING]), int(r[BLADE])

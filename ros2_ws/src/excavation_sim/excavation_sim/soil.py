@@ -1,0 +1,678 @@
+"""Physical soil for the continuous-motion simulator (``soil: physical``; docs/world-model.md).
+
+The grid world moves soil by the paper's blade equations, whole cells at a time; the
+continuous-motion simulator in ``soil: grid`` mode applies those same rules, so it can only
+disagree with a grid trial through a different grid event. This module is the soil that can
+disagree: a height field ``subcells`` times finer than the grid, cut and pushed by a blade
+that moves with the robot's continuous pose, held at an angle of repose, and resisting the
+blade with a published earth-moving model.
+
+* **Height field.** ``fine``: ``int64 [rows * S, cols * S]``, the soil height of each
+  sub-cell in quanta (``quanta`` per soil unit). Every sub-cell has the same area, so the
+  total volume is the sum of ``fine``: every change below moves whole quanta from one
+  sub-cell to another and the sum is conserved exactly. A grid cell's height is the mean of
+  its S x S sub-cells (:func:`cell_sums`); the controllers' 14 inputs read it rounded to a
+  whole unit, the fitness reads the mean itself.
+* **Blade.** The blade is the 2-cell-wide front edge of the robot's 2 x 2 body. Its edge
+  stands ``b_h`` units (below -1, level 0, above +1, the grid's offsets) off the mean ground
+  under the front axle (the rear half of the body's front row). While the robot advances,
+  every sub-cell just behind the edge (within one sub-cell) is set to the edge's height: soil
+  above it is carried onto the sub-cell one step ahead (the cut joins the pile in front of
+  the blade), and a sub-cell below it takes soil from the one ahead if that holds any above
+  the edge (a blade carrying a pile fills hollows). Soil that stands in front of the blade
+  higher than ``blade_height`` above the edge falls over the top, behind the blade. Nothing
+  is cut while the robot stands, reverses or turns in place; a retracted blade (home) does
+  not touch the soil; a pile left behind (blade lifted, robot backing off) stays where it is.
+* **Repose.** :func:`relax` moves soil between 4-neighbour sub-cells whose heights differ
+  by more than ``tan(repose_angle)`` times the sub-cell size, half the excess at a time,
+  sweeping the field in alternating directions; sub-cells under a robot's body neither give
+  nor take (the body and its blade are a wall), so the pile in front of a blade slumps
+  forwards and sideways. Soil that slumps sideways past the blade's ends is not swept again:
+  that is the side spillage of a pushed pile, with no separate rule.
+* **Resistance.** McKyes's universal earth-moving equation (McKyes 1985, *Soil Cutting and
+  Tillage*, ch. 4; used for lunar regolith by Wilkinson & DeGennaro 2007, J.
+  Terramechanics 44): ``F = w (gamma d^2 N_gamma + c d N_c + q d N_q)`` with ``d`` the
+  depth of soil against the blade face, ``w`` the blade width, ``gamma`` the soil's unit
+  weight, ``c`` its cohesion and ``q`` the surcharge of the pile beyond the failure wedge.
+  The N factors follow from the rake angle, the soil's friction angle and the soil-blade
+  friction angle, with the failure plane angle that minimises ``N_gamma`` (:func:`n_factors`).
+  A push is resisted by that force plus the grade (``m g sin(pitch)``); the robot gives
+  ``min(motor force, wheel_friction m g)``. Where the resistance is larger, the wheels slip
+  and the robot does not advance (:meth:`~excavation_sim.dynamics.Dynamics.step`): the
+  executor sees no progress, as on a real robot.
+* **Calibration.** The motor forces are not free parameters: a level blade pushing a pile
+  of N units on flat ground stalls where the grid refuses the push, above 12 units
+  without throttle-up and above 24 with it (the world model's capacities,
+  :func:`calibrate`); the robot's mass is what lets its wheels give that force with
+  ``traction_margin`` to spare.
+
+Pure module (numpy, numba); no ``rclpy``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numba as nb
+import numpy as np
+
+from excavation_common.params import param
+
+SOIL_MODES = ("grid", "physical")
+MAX_FINE_CELLS = 4_000_000
+"""Largest fine field (sub-cells) a world may ask for: checked before allocating."""
+
+
+class SoilError(ValueError):
+    """Physical-soil parameters that cannot describe a soil or a site."""
+
+
+@dataclass(frozen=True)
+class SoilParams:
+    """The soil and the blade of ``soil: physical`` (node parameters of ``dynamics``).
+
+    Defaults: dry loose sand, as in the paper's test dome (bulk density 1,600 kg/m^3, no
+    cohesion, internal friction 35 degrees, repose 33 degrees, soil-steel friction two
+    thirds of the internal angle; McKyes 1985, table 4.1 ranges for loose sands). For a
+    lunar simulant take ``gravity`` 1.62, ``density`` 1,700, ``cohesion`` 1,000 and
+    ``friction_angle`` 42 (JSC-1A; docs/world-model.md).
+    """
+
+    soil: str = param(
+        "grid", "soil model: grid (the world model's rules) or physical", choices=SOIL_MODES
+    )
+    subcells: int = param(4, "sub-cells per cell side (soil: physical)", low=1, high=16)
+    quanta: int = param(1000, "height quanta per soil unit (soil: physical)", low=1, high=10**6)
+    density: float = param(1600.0, "soil bulk density, kg/m^3", low=1.0, high=1e5)
+    gravity: float = param(9.81, "gravity, m/s^2 (the Moon: 1.62)", low=0.01, high=100.0)
+    cohesion: float = param(0.0, "soil cohesion, Pa", low=0.0, high=1e6)
+    friction_angle: float = param(35.0, "soil internal friction angle, deg", low=1.0, high=70.0)
+    blade_friction_angle: float = param(23.0, "soil-blade friction angle, deg", low=0.0, high=60.0)
+    rake_angle: float = param(
+        60.0, "blade rake angle from the horizontal, deg", low=10.0, high=90.0
+    )
+    repose_angle: float = param(33.0, "angle of repose, deg", low=1.0, high=80.0)
+    blade_height: float = param(
+        0.45, "blade height above its edge, m: soil above it falls over", low=0.01, high=10.0
+    )
+    pile_reach: float = param(
+        1.5, "cells ahead of the blade whose soil above the edge resists it", low=0.25, high=8.0
+    )
+    wheel_friction: float = param(0.6, "wheel-soil friction coefficient", low=0.01, high=3.0)
+    traction_margin: float = param(
+        1.25, "wheel traction over the throttle-up motor force (sets the mass)", low=1.0
+    )
+    relax_passes: int = param(2, "repose sweeps per simulator step", low=1, high=64)
+
+    def check(self) -> None:
+        """Cross-field rules."""
+        if self.blade_friction_angle >= self.friction_angle + 30:
+            raise SoilError(
+                f"blade_friction_angle = {self.blade_friction_angle}: must stay well "
+                f"below friction_angle + 30 ({self.friction_angle + 30})"
+            )
+
+    @property
+    def physical(self) -> bool:
+        """True for ``soil: physical``."""
+        return self.soil == "physical"
+
+
+@dataclass(frozen=True)
+class Site:
+    """The site's scale as the soil model needs it (from the blueprint)."""
+
+    rows: int
+    cols: int
+    cell: float  # m per cell
+    unit: float  # m per soil unit
+
+
+# --- earth-moving model ------------------------------------------------------------------
+
+
+def n_factors(params: SoilParams) -> tuple[float, float, float, float]:
+    """McKyes's ``(N_gamma, N_c, N_q, beta)`` for the blade and soil of ``params``.
+
+    ``beta`` is the failure plane angle from the horizontal that minimises ``N_gamma``
+    (McKyes 1985: the soil fails along the plane of least resistance), searched on a
+    0.1-degree grid.
+
+    Raises:
+        SoilError: When no failure plane gives a finite, positive resistance.
+    """
+    alpha = math.radians(params.rake_angle)
+    phi = math.radians(params.friction_angle)
+    delta = math.radians(params.blade_friction_angle)
+    best = None
+    for tenth in range(10, 900):
+        beta = math.radians(tenth / 10)
+        if beta + phi >= math.pi / 2 + math.pi / 2:
+            break
+        denominator = math.cos(alpha + delta) + math.sin(alpha + delta) / math.tan(beta + phi)
+        if denominator <= 1e-9:
+            continue
+        cot_a, cot_b = 1 / math.tan(alpha), 1 / math.tan(beta)
+        n_gamma = (cot_a + cot_b) / (2 * denominator)
+        if n_gamma > 0 and (best is None or n_gamma < best[0]):
+            n_c = (1 + cot_b / math.tan(beta + phi)) / denominator
+            n_q = (cot_a + cot_b) / denominator
+            best = (n_gamma, n_c, n_q, beta)
+    if best is None:
+        raise SoilError(
+            f"rake_angle = {params.rake_angle}, friction_angle = {params.friction_angle}, "
+            f"blade_friction_angle = {params.blade_friction_angle}: no failure plane"
+        )
+    return best
+
+
+@dataclass(frozen=True)
+class Physics:
+    """Everything :func:`blade_resistance` and the stall test need, in SI units.
+
+    Attributes:
+        gamma: Soil unit weight, N/m^3.
+        n_gamma, n_c, n_q: McKyes's factors.
+        wedge: Failure wedge length per metre of soil depth (``cot alpha + cot beta``).
+        motor: Motor force without and with throttle-up, N (calibrated).
+        mass: Robot mass, kg (from the traction margin).
+    """
+
+    gamma: float
+    cohesion: float
+    n_gamma: float
+    n_c: float
+    n_q: float
+    wedge: float
+    wheel_friction: float
+    gravity: float
+    motor: tuple[float, float]
+    mass: float
+
+    def available(self, throttle: bool) -> float:
+        """Push the robot gives: its motor force, at most what its wheels' traction gives."""
+        return min(self.motor[int(throttle)], self.wheel_friction * self.mass * self.gravity)
+
+
+def mckyes_force(
+    depth: float, surcharge_volume: float, width: float, reach: float, physics: Physics
+) -> float:
+    """McKyes's blade force (N) for ``depth`` m of soil against a ``width`` m blade.
+
+    ``surcharge_volume`` (m^3): soil in front of the blade above the failure wedge's top,
+    spread over ``width`` x ``reach`` as the surcharge ``q``.
+    """
+    if depth <= 0.0 and surcharge_volume <= 0.0:
+        return 0.0
+    q = physics.gamma * max(surcharge_volume, 0.0) / (width * reach)
+    p = physics
+    return width * (
+        p.gamma * depth * depth * p.n_gamma + p.cohesion * depth * p.n_c + q * depth * p.n_q
+    )
+
+
+# --- kernels -------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def cell_sums(fine, s, out):
+    """``out[r, c]``: the sum of cell ``(r, c)``'s ``s`` x ``s`` sub-cells (quanta)."""
+    rows, cols = out.shape
+    for r in range(rows):
+        for c in range(cols):
+            total = 0
+            for i in range(s):
+                for j in range(s):
+                    total += fine[r * s + i, c * s + j]
+            out[r, c] = total
+
+
+@nb.njit(cache=True)
+def round_heights(sums, per_cell, out):
+    """Cell heights in whole units: the sub-cell mean rounded, halves up."""
+    rows, cols = sums.shape
+    for r in range(rows):
+        for c in range(cols):
+            out[r, c] = (2 * sums[r, c] + per_cell) // (2 * per_cell)
+
+
+@nb.njit(cache=True)
+def body_mask(mask, bodies, active, sub, half_length, half_width):
+    """Mark the sub-cells whose centres lie under an active robot's body rectangle."""
+    mask[:] = False
+    rows, cols = mask.shape
+    reach = math.hypot(half_length, half_width)
+    for k in range(bodies.shape[0]):
+        if not active[k]:
+            continue
+        x, y, yaw = bodies[k, 0], bodies[k, 1], bodies[k, 2]
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        i0 = max(int(math.floor((y - reach) / sub)), 0)
+        i1 = min(int(math.floor((y + reach) / sub)) + 1, rows)
+        j0 = max(int(math.floor((x - reach) / sub)), 0)
+        j1 = min(int(math.floor((x + reach) / sub)) + 1, cols)
+        for i in range(i0, i1):
+            for j in range(j0, j1):
+                dx = (j + 0.5) * sub - x
+                dy = (i + 0.5) * sub - y
+                u = dx * cy + dy * sy
+                v = -dx * sy + dy * cy
+                if abs(u) < half_length and abs(v) < half_width:
+                    mask[i, j] = True
+
+
+@nb.njit(cache=True)
+def relax(fine, blocked, max_diff, passes):
+    """Settle slopes steeper than ``max_diff`` quanta per sub-cell; returns the quanta moved.
+
+    Each pass sweeps the field (forwards, then backwards on the next pass) and, for each
+    pair of 4-neighbours neither of which is ``blocked``, moves half the excess over
+    ``max_diff`` (rounded up) from the higher to the lower. Whole quanta move between two
+    sub-cells, so the sum is unchanged.
+    """
+    rows, cols = fine.shape
+    moved = 0
+    for p in range(passes):
+        forwards = p % 2 == 0
+        for a in range(rows):
+            i = a if forwards else rows - 1 - a
+            for b in range(cols):
+                j = b if forwards else cols - 1 - b
+                if blocked[i, j]:
+                    continue
+                for n in range(2):
+                    ni = i + (1 if n == 0 else 0)
+                    nj = j + (1 if n == 1 else 0)
+                    if not forwards:
+                        ni = i - (1 if n == 0 else 0)
+                        nj = j - (1 if n == 1 else 0)
+                    if ni < 0 or nj < 0 or ni >= rows or nj >= cols or blocked[ni, nj]:
+                        continue
+                    diff = fine[i, j] - fine[ni, nj]
+                    if diff > max_diff:
+                        t = (diff - max_diff + 1) // 2
+                        fine[i, j] -= t
+                        fine[ni, nj] += t
+                        moved += t
+                    elif -diff > max_diff:
+                        t = (-diff - max_diff + 1) // 2
+                        fine[i, j] += t
+                        fine[ni, nj] -= t
+                        moved += t
+    return moved
+
+
+@nb.njit(cache=True, inline="always")
+def _index(x, y, sub, rows, cols):
+    """Sub-cell ``(i, j)`` holding point ``(x, y)``, or ``(-1, -1)`` off the field."""
+    i = int(math.floor(y / sub))
+    j = int(math.floor(x / sub))
+    if i < 0 or j < 0 or i >= rows or j >= cols:
+        return -1, -1
+    return i, j
+
+
+@nb.njit(cache=True)
+def band_ground(fine, x, y, yaw, sub, near, far, half_width):
+    """Summed height (quanta) and count of the sub-cells in a band of a robot's body.
+
+    The band: centres between ``near`` and ``far`` m ahead of ``(x, y)`` along ``yaw``
+    and less than ``half_width`` m to either side. ``n`` is 0 when none lies on the field.
+    """
+    rows, cols = fine.shape
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    span = math.hypot(max(abs(near), abs(far)), half_width) + sub
+    i0 = max(int(math.floor((y - span) / sub)), 0)
+    i1 = min(int(math.floor((y + span) / sub)) + 1, rows)
+    j0 = max(int(math.floor((x - span) / sub)), 0)
+    j1 = min(int(math.floor((x + span) / sub)) + 1, cols)
+    total = 0
+    n = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            dx = (j + 0.5) * sub - x
+            dy = (i + 0.5) * sub - y
+            u = dx * cy + dy * sy
+            v = -dx * sy + dy * cy
+            if abs(v) < half_width and near <= u < far:
+                total += fine[i, j]
+                n += 1
+    return total, n
+
+
+@nb.njit(cache=True)
+def pile_load(fine, x, y, yaw, sub, front, half_width, reach, edge):
+    """``(face, volume)`` of soil above ``edge`` (quanta) in front of a blade.
+
+    ``face``: the mean height above the edge of the sub-cells within one sub-cell ahead of
+    it (the soil against the blade face); ``volume``: the sum above the edge of every
+    sub-cell up to ``reach`` m ahead, within the blade's width.
+    """
+    rows, cols = fine.shape
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    span = math.hypot(front + reach, half_width) + sub
+    i0 = max(int(math.floor((y - span) / sub)), 0)
+    i1 = min(int(math.floor((y + span) / sub)) + 1, rows)
+    j0 = max(int(math.floor((x - span) / sub)), 0)
+    j1 = min(int(math.floor((x + span) / sub)) + 1, cols)
+    face_total = 0
+    face_n = 0
+    volume = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            dx = (j + 0.5) * sub - x
+            dy = (i + 0.5) * sub - y
+            u = dx * cy + dy * sy
+            v = -dx * sy + dy * cy
+            if abs(v) >= half_width or u < front or u >= front + reach:
+                continue
+            above = fine[i, j] - edge
+            if above <= 0:
+                if u < front + sub:
+                    face_n += 1
+                continue
+            volume += above
+            if u < front + sub:
+                face_total += above
+                face_n += 1
+    face = face_total / face_n if face_n else 0.0
+    return face, volume
+
+
+@nb.njit(cache=True)
+def cut(fine, blocked, x, y, yaw, sub, front, half_width, edge, top):
+    """The blade at ``(x, y, yaw)`` levels the sub-cells just behind its edge to ``edge``.
+
+    Soil above the edge goes to the sub-cell one sub-cell ahead (the pile); a sub-cell
+    below it takes what the one ahead holds above the edge, up to the edge; soil ahead
+    standing more than ``top`` quanta above the edge falls over the blade onto the sub-cell
+    1.5 sub-cells behind the edge. A target off the field or under another robot's body
+    (``blocked`` and not behind this blade) is left alone. Returns the quanta cut.
+    """
+    rows, cols = fine.shape
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    span = math.hypot(front + sub, half_width) + sub
+    i0 = max(int(math.floor((y - span) / sub)), 0)
+    i1 = min(int(math.floor((y + span) / sub)) + 1, rows)
+    j0 = max(int(math.floor((x - span) / sub)), 0)
+    j1 = min(int(math.floor((x + span) / sub)) + 1, cols)
+    total = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            px = (j + 0.5) * sub
+            py = (i + 0.5) * sub
+            dx = px - x
+            dy = py - y
+            u = dx * cy + dy * sy
+            v = -dx * sy + dy * cy
+            if abs(v) >= half_width:
+                continue
+            if front - sub <= u < front:
+                ti, tj = _index(px + sub * cy, py + sub * sy, sub, rows, cols)
+                if ti < 0 or (ti == i and tj == j) or blocked[ti, tj]:
+                    continue
+                excess = fine[i, j] - edge
+                if excess > 0:
+                    fine[i, j] -= excess
+                    fine[ti, tj] += excess
+                    total += excess
+                elif excess < 0:
+                    spare = fine[ti, tj] - edge
+                    if spare > 0:
+                        take = -excess if -excess < spare else spare
+                        fine[i, j] += take
+                        fine[ti, tj] -= take
+            elif front <= u < front + sub:
+                over = fine[i, j] - edge - top
+                if over > 0:
+                    bi, bj = _index(px - 1.5 * sub * cy, py - 1.5 * sub * sy, sub, rows, cols)
+                    if bi >= 0 and not (bi == i and bj == j):
+                        fine[i, j] -= over
+                        fine[bi, bj] += over
+    return total
+
+
+# --- the soil ----------------------------------------------------------------------------
+
+
+class Soil:
+    """The fine height field of one world and its blade physics (see the module docstring).
+
+    Args:
+        heights: The grid's starting heights, soil units (each cell's sub-cells start level
+            at its height).
+        site: Rows, columns, cell size and unit height.
+        params: Soil and blade parameters.
+
+    Raises:
+        SoilError: When the fine field would exceed :data:`MAX_FINE_CELLS` sub-cells or the
+            parameters describe no soil.
+    """
+
+    def __init__(
+        self,
+        heights: np.ndarray,
+        site: Site,
+        params: SoilParams,
+        physics: Physics | None = None,
+    ) -> None:
+        params.check()
+        s = params.subcells
+        if site.rows * site.cols * s * s > MAX_FINE_CELLS:
+            raise SoilError(
+                f"subcells = {s}: a {site.rows} x {site.cols} site would need "
+                f"{site.rows * site.cols * s * s} sub-cells (at most {MAX_FINE_CELLS})"
+            )
+        self.params = params
+        self.site = site
+        self.s = s
+        self.q = params.quanta
+        self.sub = site.cell / s
+        heights = np.asarray(heights, dtype=np.int64)
+        self.fine = np.repeat(np.repeat(heights * self.q, s, axis=0), s, axis=1)
+        self.fine = np.ascontiguousarray(self.fine, dtype=np.int64)
+        self.blocked = np.zeros(self.fine.shape, dtype=np.bool_)
+        self.sums = np.zeros((site.rows, site.cols), dtype=np.int64)
+        self.max_diff = int(
+            math.tan(math.radians(params.repose_angle)) * self.sub / site.unit * self.q
+        )
+        self.top = int(params.blade_height / site.unit * self.q)
+        self.physics = physics or calibrate(params, site.cell, site.unit)
+        self.total = int(self.fine.sum())
+
+    # --- measures ------------------------------------------------------------------------------
+
+    def volume(self) -> int:
+        """Total soil, quanta (constant over a trial)."""
+        return int(self.fine.sum())
+
+    def cell_means(self) -> np.ndarray:
+        """Cell heights in soil units, the mean of each cell's sub-cells (float)."""
+        cell_sums(self.fine, self.s, self.sums)
+        return self.sums / float(self.s * self.s * self.q)
+
+    def cell_heights(self, out: np.ndarray) -> None:
+        """Write each cell's mean height rounded to a whole unit into ``out`` (int32)."""
+        cell_sums(self.fine, self.s, self.sums)
+        rounded = np.empty_like(self.sums)
+        round_heights(self.sums, self.s * self.s * self.q, rounded)
+        out[...] = rounded
+
+    def fine_metres(self) -> np.ndarray:
+        """The fine field in metres (what the synthetic laser sees)."""
+        return self.fine * (self.site.unit / self.q)
+
+    # --- the blade -----------------------------------------------------------------------------
+
+    @property
+    def front(self) -> float:
+        """Distance from a robot's centre to its blade edge, m (the body's front)."""
+        return self.site.cell
+
+    @property
+    def half_width(self) -> float:
+        """Half the blade's width, m (the body's half width)."""
+        return self.site.cell
+
+    def edge(self, x: float, y: float, yaw: float, offset: int) -> int | None:
+        """The blade edge height (quanta): front-axle ground plus ``offset`` units.
+
+        The front axle's ground: the mean of the rear half of the body's front row (the
+        half the blade has not just cut, so a cut reaches the edge only as the robot rolls
+        onto it: the grid's sloped cut).
+        """
+        cell = self.site.cell
+        total, n = band_ground(self.fine, x, y, yaw, self.sub, 0.0, cell / 2, self.half_width)
+        if n == 0:
+            return None
+        return total // n + offset * self.q
+
+    def resistance(self, x: float, y: float, yaw: float, offset: int) -> float:
+        """McKyes's force (N) on the blade of a robot at ``(x, y, yaw)``, edge ``offset``."""
+        edge = self.edge(x, y, yaw, offset)
+        if edge is None:
+            return 0.0
+        reach = self.params.pile_reach * self.site.cell
+        face, volume = pile_load(
+            self.fine, x, y, yaw, self.sub, self.front, self.half_width, reach, edge
+        )
+        return self.force_of(face, volume)
+
+    def force_of(self, face_quanta: float, volume_quanta: float) -> float:
+        """The force of ``face`` quanta against the blade and ``volume`` quanta ahead of it."""
+        unit = self.site.unit / self.q
+        depth = face_quanta * unit
+        width = 2 * self.half_width
+        volume = volume_quanta * unit * self.sub * self.sub
+        wedge = 0.5 * width * depth * depth * self.physics.wedge
+        reach = self.params.pile_reach * self.site.cell
+        return mckyes_force(depth, volume - wedge, width, reach, self.physics)
+
+    def cut(self, x: float, y: float, yaw: float, offset: int) -> int:
+        """Level the sub-cells the blade just passed; returns the quanta cut."""
+        edge = self.edge(x, y, yaw, offset)
+        if edge is None:
+            return 0
+        return int(
+            cut(
+                self.fine,
+                self.blocked,
+                x,
+                y,
+                yaw,
+                self.sub,
+                self.front,
+                self.half_width,
+                edge,
+                self.top,
+            )
+        )
+
+    def settle(self, bodies: np.ndarray, active: np.ndarray) -> int:
+        """Mark the robots' bodies and relax the field; returns the quanta moved."""
+        body_mask(self.blocked, bodies, active, self.sub, self.site.cell, self.site.cell)
+        return int(relax(self.fine, self.blocked, self.max_diff, self.params.relax_passes))
+
+    def heap(self, x: float, y: float, yaw: float, units: float, passes: int = 400) -> None:
+        """Drop ``units`` of soil on the sub-cells just ahead of a blade at ``(x, y, yaw)``.
+
+        Spread evenly over the blade's width, then relaxed to repose for ``passes`` sweeps
+        with that robot's body a wall (the calibration's pile, and the tests').
+        """
+        bodies = np.array([[x, y, yaw]])
+        body_mask(self.blocked, bodies, np.array([True]), self.sub, self.site.cell, self.site.cell)
+        rows, cols = self.fine.shape
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        cells = []
+        n = int(round(2 * self.half_width / self.sub))
+        for m in range(n):
+            v = -self.half_width + (m + 0.5) * self.sub
+            px = x + (self.front + self.sub / 2) * cy - v * sy
+            py = y + (self.front + self.sub / 2) * sy + v * cy
+            i, j = _index(px, py, self.sub, rows, cols)
+            if i >= 0:
+                cells.append((i, j))
+        if not cells:
+            raise SoilError(f"no sub-cell ahead of a blade at ({x:.3f}, {y:.3f}) on the field")
+        total = int(round(units * self.q * self.s * self.s))
+        share, rest = divmod(total, len(cells))
+        for m, (i, j) in enumerate(cells):
+            self.fine[i, j] += share + (1 if m < rest else 0)
+        relax(self.fine, self.blocked, self.max_diff, passes)
+
+    def pitch(self, x: float, y: float, yaw: float) -> float:
+        """The body's nose-up pitch (rad): its front row's mean ground against its rear's."""
+        cell = self.site.cell
+        front, n_front = band_ground(self.fine, x, y, yaw, self.sub, 0.0, cell, self.half_width)
+        rear, n_rear = band_ground(self.fine, x, y, yaw, self.sub, -cell, 0.0, self.half_width)
+        if not n_front or not n_rear:
+            return 0.0
+        rise = (front / n_front - rear / n_rear) * self.site.unit / self.q
+        return math.atan2(rise, cell)
+
+
+# --- calibration ---------------------------------------------------------------------------
+
+
+def level_pile_force(units: float, params: SoilParams, cell: float, unit: float, physics) -> float:
+    """McKyes's force of a level blade on flat ground against ``units`` of soil.
+
+    The soil is heaped in front of the blade (:meth:`Soil.heap`): the pile a level push
+    gathers. Deterministic.
+    """
+    probe = Soil(np.zeros((12, 12), dtype=np.int64), Site(12, 12, cell, unit), params, physics)
+    x, y, yaw = 3 * cell, 6 * cell, 0.0
+    probe.heap(x, y, yaw, units)
+    return probe.resistance(x, y, yaw, 0)
+
+
+@lru_cache(maxsize=32)
+def calibrate(params: SoilParams, cell: float, unit: float) -> Physics:
+    """The soil's physics with the motor forces set by the grid's push capacities.
+
+    Without throttle-up the motor stalls between a level push of 12 and of 13 units on
+    flat ground, with throttle-up between 24 and 25 (the world model's ``normal_load`` and
+    ``throttle_load``): each force is the mean of the two piles' resistances. The mass
+    gives traction ``traction_margin`` times the larger force.
+    """
+    n_gamma, n_c, n_q, beta = n_factors(params)
+    gamma = params.density * params.gravity
+    cot = 1 / math.tan(math.radians(params.rake_angle)) + 1 / math.tan(beta)
+    draft = Physics(
+        gamma,
+        params.cohesion,
+        n_gamma,
+        n_c,
+        n_q,
+        cot,
+        params.wheel_friction,
+        params.gravity,
+        (0.0, 0.0),
+        0.0,
+    )
+    forces = []
+    for capacity in (12, 24):
+        low = level_pile_force(capacity, params, cell, unit, draft)
+        high = level_pile_force(capacity + 1, params, cell, unit, draft)
+        if not high > low:
+            raise SoilError(
+                f"a level push of {capacity + 1} units meets no more resistance than one of "
+                f"{capacity} ({high:.3g} N against {low:.3g} N): check pile_reach and "
+                f"blade_height"
+            )
+        forces.append((low + high) / 2)
+    mass = params.traction_margin * forces[1] / (params.wheel_friction * params.gravity)
+    return Physics(
+        gamma,
+        params.cohesion,
+        n_gamma,
+        n_c,
+        n_q,
+        cot,
+        params.wheel_friction,
+        params.gravity,
+        (forces[0], forces[1]),
+        mass,
+    )

@@ -1,0 +1,183 @@
+"""Physical soil (``soil: physical``): conservation, the calibrated stall, spillage, McKyes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ant_controller.layout import BLADE_ABOVE, BLADE_BELOW, BLADE_HOME, BLADE_LEVEL
+from blueprint_server.blueprint import default_blueprint
+from excavation_sim.dynamics import Dynamics, DynamicsParams
+from excavation_sim.soil import (
+    MAX_FINE_CELLS,
+    Site,
+    Soil,
+    SoilError,
+    SoilParams,
+    calibrate,
+    level_pile_force,
+    n_factors,
+)
+from excavation_sim.world import BLADE, World
+
+CELL, UNIT = 0.25, 0.05
+PHYSICAL = SoilParams(soil="physical")
+
+
+def flat_world(robots: int = 1, seed: int = 0) -> World:
+    bp = default_blueprint(1)
+    return World.scenario(bp.zones, bp.goal, robots, seed, 0)
+
+
+def physical(world: World, **changes) -> Dynamics:
+    params = DynamicsParams.exact(**changes)
+    return Dynamics(world, params, CELL, np.random.default_rng(0), soil=PHYSICAL)
+
+
+@pytest.mark.parametrize("phi", [10.0, 30.0, 45.0])
+def test_a_smooth_vertical_blade_meets_rankine_passive_pressure(phi):
+    """McKyes's N_gamma for a smooth vertical blade is Rankine's K_p / 2 (Coulomb's wedge)."""
+    params = SoilParams(friction_angle=phi, blade_friction_angle=0.0, rake_angle=90.0)
+    n_gamma, _, n_q, beta = n_factors(params)
+    kp = math.tan(math.radians(45 + phi / 2)) ** 2
+    assert n_gamma == pytest.approx(kp / 2, rel=2e-3)
+    assert n_q == pytest.approx(kp, rel=2e-3)
+    assert math.degrees(beta) == pytest.approx(45 - phi / 2, abs=0.2)
+
+
+def test_conservation_over_random_pushes():
+    """Random terrain, blades, throttle and commands: the total never changes by a quantum."""
+    rng = np.random.default_rng(7)
+    cuts = slips = 0
+    for trial in range(6):
+        world = flat_world(robots=2, seed=trial)
+        world.heights[:] = rng.integers(-2, 3, world.heights.shape)
+        start = int(world.heights.sum()) * PHYSICAL.quanta * PHYSICAL.subcells**2
+        dyn = physical(world, speed_noise=0.01, turn_noise=0.05)
+        total = dyn.soil.volume()
+        assert total == start
+        for step in range(400):
+            if step % 40 == 0:
+                for k in range(2):
+                    dyn.set_blade(k, int(rng.choice([BLADE_BELOW, BLADE_LEVEL, BLADE_ABOVE])))
+                    dyn.throttle[k] = bool(rng.integers(0, 2))
+                    dyn.command(k, float(rng.uniform(-0.1, 0.3)), float(rng.uniform(-1, 1)))
+            dyn.step()
+            assert dyn.soil.volume() == total, (trial, step)
+        means = dyn.soil.cell_means()
+        assert np.array_equal(world.heights, np.floor(means + 0.5).astype(np.int32))
+        cuts += int(np.abs(dyn.soil.fine - np.repeat(np.repeat(world.heights, 4, 0), 4, 1)).sum())
+        slips += dyn.counters.slips
+    assert cuts > 0 and slips > 0  # soil moved and some pushes were too heavy
+
+
+@pytest.mark.parametrize(("throttle", "capacity"), [(False, 12), (True, 24)])
+def test_a_level_push_stalls_at_the_calibrated_capacity(throttle, capacity):
+    """A level blade moves a pile of the grid's capacity and stalls on one unit more."""
+    advanced = {}
+    for units in (capacity, capacity + 1):
+        world = flat_world()
+        world.robots[0, :3] = (6, 3, 1)  # facing +x with open ground ahead
+        dyn = physical(world)
+        dyn.set_blade(0, BLADE_LEVEL)
+        dyn.throttle[0] = throttle
+        x, y, yaw = dyn.bodies[0]
+        dyn.soil.heap(x, y, yaw, units)
+        for _ in range(3):
+            dyn.command(0, 0.2, 0.0)
+            dyn.step()
+        advanced[units] = float(dyn.bodies[0, 0] - x)
+    assert advanced[capacity] > 0.02
+    assert advanced[capacity + 1] == 0.0
+
+
+def test_the_calibration_is_the_grid_capacity_and_traction_allows_it():
+    physics = calibrate(PHYSICAL, CELL, UNIT)
+    f = [level_pile_force(u, PHYSICAL, CELL, UNIT, physics) for u in (11, 12, 13, 24, 25)]
+    assert f == sorted(f)
+    assert f[1] < physics.motor[0] < f[2] and f[3] < physics.motor[1] < f[4]
+    assert physics.available(True) == physics.motor[1]
+    assert physics.wheel_friction * physics.mass * physics.gravity > physics.motor[1]
+
+
+def test_a_full_blade_spills_at_its_ends():
+    """Soil pushed by a full blade ends up beside the blade's path, beyond the heap.
+
+    Full: the 12 units the grid's blade holds without throttle-up (throttle on, so that the
+    push carries on as the pile's face steepens).
+    """
+    world = flat_world()
+    world.robots[0, :3] = (6, 1, 1)
+    dyn = physical(world)
+    dyn.set_blade(0, BLADE_LEVEL)
+    dyn.throttle[0] = True
+    x0, y0, yaw = dyn.bodies[0]
+    dyn.soil.heap(x0, y0, yaw, 12)
+    soil = dyn.soil
+    rows, cols = soil.fine.shape
+    ii, jj = np.mgrid[0:rows, 0:cols]
+    px, py = (jj + 0.5) * soil.sub, (ii + 0.5) * soil.sub
+    beside = np.abs(py - y0) > CELL  # outside the blade's 2-cell path
+    far = px > x0 + CELL + 2.5 * CELL  # beyond where the heap lay
+
+    def spilled() -> int:
+        return int(soil.fine[beside & far].sum())
+
+    assert spilled() == 0
+    total = soil.volume()
+    for _ in range(120):
+        dyn.command(0, 0.2, 0.0)
+        dyn.step()
+    assert dyn.bodies[0, 0] - x0 > 2 * CELL  # it pushed on
+    assert spilled() > 0.1 * 12 * soil.q * soil.s**2  # over a tenth of the pile
+    assert soil.volume() == total
+
+
+def test_a_lifted_blade_leaves_its_pile_and_backing_off_moves_no_soil():
+    world = flat_world()
+    world.robots[0, :3] = (6, 3, 1)
+    dyn = physical(world)
+    dyn.set_blade(0, BLADE_LEVEL)
+    x, y, yaw = dyn.bodies[0]
+    dyn.soil.heap(x, y, yaw, 6)
+    for _ in range(20):
+        dyn.command(0, 0.2, 0.0)
+        dyn.step()
+    assert dyn.blade_force(0, 10.0) > 0
+    dyn.set_blade(0, BLADE_HOME)
+    assert dyn.blade_force(0, 10.0) == 0.0
+    soil = dyn.soil
+    line = dyn.bodies[0, 0] + CELL  # the blade's edge when it was lifted
+    px = (np.arange(soil.fine.shape[1]) + 0.5) * soil.sub
+    ahead = soil.fine[:, px > line].sum()
+    for _ in range(30):
+        dyn.command(0, -0.2, 0.0)
+        dyn.step()
+    assert dyn.bodies[0, 0] < line - CELL - 0.1  # it backed off
+    # the pile stays ahead of where the blade was (its face slumps into the place the
+    # body left: the blade held it as a wall)
+    assert soil.fine[:, px > line].sum() > 0.75 * ahead
+
+
+def test_physical_soil_changes_the_grid_only_through_the_soil():
+    """Cell heights are the rounded sub-cell means; the fitness reads the means."""
+    world = flat_world(robots=1)
+    dyn = physical(world)
+    dyn.set_blade(0, BLADE_BELOW)
+    dyn.throttle[0] = True
+    for _ in range(200):
+        dyn.command(0, 0.2, 0.0)
+        dyn.step()
+    means = dyn.soil.cell_means()
+    assert np.array_equal(world.heights, np.floor(means + 0.5))
+    expected = np.where(world.zones == 1, np.exp(-2 * np.abs(world.goal - means)), 0)
+    assert dyn.fitness() == pytest.approx(expected.sum() / (world.zones == 1).sum())
+    assert int(world.robots[0, BLADE]) == BLADE_BELOW
+
+
+def test_sizes_are_checked_before_allocating():
+    with pytest.raises(SoilError, match="subcells = 16"):
+        Soil(np.zeros((1000, 1000)), Site(1000, 1000, CELL, UNIT), SoilParams(subcells=16))
+    assert 1000 * 1000 * 16 * 16 > MAX_FINE_CELLS
