@@ -154,3 +154,29 @@ def test_default_options_render_exactly_as_before():
     lost, nan = rng.random(len(want)) < 0.01, rng.random(len(want)) < 0.5
     want[lost & nan], want[lost & ~nan] = np.nan, np.inf
     assert np.array_equal(got, want.astype(np.float32), equal_nan=True)
+
+
+def test_a_fine_height_field_traces_as_its_cells_and_shows_what_is_finer():
+    """The physical soil's fine field (sub-cells ``scale`` to a cell): a field that is each
+    cell's height repeated traces exactly as the cells do; a bump on one sub-cell shows."""
+    rng = np.random.default_rng(3)
+    cells = rng.integers(-2, 3, (16, 16)) * 0.05
+    scale = 4
+    fine = np.repeat(np.repeat(cells, scale, 0), scale, 1)
+    anchors = np.array([[3, 4], [9, 9]])
+    coarse = surface_with_robots(cells, anchors, 0.2)
+    fine_surface = surface_with_robots(fine, anchors * scale, 0.2, scale)
+    assert np.array_equal(fine_surface, np.repeat(np.repeat(coarse, scale, 0), scale, 1))
+    ideal = LaserParams(range_noise=0.0, dropout=0.0)
+    for tilt in (-0.3, 0.0, 0.25):
+        a = OverheadLaser(ideal, 0.25).scan(coarse, tilt, np.random.default_rng(0))
+        b = OverheadLaser(ideal, 0.25 / scale).scan(fine_surface, tilt, np.random.default_rng(0))
+        assert np.allclose(a, b, atol=1e-4)
+    bumped = fine_surface.copy()
+    bumped[32:34, 20:60] += 0.2  # a ridge half a cell wide across the site
+    hit = [
+        OverheadLaser(ideal, 0.25 / scale).scan(s, t, np.random.default_rng(0))
+        for s in (fine_surface, bumped)
+        for t in np.linspace(-0.5, 0.5, 41)
+    ]
+    assert any(not np.allclose(hit[i], hit[41 + i]) for i in range(41))

@@ -51,6 +51,7 @@ BROKEN = {
     "override_range": "overrides.team_tick.blade_wait = -1.0: must be >= 0.0",
     "override_choice": "overrides.executor.mode = 'auto': must be one of tick, free",
     "override_rule": "overrides.executor = {'max_speed': 0.2}: throttle_speed 0.15 < max_speed 0.2",
+    "sim_soil": "sim.soil = 'sand': expected one of grid, physical",
 }
 
 
@@ -415,3 +416,20 @@ def test_every_parameter_the_site_changes_is_declared_derived(tmp_path, old, new
         if kind in sitefile.DERIVED and name not in sitefile.DERIVED[kind]
     )
     assert not undeclared, f"{new!r} sets {undeclared}: add them to site.DERIVED"
+
+
+def test_sim_soil_reaches_the_simulated_worlds_dynamics(tmp_path):
+    """``sim.soil: physical`` in a site file runs ``ant-dome up --sim`` on physical soil;
+    the synthetic laser then sees the fine field."""
+    text = (CONFIG / "site_sim.yaml").read_text().replace("soil: grid ", "soil: physical ")
+    text = text.replace("../../../../genomes", str(Path(__file__).resolve().parents[1] / "genomes"))
+    (tmp_path / "s.yaml").write_text(text)
+    site, errors = sitefile.check_site(tmp_path / "s.yaml", sim=True)
+    assert errors == [] and site.sim.soil == "physical"
+    nodes = {s.name: s for s in dome_graph(site, tmp_path / "run", "sim").nodes}
+    assert nodes["dynamics"].params["soil"] == "physical"
+    assert nodes["dynamics"].params["fine_height_map"] is True
+    grid = sitefile.check_site(CONFIG / "site_sim.yaml", sim=True)[0]
+    assert {s.name: s for s in dome_graph(grid, tmp_path / "g", "sim").nodes}["dynamics"].params[
+        "soil"
+    ] == "grid"

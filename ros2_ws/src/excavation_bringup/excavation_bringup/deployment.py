@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from excavation_bringup import site as sitefile
+from excavation_common.constants import SOIL_MODES
 
 DRIVES = ("grid", "continuous")
 PERCEPTIONS = ("truth", "full")
@@ -55,6 +56,8 @@ class Deployment:
         occlude: LEDs hidden from the synthetic camera (``"2:front,2:rear"``).
         drive: ``grid`` or ``continuous``.
         exact: The continuous-motion simulator without slip and noise (the parity setting).
+        soil: The continuous-motion simulator's soil: ``grid`` (the world model's rules)
+            or ``physical`` (:mod:`excavation_sim.soil`).
         processes: Each node in its own process (else composed in this one).
         hardware: ``sim``, ``dome`` or ``emulated`` (the dome's table, unchanged, against
             :mod:`dome_emulator`'s drivers and the continuous-motion world on the wall
@@ -82,6 +85,7 @@ class Deployment:
     occlude: str = ""
     drive: str = "grid"
     exact: bool = False
+    soil: str = "grid"
     processes: bool = False
     hardware: str = "sim"
     site: sitefile.Site | None = None
@@ -125,6 +129,7 @@ class Deployment:
             ("perception", self.perception, PERCEPTIONS),
             ("hardware", self.hardware, HARDWARE),
             ("supervisor", self.supervisor, SUPERVISORS),
+            ("soil", self.soil, SOIL_MODES),
         ):
             if value not in choices:
                 raise DeploymentError(
@@ -133,6 +138,11 @@ class Deployment:
         if self.occlude and not self.full:
             raise DeploymentError(
                 "occlude: hides a robot from the camera, so needs perception 'full'"
+            )
+        if self.soil != "grid" and self.drive != "continuous":
+            raise DeploymentError(
+                f"soil: {self.soil} is a mode of the continuous-motion simulator "
+                "(drive: continuous)"
             )
         if self.drive == "continuous" and not self.blade_driver:
             raise DeploymentError(
@@ -184,6 +194,7 @@ class Deployment:
             supervisor="internal",
             drive="continuous",
             exact=s.exact,
+            soil=s.soil,
             processes=True,
             hardware=hardware,
             site=site,

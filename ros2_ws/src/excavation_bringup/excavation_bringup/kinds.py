@@ -129,6 +129,7 @@ KINDS: dict[str, NodeKind] = {
             (
                 "excavation_sim.dynamics_node:DynamicsNodeParams",
                 "excavation_sim.dynamics:DynamicsParams",
+                "excavation_sim.soil:SoilParams",
             ),
             "dynamics",
             "dynamics.yaml",

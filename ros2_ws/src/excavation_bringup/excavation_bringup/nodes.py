@@ -379,6 +379,9 @@ def dynamics(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeSp
         "pose_prefix": TRUTH_PREFIX if dep.full else "",
         "snapshot_prefix": SNAPSHOT_PREFIX if dep.full else "",
         "idle_time_factor": profile.idle_time_factor,
+        "soil": dep.soil,
+        # the synthetic laser of full perception sees the physical soil's fine field
+        "fine_height_map": dep.full and dep.soil == "physical" and dep.sim,
     } | vars(physics)
     if profile.dynamics_command_timeout is not None:
         params["command_timeout"] = min(

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from excavation_common.constants import SOIL_MODES
 from excavation_common.errors import FieldError
 from excavation_common.loaders import parse_yaml, read_text_bounded
 from excavation_common.network import (
@@ -195,7 +196,8 @@ class SimSettings:
     ``first_command_timeout`` is tick 0's: every node's first frame, sweep and decision
     (numba kernels compiling) can take a loaded machine well over a minute. ``exact``:
     no slip and no noise in the continuous-motion simulator (``ant-trial --no-slip``), the
-    setting whose result does not depend on the machine's timing.
+    setting whose result does not depend on the machine's timing. ``soil``: the simulated
+    world's soil, ``grid`` (the world model's rules) or ``physical`` (``ant-trial --soil``).
     """
 
     seed: int = 0
@@ -204,6 +206,7 @@ class SimSettings:
     command_timeout: float = 30.0
     first_command_timeout: float = 180.0
     exact: bool = False
+    soil: str = "grid"
 
 
 @dataclass(frozen=True)
@@ -479,13 +482,25 @@ def _hosts(r: _Reader, doc: dict) -> tuple[Host, ...]:
 
 
 def _sim(r: _Reader, doc: dict) -> SimSettings:
-    keys = {"seed", "scenario", "ticks", "command_timeout", "first_command_timeout", "exact"}
+    keys = {
+        "seed",
+        "scenario",
+        "ticks",
+        "command_timeout",
+        "first_command_timeout",
+        "exact",
+        "soil",
+    }
     s = r.section(doc, "sim", keys, required=False)
     d = SimSettings()
     exact = s.get("exact", d.exact)
     if not isinstance(exact, bool):
         r.error("sim.exact", exact, "expected true or false")
         exact = d.exact
+    soil = s.get("soil", d.soil)
+    if soil not in SOIL_MODES:
+        r.error("sim.soil", soil, f"expected one of {', '.join(SOIL_MODES)}")
+        soil = d.soil
     return SimSettings(
         r.number(s, "sim", "seed", d.seed, 0, 2**31 - 1, integer=True),
         r.number(s, "sim", "scenario", d.scenario, 0, 2**31 - 1, integer=True),
@@ -493,6 +508,7 @@ def _sim(r: _Reader, doc: dict) -> SimSettings:
         r.number(s, "sim", "command_timeout", d.command_timeout, positive=True),
         r.number(s, "sim", "first_command_timeout", d.first_command_timeout, positive=True),
         exact,
+        soil,
     )
 
 

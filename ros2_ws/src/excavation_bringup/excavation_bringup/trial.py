@@ -58,7 +58,9 @@ class TrialResult:
     ``--drive continuous`` adds the wall time of every tick (from its snapshot to the next
     tick's, the last to the end of its motion), the primitives the executors
     aborted, the stuck events (robot-ticks with U1 set), the sim time and the robots the
-    team tick left out of a tick.
+    team tick left out of a tick; with ``soil="physical"`` also the fine field's total
+    (``soil_volume``, quanta: constant over a trial) and the robot-steps whose push the
+    wheels could not give (``slips``).
     """
 
     fitness: float
@@ -73,6 +75,8 @@ class TrialResult:
     stuck_events: int = 0
     sim_seconds: float = 0.0
     robots_late: int = 0
+    soil_volume: int | None = None
+    slips: int = 0
 
 
 def continuous_result(
@@ -100,6 +104,8 @@ def continuous_result(
         stuck_events=ticks["stuck_events"],
         sim_seconds=world["sim_seconds"],
         robots_late=ticks["robots_late"],
+        soil_volume=world.get("volume"),
+        slips=world.get("slips", 0),
     )
 
 
@@ -143,6 +149,7 @@ def run_trial(
     drive: str = "grid",
     exact: bool = False,
     time_factor: float = 0.0,
+    soil: str = "grid",
 ) -> TrialResult:
     """Run a trial through the nodes and return its result.
 
@@ -171,6 +178,8 @@ def run_trial(
         exact: ``drive="continuous"`` without slip and noise (the parity setting).
         time_factor: ``drive="continuous"``: the simulator's clock at most this many times
             real time (0: as fast as the team answers).
+        soil: ``drive="continuous"``: ``"grid"`` (the world model's soil rules) or
+            ``"physical"`` (a fine height field, cutting resistance and traction).
 
     Raises:
         TimeoutError: When the trial does not finish in time.
@@ -198,6 +207,7 @@ def run_trial(
         occlude,
         drive,
         exact=exact,
+        soil=soil,
         processes=processes,
         time_factor=time_factor,
     )
@@ -486,6 +496,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--no-slip", action="store_true", help="--drive continuous without slip and noise"
     )
+    p.add_argument(
+        "--soil",
+        choices=("grid", "physical"),
+        default="grid",
+        help="--drive continuous: grid (the world model's soil rules) or physical (a fine "
+        "height field, cutting resistance and traction)",
+    )
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     from excavation_common.errors import FieldError
@@ -508,6 +525,7 @@ def main(argv: list[str] | None = None) -> int:
             command_timeout=args.command_timeout or (30.0 if args.perception == "full" else 2.0),
             drive=args.drive,
             exact=args.no_slip,
+            soil=args.soil,
         )
     except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
         print(f"ant-trial: error: {exc}", file=sys.stderr)
@@ -521,6 +539,8 @@ def main(argv: list[str] | None = None) -> int:
             "sim_seconds": result.sim_seconds,
             "robots_late": result.robots_late,
         }
+        if result.soil_volume is not None:
+            extra |= {"soil_volume": result.soil_volume, "slips": result.slips}
     if args.json:
         print(
             json.dumps(

@@ -29,6 +29,11 @@ ROBOT_CELLS = 2
 """A robot's footprint is ROBOT_CELLS x ROBOT_CELLS grid cells; its blade covers two."""
 
 
+SOIL_MODES = ("grid", "physical")
+"""The continuous-motion simulator's soil: the world model's rules, or the physical model
+(``excavation_sim.soil``)."""
+
+
 @dataclass(frozen=True)
 class BladeGeometry:
     """Joint positions of the four blade settings and the force of a full blade.

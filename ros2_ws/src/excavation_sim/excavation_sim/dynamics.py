@@ -160,6 +160,9 @@ class Dynamics:
         self.throttle = np.zeros(n, dtype=bool)
         self.stalled = np.zeros(n, dtype=np.int64)  # +1 forward refused, -1 backward refused
         self.slipping = np.zeros(n, dtype=bool)  # the last step's push was too heavy
+        self.ground = np.zeros(n, dtype=np.int64)  # physical soil: each blade's reference
+        for k in range(n):
+            self._measure_ground(k)
         self.time = 0.0
         self.counters = Counters()
 
@@ -185,10 +188,23 @@ class Dynamics:
         )
 
     def set_blade(self, k: int, blade: int) -> None:
-        """Robot k's blade setting (a code of ``excavation_common.constants``)."""
+        """Robot k's blade setting (a code of ``excavation_common.constants``).
+
+        Physical soil: the servo sets the edge against the front axle's ground now.
+        """
         if int(self.world.robots[k, BLADE]) != blade:
             self.counters.blade_changes += 1
         self.world.robots[k, BLADE] = blade
+        self._measure_ground(k)
+
+    def _measure_ground(self, k: int) -> None:
+        if self.soil is not None:
+            self.ground[k] = self.soil.ground(*self.bodies[k])
+
+    def edge(self, k: int) -> int:
+        """Physical soil: robot k's blade edge height, quanta (see ``set_blade``)."""
+        offset = blade_offset(int(self.world.robots[k, BLADE]))
+        return int(self.ground[k]) + offset * self.soil.q
 
     # --- stepping ---------------------------------------------------------------------------
 
@@ -227,7 +243,7 @@ class Dynamics:
             yaw = math.atan2(math.sin(yaw + w * p.dt), math.cos(yaw + w * p.dt))
             self.bodies[k] = (x, y, yaw)
             if self.soil is not None and v > 0 and self.world.robots[k, BLADE] != BLADE_HOME:
-                self.soil.cut(x, y, yaw, blade_offset(int(self.world.robots[k, BLADE])))
+                self.soil.cut(x, y, yaw, self.edge(k))
             self._events(k)
         if self.soil is not None:
             self.soil.settle(self.bodies, self.world.active)
@@ -241,7 +257,7 @@ class Dynamics:
             return 0.0
         x, y, yaw = self.bodies[k]
         blade = int(self.world.robots[k, BLADE])
-        force = 0.0 if blade == BLADE_HOME else soil.resistance(x, y, yaw, blade_offset(blade))
+        force = 0.0 if blade == BLADE_HOME else soil.resistance(x, y, yaw, self.edge(k))
         physics = soil.physics
         return force + physics.mass * physics.gravity * math.sin(soil.pitch(x, y, yaw))
 
@@ -303,6 +319,7 @@ class Dynamics:
             if sign * linear > 0 and sign * d > commit and self.stalled[k] != sign:
                 if self._apply(k, bit):
                     self.counters.moves += 1
+                    self._measure_ground(k)
                     d = self.offset(k)
                 else:
                     self.counters.refused += 1
@@ -338,7 +355,7 @@ class Dynamics:
             soil = self.soil
             fine = soil.fine.copy()
             x, y, yaw = self.bodies[0]
-            soil.cut(x, y, yaw, -1)
+            soil.cut(x, y, yaw, self.edge(0))
             soil.settle(self.bodies, w.active)
             soil.fine[...] = fine
             self.fitness()
@@ -374,7 +391,7 @@ class Dynamics:
             if blade == BLADE_HOME:
                 return 0.0
             x, y, yaw = self.bodies[k]
-            force = self.soil.resistance(x, y, yaw, blade_offset(blade))
+            force = self.soil.resistance(x, y, yaw, self.edge(k))
             return force * max_force / self.soil.physics.motor[1]
         r = self.world.robots[k]
         volume = blade_volume(

@@ -47,6 +47,12 @@ ignores requests: the world of an emulated dome (``ant-dome rehearse``), where t
 tick stamps its requests on the wall clock and the emulated camera and laser render the
 world's latest poses and heights whenever their own clocks say so.
 
+With ``soil: physical`` (:mod:`excavation_sim.soil`, its parameters declared here too) the
+soil is a fine height field that the blades cut and push; ``/worksite/height_map`` then
+carries the cells' sub-cell means (what the controllers read), or with
+``fine_height_map`` the fine field itself (what the synthetic laser of ``sensors``
+sees), and the fitness is that of the means.
+
 With ``result_file`` set, every snapshot also rewrites that JSON file (atomically) with the
 world as the snapshot shows it: ``fitness``, ``heights`` (soil units), ``snapshots`` (the
 fitness of every snapshot by its request label, ``"tick t"``), ``sim_seconds``, ``steps``
@@ -80,6 +86,7 @@ from excavation_common.params import param
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
 from excavation_sim.dynamics import Dynamics, DynamicsParams
 from excavation_sim.sim_node import TILT_PITCH, scenario_world
+from excavation_sim.soil import SoilParams
 from excavation_sim.world import BLADE
 
 TERMINAL = (GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_ABORTED, GoalStatus.STATUS_CANCELED)
@@ -131,6 +138,11 @@ class DynamicsNodeParams:
     max_force: float = param(10.0, "push force of a full blade, N", low=0.001)
     diagnostics_period: float = param(1.0, "wall seconds between diagnostics", low=0.05)
     result_file: str = param("", "JSON rewritten at every snapshot: the world it shows")
+    fine_height_map: bool = param(
+        False,
+        "soil: physical: the snapshot height map is the fine field (for the sensors node), "
+        "not the cell means",
+    )
     snapshot_period: float = param(
         0.0,
         "sim seconds between snapshots taken unasked (0: only when the team tick asks; "
@@ -155,11 +167,17 @@ class DynamicsNode(Node):
         super().__init__("dynamics", **kwargs)
         self.params = declare_params(self, DynamicsNodeParams)
         self.physics = declare_params(self, DynamicsParams)
+        self.soil = declare_params(self, SoilParams)
         p = self.params
         self.n = p.robots
         self.blueprint, world = scenario_world(p.blueprint, p.robots, p.seed, p.scenario)
         self.sim = Dynamics(
-            world, self.physics, self.blueprint.cell_size, np.random.default_rng(p.noise_seed)
+            world,
+            self.physics,
+            self.blueprint.cell_size,
+            np.random.default_rng(p.noise_seed),
+            soil=self.soil,
+            height_unit=self.blueprint.height_unit,
         )
         self.sim.warm()  # before any topic: the team waits for it, not its first move
         self.geometry = BladeGeometry(max_force=p.max_force)
@@ -431,17 +449,14 @@ class DynamicsNode(Node):
     def publish_snapshot(self) -> None:
         """IMU, height map, snapshot poses, blade plant states, fitness, markers, stamped now."""
         stamp = _stamp(self.now_ns)
-        w, bp = self.sim.world, self.blueprint
         for k in range(self.n):  # the tilt at the snapshot's instant, before its height map
             self.imu_pubs[k].publish(self.imu(k, stamp))
-        self.heights_pub.publish(
-            grid_to_image((w.heights * bp.height_unit).astype(np.float32), "32FC1", stamp=stamp)
-        )
+        self.heights_pub.publish(grid_to_image(self.height_map(), "32FC1", stamp=stamp))
         for k in range(self.n):
             if self.snap_pose_pubs:
                 self.snap_pose_pubs[k].publish(self.pose(k, stamp))
             self.plant_pubs[k].publish(self.plant_state(k, stamp))
-        fitness = w.fitness()
+        fitness = self.sim.fitness()
         if self.snapshot_request is not None:
             self.snapshots[self.snapshot_request] = fitness
             self.taken = (self.snapshot_request, self.snapshot_due)
@@ -454,16 +469,34 @@ class DynamicsNode(Node):
         if self.ack is not None:
             self.ack_pub.publish(self.ack)
 
+    def height_map(self) -> np.ndarray:
+        """The snapshot's height map, metres (``float32``): cells, means or the fine field."""
+        soil, unit = self.sim.soil, self.blueprint.height_unit
+        if soil is None:
+            return (self.sim.world.heights * unit).astype(np.float32)
+        if self.params.fine_height_map:
+            return soil.fine_metres().astype(np.float32)
+        return (soil.cell_means() * unit).astype(np.float32)
+
     def result(self) -> dict:
-        """The world now: fitness, heights, the fitness of every snapshot, sim time, steps."""
-        return {
-            "fitness": float(self.sim.world.fitness()),
+        """The world now: fitness, heights, the fitness of every snapshot, sim time, steps.
+
+        Physical soil adds ``mean_heights`` (the cells' sub-cell means, units), ``volume``
+        (the fine field's total, quanta) and ``slips`` (robot-steps too heavy to push).
+        """
+        out = {
+            "fitness": float(self.sim.fitness()),
             "heights": self.sim.world.heights.tolist(),
             "snapshots": dict(self.snapshots),
             "sim_seconds": self.now_ns * 1e-9,
             "steps": self.steps,
             "late_steps": self.late,
         }
+        if self.sim.soil is not None:
+            out["mean_heights"] = self.sim.soil.cell_means().round(6).tolist()
+            out["volume"] = self.sim.soil.volume()
+            out["slips"] = self.sim.counters.slips
+        return out
 
     def markers(self, stamp: TimeMsg) -> MarkerArray:
         """One cube per robot at its true pose (for RViz or Foxglove)."""
@@ -506,7 +539,8 @@ class DynamicsNode(Node):
                     "moves": c.moves,
                     "refused_moves": c.refused,
                     "turns": c.turns,
-                    "fitness": f"{self.sim.world.fitness():.6f}",
+                    "fitness": f"{self.sim.fitness():.6f}",
+                    "slips": c.slips,
                 },
                 hardware_id="excavation_sim",
             )

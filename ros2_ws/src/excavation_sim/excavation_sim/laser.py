@@ -188,19 +188,25 @@ def trace_rays(surface, cell, origins, dirs, range_max, out):  # pragma: no cove
 
 
 def surface_with_robots(
-    heights_m: np.ndarray, anchors: np.ndarray, robot_height: float
+    heights_m: np.ndarray, anchors: np.ndarray, robot_height: float, scale: int = 1
 ) -> np.ndarray:
     """Soil heights with every robot's 2 x 2 footprint raised to its body's top.
 
     Args:
-        heights_m: Soil heights, metres, ``[rows, cols]``.
-        anchors: Robots' footprint anchors ``(row, col)``, ``int [n, 2]``.
+        heights_m: Soil heights, metres, ``[rows, cols]`` (cells, or sub-cells ``scale``
+            to a cell's side).
+        anchors: Robots' footprint anchors ``(row, col)`` in the rows of ``heights_m``,
+            ``int [n, 2]``.
         robot_height: Body height above the footprint's highest soil, metres.
+        scale: Rows of ``heights_m`` per grid cell (a footprint is ``2 * scale`` square).
     """
     surface = np.array(heights_m, dtype=np.float64)
+    size = 2 * scale
     for r, c in np.asarray(anchors, dtype=np.int64).reshape(-1, 2):
-        block = surface[r : r + 2, c : c + 2]
-        block[...] = np.asarray(heights_m)[r : r + 2, c : c + 2].max() + robot_height
+        block = surface[max(r, 0) : r + size, max(c, 0) : c + size]
+        ground = np.asarray(heights_m)[max(r, 0) : r + size, max(c, 0) : c + size]
+        if block.size:
+            block[...] = ground.max() + robot_height
     return surface
 
 

@@ -12,6 +12,10 @@ publishes what the field sensors would give for that instant:
   ``/worksite/scan`` (LaserScan, frame ``overhead_laser``), scan i stamped ``i *
   scan_period`` after the truth's stamp.
 
+The truth height map may be finer than the grid by a whole factor S (``rows * S`` x
+``cols * S``: the fine field of ``dynamics`` with physical soil): the laser then traces
+the fine field, and the camera (which needs only each robot's ground) the cell means.
+
 The localizer and the mapper turn these back into ``/robot_k/pose`` and
 ``/worksite/height_map`` (``ant-trial --perception full``). All noise comes from one
 generator seeded by ``seed``.
@@ -193,7 +197,7 @@ class SensorsNode(Node):
         self.poses: dict[int, tuple[tuple[int, int], tuple[float, float, float]]] = {}
         self.heights: tuple[tuple[int, int], np.ndarray] | None = None
         self.last: tuple[int, int] | None = None
-        self.ready: tuple | None = None  # (stamp, heights, views, anchors) to send
+        self.ready: tuple | None = None  # (stamp, heights, views, anchors, fine) to send
         self.frame: tuple | None = None  # (stamp key, rendered Image) not sent yet
         self.sweep_msgs: tuple | None = None  # (stamp key, [(mount, scan)]) not sent yet
         self.camera_done: tuple[int, int] | None = None
@@ -273,15 +277,20 @@ class SensorsNode(Node):
     def prepare(self, stamp: TimeMsg, heights: np.ndarray) -> None:
         """Make this instant the one to render; send what no fault holds back."""
         rows, cols = heights.shape
-        if (rows, cols) != (self.rows, self.cols):
+        scale = rows // self.rows
+        if scale < 1 or (rows, cols) != (self.rows * scale, self.cols * scale):
             self.problem = (
                 f"truth height map is {rows} x {cols} cells, the sensors are set up for "
-                f"{self.rows} x {self.cols} (parameters rows, cols): frame skipped"
+                f"{self.rows} x {self.cols} (parameters rows, cols) or a whole multiple: "
+                "frame skipped"
             )
             self.get_logger().error(self.problem, throttle_duration_sec=5.0)
             return
-        if self.laser is None:
-            self.laser = OverheadLaser(self.laser_params, self.cell_size)
+        fine = heights
+        if scale > 1:
+            heights = fine.reshape(self.rows, scale, self.cols, scale).mean(axis=(1, 3))
+        if self.laser is None or self.laser.cell_size != self.cell_size / scale:
+            self.laser = OverheadLaser(self.laser_params, self.cell_size / scale)
         views, anchors = [], []
         for k in range(self.n):
             x, y, yaw = self.poses[k][1]
@@ -289,7 +298,7 @@ class SensorsNode(Node):
             anchors.append((r, c))
             block = heights[max(r, 0) : r + 2, max(c, 0) : c + 2]
             views.append(RobotView(x, y, yaw, float(block.mean()) if block.size else 0.0))
-        self.ready = (stamp, heights, views, anchors)
+        self.ready = (stamp, heights, views, anchors, fine)
         self.send_ready()
 
     def send_ready(self) -> None:
@@ -301,7 +310,7 @@ class SensorsNode(Node):
         """
         if self.ready is None:
             return
-        stamp, heights, views, anchors = self.ready
+        stamp, heights, views, anchors, fine = self.ready
         key = (stamp.sec, stamp.nanosec)
         p = self.params
         now = time.monotonic()
@@ -322,7 +331,7 @@ class SensorsNode(Node):
                 self.camera_done, self.frame_time = key, now
         if self.laser_done != key and not p.laser_paused:
             if self.sweep_msgs is None or self.sweep_msgs[0] != key:
-                self.sweep_msgs = (key, self.sweep(stamp, heights, anchors))
+                self.sweep_msgs = (key, self.sweep(stamp, fine, anchors))
             if (
                 self.scan_pub.get_subscription_count() > 0
                 and self.mount_pub.get_subscription_count() > 0
@@ -347,9 +356,13 @@ class SensorsNode(Node):
         self.retakes += 1
 
     def sweep(self, stamp: TimeMsg, heights: np.ndarray, anchors: list) -> list[tuple]:
-        """One laser sweep of this instant: (mount joint state, scan) pairs to publish."""
+        """One laser sweep of this instant: (mount joint state, scan) pairs to publish.
+
+        ``heights``: the truth map, cells or a whole multiple finer.
+        """
         lp = self.laser_params
-        surface = surface_with_robots(heights, np.array(anchors), lp.robot_height)
+        scale = heights.shape[0] // self.rows
+        surface = surface_with_robots(heights, np.array(anchors) * scale, lp.robot_height, scale)
         out = []
         for i, (pan, tilt, ranges) in enumerate(self.laser.sweep(surface, self.rng)):
             scan_stamp = _add(stamp, i * self.scan_period)

@@ -15,7 +15,11 @@ blade with a published earth-moving model.
   whole unit, the fitness reads the mean itself.
 * **Blade.** The blade is the 2-cell-wide front edge of the robot's 2 x 2 body. Its edge
   stands ``b_h`` units (below -1, level 0, above +1, the grid's offsets) off the mean ground
-  under the front axle (the rear half of the body's front row). While the robot advances,
+  under the front axle (the rear half of the body's front row), as measured when the
+  setting is applied and again at each grid move (the servo holds the edge in between, as
+  the grid's blade equations take the cutting level once per move; measured continuously,
+  a blade below ground would follow the front wheels down into its own cut and dig on
+  deeper). While the robot advances,
   every sub-cell just behind the edge (within one sub-cell) is set to the edge's height: soil
   above it is carried onto the sub-cell one step ahead (the cut joins the pile in front of
   the blade), and a sub-cell below it takes soil from the one ahead if that holds any above
@@ -58,9 +62,9 @@ from functools import lru_cache
 import numba as nb
 import numpy as np
 
+from excavation_common.constants import SOIL_MODES
 from excavation_common.params import param
 
-SOIL_MODES = ("grid", "physical")
 MAX_FINE_CELLS = 4_000_000
 """Largest fine field (sub-cells) a world may ask for: checked before allocating."""
 
@@ -516,24 +520,18 @@ class Soil:
         """Half the blade's width, m (the body's half width)."""
         return self.site.cell
 
-    def edge(self, x: float, y: float, yaw: float, offset: int) -> int | None:
-        """The blade edge height (quanta): front-axle ground plus ``offset`` units.
+    def ground(self, x: float, y: float, yaw: float) -> int:
+        """The front axle's ground under a robot at ``(x, y, yaw)``, quanta.
 
-        The front axle's ground: the mean of the rear half of the body's front row (the
-        half the blade has not just cut, so a cut reaches the edge only as the robot rolls
-        onto it: the grid's sloped cut).
+        The mean of the rear half of the body's front row (the half the blade has not just
+        cut); 0 where none of it lies on the field.
         """
         cell = self.site.cell
         total, n = band_ground(self.fine, x, y, yaw, self.sub, 0.0, cell / 2, self.half_width)
-        if n == 0:
-            return None
-        return total // n + offset * self.q
+        return total // n if n else 0
 
-    def resistance(self, x: float, y: float, yaw: float, offset: int) -> float:
-        """McKyes's force (N) on the blade of a robot at ``(x, y, yaw)``, edge ``offset``."""
-        edge = self.edge(x, y, yaw, offset)
-        if edge is None:
-            return 0.0
+    def resistance(self, x: float, y: float, yaw: float, edge: int) -> float:
+        """McKyes's force (N) on the blade of a robot at ``(x, y, yaw)``, edge at ``edge``."""
         reach = self.params.pile_reach * self.site.cell
         face, volume = pile_load(
             self.fine, x, y, yaw, self.sub, self.front, self.half_width, reach, edge
@@ -550,11 +548,8 @@ class Soil:
         reach = self.params.pile_reach * self.site.cell
         return mckyes_force(depth, volume - wedge, width, reach, self.physics)
 
-    def cut(self, x: float, y: float, yaw: float, offset: int) -> int:
-        """Level the sub-cells the blade just passed; returns the quanta cut."""
-        edge = self.edge(x, y, yaw, offset)
-        if edge is None:
-            return 0
+    def cut(self, x: float, y: float, yaw: float, edge: int) -> int:
+        """Level the sub-cells the blade just passed to ``edge``; returns the quanta cut."""
         return int(
             cut(
                 self.fine,
@@ -575,32 +570,49 @@ class Soil:
         body_mask(self.blocked, bodies, active, self.sub, self.site.cell, self.site.cell)
         return int(relax(self.fine, self.blocked, self.max_diff, self.params.relax_passes))
 
-    def heap(self, x: float, y: float, yaw: float, units: float, passes: int = 400) -> None:
-        """Drop ``units`` of soil on the sub-cells just ahead of a blade at ``(x, y, yaw)``.
+    def heap(self, x: float, y: float, yaw: float, units: float) -> None:
+        """Put ``units`` of soil against a blade at ``(x, y, yaw)``: the pile it holds.
 
-        Spread evenly over the blade's width, then relaxed to repose for ``passes`` sweeps
-        with that robot's body a wall (the calibration's pile, and the tests').
+        A prism across the blade's width whose face stands at the edge and whose top falls
+        away at the angle of repose (the grid's picture of soil held against the blade, not
+        yet slumped past the blade's ends): the calibration's pile, and the tests'.
+
+        Raises:
+            SoilError: When the blade's front is off the field.
         """
-        bodies = np.array([[x, y, yaw]])
-        body_mask(self.blocked, bodies, np.array([True]), self.sub, self.site.cell, self.site.cell)
         rows, cols = self.fine.shape
         cy, sy = math.cos(yaw), math.sin(yaw)
-        cells = []
-        n = int(round(2 * self.half_width / self.sub))
-        for m in range(n):
-            v = -self.half_width + (m + 0.5) * self.sub
-            px = x + (self.front + self.sub / 2) * cy - v * sy
-            py = y + (self.front + self.sub / 2) * sy + v * cy
-            i, j = _index(px, py, self.sub, rows, cols)
-            if i >= 0:
-                cells.append((i, j))
-        if not cells:
-            raise SoilError(f"no sub-cell ahead of a blade at ({x:.3f}, {y:.3f}) on the field")
+        lanes = int(round(2 * self.half_width / self.sub))
+        depth = 4 * self.s * 8
+        cells = np.full((depth, lanes, 2), -1, dtype=np.int64)
+        for m in range(depth):
+            for n in range(lanes):
+                u = self.front + (m + 0.5) * self.sub
+                v = -self.half_width + (n + 0.5) * self.sub
+                cells[m, n] = _index(x + u * cy - v * sy, y + u * sy + v * cy, self.sub, rows, cols)
         total = int(round(units * self.q * self.s * self.s))
-        share, rest = divmod(total, len(cells))
-        for m, (i, j) in enumerate(cells):
-            self.fine[i, j] += share + (1 if m < rest else 0)
-        relax(self.fine, self.blocked, self.max_diff, passes)
+
+        def prism(face: int) -> np.ndarray:
+            return np.maximum(face - np.arange(depth, dtype=np.int64) * self.max_diff, 0)
+
+        low, high = 0, total
+        while low < high:  # the highest face whose prism holds at most ``total``
+            mid = (low + high + 1) // 2
+            if prism(mid).sum() * lanes <= total:
+                low = mid
+            else:
+                high = mid - 1
+        column = prism(low)
+        share, rest = divmod(total - int(column.sum()) * lanes, lanes)
+        column = np.repeat(column[:, None], lanes, axis=1)
+        column[0] += share
+        column[0, :rest] += 1
+        if (cells[column > 0] < 0).any():
+            raise SoilError(f"the pile ahead of a blade at ({x:.3f}, {y:.3f}) leaves the field")
+        for m in range(depth):
+            for n in range(lanes):
+                if column[m, n]:
+                    self.fine[cells[m, n, 0], cells[m, n, 1]] += column[m, n]
 
     def pitch(self, x: float, y: float, yaw: float) -> float:
         """The body's nose-up pitch (rad): its front row's mean ground against its rear's."""
@@ -619,13 +631,12 @@ class Soil:
 def level_pile_force(units: float, params: SoilParams, cell: float, unit: float, physics) -> float:
     """McKyes's force of a level blade on flat ground against ``units`` of soil.
 
-    The soil is heaped in front of the blade (:meth:`Soil.heap`): the pile a level push
-    gathers. Deterministic.
+    The soil is held against the blade as :meth:`Soil.heap` puts it. Deterministic.
     """
-    probe = Soil(np.zeros((12, 12), dtype=np.int64), Site(12, 12, cell, unit), params, physics)
+    probe = Soil(np.zeros((24, 24), dtype=np.int64), Site(24, 24, cell, unit), params, physics)
     x, y, yaw = 3 * cell, 6 * cell, 0.0
     probe.heap(x, y, yaw, units)
-    return probe.resistance(x, y, yaw, 0)
+    return probe.resistance(x, y, yaw, probe.ground(x, y, yaw))
 
 
 @lru_cache(maxsize=32)
