@@ -460,6 +460,12 @@ def main(argv: list[str] | None = None) -> int:
         help="s the simulator waits per tick (default 2; 30 with --perception full, whose "
         "camera and laser rendering takes a loaded machine seconds per tick)",
     )
+    p.add_argument(
+        "--timeout",
+        type=int_in(1, 10**7),
+        default=None,
+        help="s after which the trial gives up (default: 600, or 10 s per tick when more)",
+    )
     p.add_argument("--domain", type=int_in(0, MAX_DOMAIN), default=None)
     p.add_argument(
         "--no-blade-driver",
@@ -523,6 +529,7 @@ def main(argv: list[str] | None = None) -> int:
             supervisor=args.supervisor,
             occlude=args.occlude,
             command_timeout=args.command_timeout or (30.0 if args.perception == "full" else 2.0),
+            timeout=args.timeout or max(600.0, 10.0 * args.steps),
             drive=args.drive,
             exact=args.no_slip,
             soil=args.soil,

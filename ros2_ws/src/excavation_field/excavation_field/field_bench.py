@@ -8,6 +8,9 @@ the default slip and noise and full perception over 5 seeds, next to the grid's 
 which equals the lockstep grid trial), with primitives aborted and stuck events.
 ``python -m excavation_field.field_bench processes [--steps N]``: wall time per tick of
 the 4-robot continuous trial composed and with every node its own process.
+``python -m excavation_field.field_bench soil [--steps N]``: grid against physical soil
+(``excavation_sim.soil``), 4 robots: wall time per simulated second of the simulator core
+alone and of a whole continuous trial, and the real-time factor (also part of ``bench``).
 Times are wall-clock figures of this machine, printed, never asserted.
 """
 
@@ -91,6 +94,61 @@ def processes(steps: int = 100, seed: int = 0) -> None:
     print(f"same fitness in both modes: {same} ({results['composed'].fitness:.6f})")
 
 
+def core_soil_rate(soil: str, sim_seconds: float = 120.0, robots: int = 4) -> float:
+    """Wall seconds per simulated second of :class:`Dynamics` alone, ``robots`` driving.
+
+    Every robot drives a fixed, seeded pattern (forward and turning spells, blades below,
+    level and above in turn, throttle on half the time) over the default blueprint.
+    """
+    import numpy as np
+
+    from ant_controller.layout import BLADE_ABOVE, BLADE_BELOW, BLADE_LEVEL
+    from blueprint_server.blueprint import default_blueprint
+    from excavation_sim.dynamics import Dynamics, DynamicsParams
+    from excavation_sim.soil import SoilParams
+    from excavation_sim.world import World
+
+    bp = default_blueprint(1)
+    world = World.scenario(bp.zones, bp.goal, robots, 0, 0)
+    dyn = Dynamics(
+        world, DynamicsParams(), bp.cell_size, np.random.default_rng(0), SoilParams(soil=soil)
+    )
+    dyn.warm()
+    rng = np.random.default_rng(1)
+    steps = int(sim_seconds / dyn.params.dt)
+    blades = (BLADE_BELOW, BLADE_LEVEL, BLADE_ABOVE)
+    started = time.perf_counter()
+    for i in range(steps):
+        if i % 40 == 0:
+            for k in range(robots):
+                dyn.set_blade(k, blades[(i // 40 + k) % 3])
+                dyn.throttle[k] = bool(rng.integers(0, 2))
+                dyn.command(k, float(rng.uniform(-0.05, 0.2)), float(rng.uniform(-0.5, 0.5)))
+        dyn.step()
+    return (time.perf_counter() - started) / (steps * dyn.params.dt)
+
+
+def soil_rows(steps: int = 100) -> list[str]:
+    """Grid against physical soil, 4 robots: the core and a whole trial (Markdown rows)."""
+    rows = []
+    core = {soil: core_soil_rate(soil) for soil in ("grid", "physical")}
+    rows.append(
+        "| simulator core alone (`Dynamics.step`), 4 robots: wall per simulated second, "
+        f"grid / physical soil | {1e3 * core['grid']:.2f} ms / {1e3 * core['physical']:.2f} ms "
+        f"(physical {core['physical'] / core['grid']:.1f} x grid; real-time factor "
+        f"{1 / core['grid']:,.0f} x / {1 / core['physical']:,.0f} x) |"
+    )
+    for soil in ("grid", "physical"):
+        r = trial(GENOME, 4, steps, 0, exact=True, soil=soil)
+        rows.append(
+            f"| continuous trial, 4 robots, {steps} ticks, {soil} soil: wall per simulated "
+            f"second, real-time factor | {1e3 * r.seconds / r.sim_seconds:.1f} ms, "
+            f"{r.sim_seconds:.0f} s / {r.seconds:.0f} s = {r.sim_seconds / r.seconds:.1f} x "
+            f"(fitness {r.fitness:.3f}) |"
+        )
+    return rows
+
+
 MARK = "<!-- field-bench -->"
 
 
@@ -126,6 +184,8 @@ def bench() -> list[str]:
         "| lockstep grid trial, 4 robots, 300 ticks, for comparison: wall per tick | "
         f"{g.seconds / 300:.3f} s |"
     )
+    for row in soil_rows():
+        emit(row)
     return rows
 
 
@@ -202,7 +262,7 @@ def results(seeds: int = 5, specs: tuple[str, ...] = ("hand-coded", GENOME)) -> 
 def main(argv: list[str] | None = None) -> int:
     """Entry point (``python -m excavation_field.field_bench bench|results``)."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("what", choices=("bench", "results", "processes"))
+    p.add_argument("what", choices=("bench", "results", "processes", "soil"))
     p.add_argument("--steps", type=int, default=100, help="processes: ticks")
     p.add_argument("--write", metavar="MD", help="bench: put the table into this file")
     p.add_argument(
@@ -215,6 +275,11 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.what == "processes":
         processes(args.steps)
+        return 0
+    if args.what == "soil":
+        print("| figure | value |\n|---|---|")
+        for row in soil_rows(args.steps):
+            print(row, flush=True)
         return 0
     rows = bench()
     if args.write:

@@ -13,6 +13,12 @@ the same scenarios, and compare the fitness over time:
   field-metrics table (:func:`terrain_mapper.metrics.field_metrics`) against the paper's
   72 % of the dig area excavated towards the goal depth, 24 % above it, 4 % indeterminate.
 
+``--soil physical`` runs the continuous trials on the physical soil of ``dynamics``
+(:mod:`excavation_sim.soil`: a fine height field, side spillage, repose, cutting resistance
+against traction) instead of the grid's soil rules, into ``OUT/NAME-physical/``; the
+section then gives each continuous trial's correlation with its grid trial's fitness
+curve and the tick where they part.
+
 The experiment lives here, not in ``ant-experiment``, because its continuous half starts
 ROS nodes and ``evolution/`` never imports ``rclpy``; the grid half is the evolution
 package's own evaluator (``ScenarioSet`` and ``advance``). Each writes ``OUT/NAME/``:
@@ -156,7 +162,14 @@ def grid_heights_at(ctl, blueprint, robots: int, tick: int, seed: int) -> np.nda
 
 
 def continuous_trial(
-    genome: str, spec: str, robots: int, steps: int, seed: int, perception: str, domain: int
+    genome: str,
+    spec: str,
+    robots: int,
+    steps: int,
+    seed: int,
+    perception: str,
+    domain: int,
+    soil: str = "grid",
 ) -> dict:
     """One continuous-motion trial (default slip and noise) as :func:`grid_trial`'s dict."""
     from excavation_bringup.trial import run_trial
@@ -172,8 +185,10 @@ def continuous_trial(
         timeout=max(900.0, 10.0 * steps),
         perception=perception,
         drive="continuous",
+        soil=soil,
     )
-    return {
+    extra = {} if r.soil_volume is None else {"soil_volume": r.soil_volume, "slips": r.slips}
+    return extra | {
         "trace": [float(f) for f in r.trace],
         "heights": np.asarray(r.heights).tolist(),
         "primitives_aborted": r.primitives_aborted,
@@ -213,11 +228,12 @@ class Setup:
     genome: str
     out: Path
     domain: int
+    soil: str = "grid"
 
     @property
     def dir(self) -> Path:
-        """``OUT/NAME``."""
-        d = self.out / self.name
+        """``OUT/NAME`` (``OUT/NAME-physical`` with physical soil)."""
+        d = self.out / (self.name if self.soil == "grid" else f"{self.name}-{self.soil}")
         (d / "trials").mkdir(parents=True, exist_ok=True)
         return d
 
@@ -246,7 +262,7 @@ def run(setup: Setup, progress: bool = True) -> Path:
         if sim == "grid":
             return grid_trial(ctl, blueprint, n, plan.steps, seed, survey=survey)
         return continuous_trial(
-            setup.genome, spec, n, plan.steps, seed, setup.perception, setup.domain
+            setup.genome, spec, n, plan.steps, seed, setup.perception, setup.domain, setup.soil
         )
 
     with tqdm(jobs, desc=setup.name, unit="trial", disable=not progress) as bar:
@@ -256,6 +272,8 @@ def run(setup: Setup, progress: bool = True) -> Path:
                    "steps": plan.steps, "seed": seed, "perception": setup.perception}  # fmt: skip
             if sim == "grid" and survey:
                 key["survey"] = "laser"
+            if sim == "continuous" and setup.soil != "grid":
+                key["soil"] = setup.soil
             path = d / "trials" / f"{sim}-n{n}-s{seed}.json"
             trials[sim, n, seed] = _cached(
                 path, key, lambda sim=sim, n=n, seed=seed: one(sim, n, seed)
@@ -350,6 +368,9 @@ def write_outputs(setup: Setup, blueprint, ctl, trials: dict) -> None:
         write_csv(d / "field_metrics_over_time.csv", over_time)
         text = _field_section(setup, summary, extras, surveyed, over_time)
     text = text.replace("Continuous trials:\n", f"Continuous trials: {_parity(trials)}\n", 1)
+    if setup.soil != "grid":
+        text = _physical_text(text, trials)
+        text = text.replace(f"figures/{setup.name}/", f"figures/{d.name}/")
     write_text_atomic(d / "section.md", text.rstrip() + "\n")
     plan_dict = asdict(plan)
     if setup.name != "field":
@@ -357,7 +378,8 @@ def write_outputs(setup: Setup, blueprint, ctl, trials: dict) -> None:
     write_text_atomic(
         d / "scale.json",
         json.dumps({"scale": setup.scale, **plan_dict, "genome": setup.genome,
-                    "blueprint": blueprint.name, "perception": setup.perception}, indent=1),
+                    "blueprint": blueprint.name, "perception": setup.perception,
+                    "soil": setup.soil}, indent=1),
     )  # fmt: skip
 
 
@@ -422,6 +444,47 @@ def _parity(trials: dict) -> str:
     return text + (f"; the others differ {'; '.join(other)}." if other else ".")
 
 
+def part_tick(a: list[float], b: list[float], by: float = 0.05) -> int | None:
+    """The first tick at which two fitness curves differ by more than ``by`` (None: never)."""
+    return next((i for i, (x, y) in enumerate(zip(a, b, strict=True)) if abs(x - y) > by), None)
+
+
+def correlation(a: list[float], b: list[float]) -> float:
+    """Pearson's correlation of two fitness curves (NaN when either is constant)."""
+    x, y = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if x.std() == 0 or y.std() == 0:
+        return float("nan")
+    return float(np.corrcoef(x, y)[0, 1])
+
+
+def _physical_text(text: str, trials: dict) -> str:
+    """The section of a ``--soil physical`` run: titles, and each trial against its grid."""
+    lines = [
+        "| robots | seed | correlation with the grid curve | parts by > 0.05 at tick | "
+        "final fitness: physical / grid | stalled robot-steps | soil total (quanta) |",
+        "|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for (sim, n, seed), t in sorted(trials.items()):
+        if sim != "continuous":
+            continue
+        g = trials["grid", n, seed]["trace"]
+        r, part = correlation(t["trace"], g), part_tick(t["trace"], g)
+        lines.append(
+            f"| {n} | {seed} | {'n/a' if r != r else f'{r:.2f}'} | "
+            f"{'-' if part is None else part} | {t['trace'][-1]:.3f} / {g[-1]:.3f} | "
+            f"{t.get('slips', 0)} | {t.get('soil_volume', 'n/a')} |"
+        )
+    text = text.replace("against continuous motion", "against continuous motion on physical soil")
+    text = text.replace("(default slip and noise", "(default slip and noise, physical soil")
+    text = text.replace("default slip and noise,", "default slip and noise, physical soil,")
+    return text.replace(
+        "Continuous trials:",
+        "Each continuous trial on physical soil against its grid trial (the fitness curves "
+        "tick by tick):\n\n" + "\n".join(lines) + "\n\nContinuous trials:",
+        1,
+    )
+
+
 def _continuous_extras(trials: dict) -> dict:
     out: dict = {}
     for (sim, n, _), t in trials.items():
@@ -468,6 +531,8 @@ def _figure(setup: Setup, trials: dict) -> None:
                        label=f"{label}, continuous")  # fmt: skip
             right.plot(ticks, g.mean(0), color=col, lw=1.0, ls="--", label=f"{label}, grid")
     what = "full perception" if setup.perception == "full" else "truth poses and heights"
+    if setup.soil != "grid":
+        what += f", {setup.soil} soil"
     left.set_title(f"grid simulator, mean +- std of {plan.grid_seeds} scenarios", fontsize=9)
     right.set_title(
         f"{'each' if len(plan.robots) == 1 else 'mean'} of its first {plan.continuous_seeds}: "
@@ -645,6 +710,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--grid-seeds", type=int_in(1, 10_000), default=None)
     p.add_argument("--continuous-seeds", type=int_in(0, 1_000), default=None)
     p.add_argument("--domain", type=int_in(0, MAX_DOMAIN), default=None, help="ROS domain id")
+    p.add_argument(
+        "--soil",
+        choices=("grid", "physical"),
+        default="grid",
+        help="the continuous trials' soil: grid (the world model's rules) or physical",
+    )
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
@@ -666,7 +737,7 @@ def main(argv: list[str] | None = None) -> int:
     plan = replace(plan, every=min(plan.every, plan.steps))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     domain = args.domain if args.domain is not None else int(os.environ.get("ROS_DOMAIN_ID", "0"))
-    setup = Setup(args.name, args.scale, plan, str(args.genome), args.out, domain)
+    setup = Setup(args.name, args.scale, plan, str(args.genome), args.out, domain, args.soil)
     from excavation_common.errors import FieldError
 
     started = time.monotonic()
