@@ -13,10 +13,14 @@ import numpy as np
 import pytest
 from excavation_field.field_experiment import (
     PLANS,
+    Setup,
+    _physical_text,
+    correlation,
     grid_heights_at,
     grid_trial,
     landing_pad_site,
     main,
+    part_tick,
 )
 from helpers.trials import GENOME
 
@@ -111,3 +115,20 @@ def test_laser_survey_sees_the_ground_but_not_under_the_robots():
         assert not seen[r : r + 2, c : c + 2].any()  # a robot's footprint hides the ground
     assert seen.mean() > 0.8
     assert np.allclose(surveyed[seen], (world.heights * unit)[seen], atol=unit / 4)
+
+
+def test_physical_soil_runs_apart_and_reports_each_trial_against_its_grid(tmp_path):
+    assert part_tick([0.1, 0.2, 0.3], [0.1, 0.2, 0.36]) == 2
+    assert part_tick([0.1, 0.2], [0.1, 0.24]) is None
+    assert correlation([0, 1, 2], [0, 2, 4]) == pytest.approx(1.0)
+    assert np.isnan(correlation([1, 1], [0, 1]))
+    trials = {
+        ("grid", 2, 0): {"trace": [0.1, 0.3, 0.5]},
+        ("continuous", 2, 0): {"trace": [0.1, 0.2, 0.2], "slips": 7, "soil_volume": 0},
+    }
+    text = "### Pad: grid against continuous motion\n\nContinuous trials:\n\n* 2 robots\n"
+    out = _physical_text(text, trials)
+    assert "grid against continuous motion on physical soil" in out
+    assert "| 2 | 0 | 0.87 | 1 | 0.200 / 0.500 | 7 | 0 |" in out
+    setup = Setup("field", "quick", PLANS["field", "quick"], GENOME, tmp_path, 0, "physical")
+    assert setup.dir == tmp_path / "field-physical"
