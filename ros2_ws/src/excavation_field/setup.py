@@ -15,6 +15,7 @@ setup(
     install_requires=[
         "excavation_bringup",
         "excavation_common",
+        "excavation_sim",
         "ant_controller",
         "blueprint_server",
         "drive_executor",
