@@ -184,3 +184,12 @@ def test_sizes_are_checked_before_allocating():
     with pytest.raises(SoilError, match="subcells = 16"):
         Soil(np.zeros((1000, 1000)), Site(1000, 1000, CELL, UNIT), SoilParams(subcells=16))
     assert 1000 * 1000 * 16 * 16 > MAX_FINE_CELLS
+
+
+def test_bad_soil_parameters_are_named():
+    from excavation_common.params import ParameterError, validate
+
+    with pytest.raises(ParameterError, match="blade_friction_angle = 65"):
+        validate(SoilParams, {"blade_friction_angle": 65.0, "friction_angle": 30.0}, "dynamics")
+    with pytest.raises(ParameterError, match="soil"):
+        validate(SoilParams, {"soil": "clay"}, "dynamics")

@@ -111,12 +111,17 @@ class SoilParams:
     relax_passes: int = param(2, "repose sweeps per simulator step", low=1, high=64)
 
     def check(self) -> None:
-        """Cross-field rules."""
+        """Cross-field rules: the blade and the soil must admit a failure plane.
+
+        Raises:
+            SoilError: Naming the angles.
+        """
         if self.blade_friction_angle >= self.friction_angle + 30:
             raise SoilError(
                 f"blade_friction_angle = {self.blade_friction_angle}: must stay well "
                 f"below friction_angle + 30 ({self.friction_angle + 30})"
             )
+        n_factors(self)
 
     @property
     def physical(self) -> bool:
