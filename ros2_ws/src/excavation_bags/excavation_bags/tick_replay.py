@@ -22,8 +22,8 @@ import re
 from dataclasses import dataclass, field
 
 from excavation_bags.errors import MissingTopicError
+from excavation_common.topics import TICK_PREFIX, tick_remaps
 
-TICK_PREFIX = "/tick"
 BEHAVIOUR = re.compile(r"^/robot_(\d+)/behaviour$")
 
 
@@ -45,7 +45,7 @@ def controller_inputs(bag, robots: list[int]) -> tuple[list[str], list[str]]:
     """The topics to play into the controllers, and each controller's remaps (``-r`` args).
 
     On a team-tick bag the controllers read the tick's snapshot (``/tick``), as the trial's
-    own controllers did (``excavation_bringup.nodes.controller_remaps``).
+    own controllers did (:func:`excavation_common.topics.tick_remaps`).
     """
     topics = ["/blueprint/*", "/worksite/map_info", "/robot_*/enabled"]
     continuous = f"{TICK_PREFIX}/worksite/height_map" in bag.topics
@@ -57,17 +57,15 @@ def controller_inputs(bag, robots: list[int]) -> tuple[list[str], list[str]]:
     topics.append("/robot_*/blade/tick_state" if dome_blade else "/robot_*/blade/joint_states")
     if any(t.endswith("/imu") for t in bag.topics):
         topics.append("/robot_*/imu")
-    remaps: dict[int, list[str]] = {}
+    remaps = []
     for k in robots:
-        r = []
         if continuous:
-            r += [f"/robot_{j}/pose:={TICK_PREFIX}/robot_{j}/pose" for j in robots]
-            r.append(f"/worksite/height_map:={TICK_PREFIX}/worksite/height_map")
-            r.append(f"/robot_{k}/stuck:={TICK_PREFIX}/robot_{k}/stuck")
-        if dome_blade:
-            r.append(f"/robot_{k}/blade/joint_states:=/robot_{k}/blade/tick_state")
-        remaps[k] = r
-    return topics, [remaps[k] for k in robots]
+            remaps.append(tick_remaps(robots, k, dome_blade))
+        elif dome_blade:
+            remaps.append([f"/robot_{k}/blade/joint_states:=/robot_{k}/blade/tick_state"])
+        else:
+            remaps.append([])
+    return topics, remaps
 
 
 @dataclass

@@ -27,9 +27,8 @@ from excavation_bringup import site as sitefile
 from excavation_bringup.deployment import Deployment
 from excavation_bringup.kinds import kind as node_kind
 from excavation_bringup.profiles import TimingProfile
+from excavation_common.topics import DOME_BLADE_OUT, tick_remaps
 
-TICK_PREFIX = "/tick"
-"""Where the team tick republishes its snapshot for the controllers."""
 SNAPSHOT_PREFIX = "/snapshot"
 """Where ``dynamics`` publishes the instant the team tick asked for (the sensors render it)."""
 TRUTH_PREFIX = "/truth"
@@ -61,9 +60,9 @@ timeout; a second frame of the same instant has its own glare."""
 
 DOME_BLADE_IN = "blade/joint_states"
 """The dome: the team tick's measured blade is each blade driver's joint state."""
-DOME_BLADE_OUT = "blade/tick_state"
-"""The dome: the blade state the team tick republishes per tick (the controller's, remapped:
-the serial driver's own joint state is stamped on the wall clock, never with a tick)."""
+# DOME_BLADE_OUT (excavation_common.topics): the dome's blade state the team tick
+# republishes per tick, the controller's (remapped): the serial driver's own joint state is
+# stamped on the wall clock, never with a tick.
 
 SIM_CLOCK = {"use_sim_time": True}
 """With the continuous-motion simulator every node but ``dynamics`` (the clock), the
@@ -496,13 +495,7 @@ def controller_remaps(dep: Deployment, k: int) -> tuple[str, ...]:
     """
     if dep.drive != "continuous":
         return ()
-    out = [f"/robot_{j}/pose:={TICK_PREFIX}/robot_{j}/pose" for j in range(dep.robots)]
-    out.append(f"/worksite/height_map:={TICK_PREFIX}/worksite/height_map")
-    out.append(f"/robot_{k}/stuck:={TICK_PREFIX}/robot_{k}/stuck")
-    if not dep.sim:
-        ns = robot_namespace(k)
-        out.append(f"{ns}/blade/joint_states:={ns}/{DOME_BLADE_OUT}")
-    return tuple(out)
+    return tuple(tick_remaps(range(dep.robots), k, dome_blade=not dep.sim))
 
 
 def controller_args(spec: str) -> tuple[str, ...]:
