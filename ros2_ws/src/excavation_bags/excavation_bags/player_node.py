@@ -310,9 +310,11 @@ class PlayerNode(Node):
         if self.finished:
             return last
         if self.lockstep:
-            done = self.ticks[: self.tick]
-            stamps = [m[1] for tick in done for m in tick[-1:]]
-            return stamps[-1] if stamps else first
+            # the last message of the last non-empty tick played (ticks already played)
+            for tick in reversed(self.ticks[: self.tick]):
+                if tick:
+                    return tick[-1][1]
+            return first
         if self.started is None:
             return first
         played = (time.monotonic() - self.started) * self.rate
