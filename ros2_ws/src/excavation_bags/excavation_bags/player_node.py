@@ -311,9 +311,9 @@ class PlayerNode(Node):
             return last
         if self.lockstep:
             # the last message of the last non-empty tick played (ticks already played)
-            for tick in reversed(self.ticks[: self.tick]):
-                if tick:
-                    return tick[-1][1]
+            for i in range(min(self.tick, len(self.ticks)) - 1, -1, -1):
+                if self.ticks[i]:
+                    return self.ticks[i][-1][1]
             return first
         if self.started is None:
             return first
