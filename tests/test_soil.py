@@ -193,3 +193,28 @@ def test_bad_soil_parameters_are_named():
         validate(SoilParams, {"blade_friction_angle": 65.0, "friction_angle": 30.0}, "dynamics")
     with pytest.raises(ParameterError, match="soil"):
         validate(SoilParams, {"soil": "clay"}, "dynamics")
+
+
+def test_end_plates_keep_more_of_a_pushed_pile():
+    """A straight blade loses most of a pile to its sides over five cells; end plates keep it."""
+    held = {}
+    for plates in (0.0, 1.0):
+        world = flat_world()
+        world.robots[0, :3] = (6, 1, 1)
+        params = DynamicsParams.exact()
+        soil = SoilParams(soil="physical", end_plates=plates)
+        dyn = Dynamics(world, params, CELL, np.random.default_rng(0), soil=soil)
+        dyn.set_blade(0, BLADE_LEVEL)
+        dyn.throttle[0] = True
+        x0, y0, yaw = dyn.bodies[0]
+        dyn.soil.heap(x0, y0, yaw, 12)
+        for _ in range(120):
+            dyn.command(0, 0.2, 0.0)
+            dyn.step()
+        s, x = dyn.soil, dyn.bodies[0, 0]
+        px = (np.arange(s.fine.shape[1]) + 0.5) * s.sub
+        py = (np.arange(s.fine.shape[0]) + 0.5) * s.sub
+        lane = s.fine[np.abs(py - y0) < CELL]
+        held[plates] = lane[:, px > x + CELL].sum() / (s.q * s.s**2)
+        assert x - x0 == pytest.approx(1.2)
+    assert held[0.0] < 0.4 * 12 < 0.6 * 12 < held[1.0] < 12

@@ -246,7 +246,9 @@ class Dynamics:
                 self.soil.cut(x, y, yaw, self.edge(k))
             self._events(k)
         if self.soil is not None:
-            self.soil.settle(self.bodies, self.world.active)
+            self.soil.settle(
+                self.bodies, self.world.active, self.world.robots[:, BLADE] != BLADE_HOME
+            )
             self.soil.cell_heights(self.world.heights)
         self.time += p.dt
 

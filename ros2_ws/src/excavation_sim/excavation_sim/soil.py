@@ -32,7 +32,9 @@ blade with a published earth-moving model.
   sweeping the field in alternating directions; sub-cells under a robot's body neither give
   nor take (the body and its blade are a wall), so the pile in front of a blade slumps
   forwards and sideways. Soil that slumps sideways past the blade's ends is not swept again:
-  that is the side spillage of a pushed pile, with no separate rule.
+  that is the side spillage of a pushed pile, with no separate rule. ``end_plates`` (cells)
+  adds plates ahead of a lowered blade's ends, which the pile cannot slump through (a
+  U-blade's wings); the default 0 is the straight blade of the paper's robots.
 * **Resistance.** McKyes's universal earth-moving equation (McKyes 1985, *Soil Cutting and
   Tillage*, ch. 4; used for lunar regolith by Wilkinson & DeGennaro 2007, J.
   Terramechanics 44): ``F = w (gamma d^2 N_gamma + c d N_c + q d N_q)`` with ``d`` the
@@ -103,6 +105,12 @@ class SoilParams:
     )
     pile_reach: float = param(
         1.5, "cells ahead of the blade whose soil above the edge resists it", low=0.25, high=8.0
+    )
+    end_plates: float = param(
+        0.0,
+        "length of end plates ahead of the blade's ends, cells (0: a straight blade)",
+        low=0.0,
+        high=4.0,
     )
     wheel_friction: float = param(0.6, "wheel-soil friction coefficient", low=0.01, high=3.0)
     traction_margin: float = param(
@@ -248,11 +256,15 @@ def round_heights(sums, per_cell, out):
 
 
 @nb.njit(cache=True)
-def body_mask(mask, bodies, active, sub, half_length, half_width):
-    """Mark the sub-cells whose centres lie under an active robot's body rectangle."""
+def body_mask(mask, bodies, active, sub, half_length, half_width, wings=None, wing=0.0):
+    """Mark the sub-cells whose centres lie under an active robot's body rectangle.
+
+    With ``wings[k]`` (robot k's blade is down) also its blade's end plates: the lanes one
+    sub-cell wide just beyond the blade's ends, ``wing`` m ahead of the edge.
+    """
     mask[:] = False
     rows, cols = mask.shape
-    reach = math.hypot(half_length, half_width)
+    reach = math.hypot(half_length + wing, half_width + sub)
     for k in range(bodies.shape[0]):
         if not active[k]:
             continue
@@ -269,6 +281,13 @@ def body_mask(mask, bodies, active, sub, half_length, half_width):
                 u = dx * cy + dy * sy
                 v = -dx * sy + dy * cy
                 if abs(u) < half_length and abs(v) < half_width:
+                    mask[i, j] = True
+                elif (
+                    wings is not None
+                    and wings[k]
+                    and half_length <= u < half_length + wing
+                    and half_width <= abs(v) < half_width + sub
+                ):
                     mask[i, j] = True
 
 
@@ -570,9 +589,21 @@ class Soil:
             )
         )
 
-    def settle(self, bodies: np.ndarray, active: np.ndarray) -> int:
-        """Mark the robots' bodies and relax the field; returns the quanta moved."""
-        body_mask(self.blocked, bodies, active, self.sub, self.site.cell, self.site.cell)
+    def settle(self, bodies: np.ndarray, active: np.ndarray, blades_down=None) -> int:
+        """Mark the robots' bodies (and lowered blades' end plates), relax the field.
+
+        Returns the quanta moved.
+        """
+        body_mask(
+            self.blocked,
+            bodies,
+            active,
+            self.sub,
+            self.site.cell,
+            self.site.cell,
+            blades_down,
+            self.params.end_plates * self.site.cell,
+        )
         return int(relax(self.fine, self.blocked, self.max_diff, self.params.relax_passes))
 
     def heap(self, x: float, y: float, yaw: float, units: float) -> None:
