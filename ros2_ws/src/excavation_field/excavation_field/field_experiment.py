@@ -475,8 +475,7 @@ def _physical_text(text: str, trials: dict) -> str:
             f"{t.get('slips', 0)} | {t.get('soil_volume', 'n/a')} |"
         )
     text = text.replace("against continuous motion", "against continuous motion on physical soil")
-    text = text.replace("(default slip and noise", "(default slip and noise, physical soil")
-    text = text.replace("default slip and noise,", "default slip and noise, physical soil,")
+    text = text.replace("default slip and noise", "default slip and noise, physical soil", 1)
     return text.replace(
         "Continuous trials:",
         "Each continuous trial on physical soil against its grid trial (the fitness curves "
@@ -551,6 +550,15 @@ def _figure(setup: Setup, trials: dict) -> None:
     plt.close(fig)
 
 
+def _options(setup: Setup) -> str:
+    """The command's options beyond the scale: a changed span or seeds, the soil."""
+    base, plan, out = PLANS[setup.name, setup.scale], setup.plan, ""
+    for name in ("steps", "grid_seeds", "continuous_seeds"):
+        if getattr(plan, name) != getattr(base, name):
+            out += f" --{name.replace('_', '-')} {getattr(plan, name)}"
+    return out + (f" --soil {setup.soil}" if setup.soil != "grid" else "")
+
+
 def _pct(x: float) -> str:
     return "n/a" if x != x else f"{100 * x:.0f} %"
 
@@ -616,7 +624,8 @@ def _landing_section(setup: Setup, summary, extras, peaks) -> str:
 {p.steps} ticks; grid: {p.grid_seeds} scenarios per robot count, continuous motion
 (`ant-trial --drive continuous`, default slip and noise, truth poses and heights):
 {p.continuous_seeds} of them (seeds 0-{p.continuous_seeds - 1}; "grid (paired)" is the grid
-on those). Scale `{setup.scale}`: `ant-field-experiment landing-pad --scale {setup.scale}`.
+on those). Scale `{setup.scale}`:
+`ant-field-experiment landing-pad --scale {setup.scale}{_options(setup)}`.
 
 {_summary_table(summary)}
 
@@ -673,7 +682,7 @@ def _field_section(
 goal depth {p.depth} (`default:{p.depth}`), {p.steps} ticks; grid: {p.grid_seeds}
 scenarios, continuous motion (default slip and noise, full perception: camera +
 localiser, laser + mapper): {p.continuous_seeds} of them. Scale `{setup.scale}`:
-`ant-field-experiment field --scale {setup.scale}`.
+`ant-field-experiment field --scale {setup.scale}{_options(setup)}`.
 
 {_summary_table(summary)}
 
