@@ -255,6 +255,16 @@ def round_heights(sums, per_cell, out):
             out[r, c] = (2 * sums[r, c] + per_cell) // (2 * per_cell)
 
 
+@nb.njit(cache=True, inline="always")
+def _window(x, y, radius, sub, rows, cols):
+    """Row and column bounds ``(i0, i1, j0, j1)`` of the sub-cells within ``radius`` m."""
+    i0 = max(int(math.floor((y - radius) / sub)), 0)
+    i1 = min(int(math.floor((y + radius) / sub)) + 1, rows)
+    j0 = max(int(math.floor((x - radius) / sub)), 0)
+    j1 = min(int(math.floor((x + radius) / sub)) + 1, cols)
+    return i0, i1, j0, j1
+
+
 @nb.njit(cache=True)
 def body_mask(mask, bodies, active, sub, half_length, half_width, wings=None, wing=0.0):
     """Mark the sub-cells whose centres lie under an active robot's body rectangle.
@@ -270,10 +280,7 @@ def body_mask(mask, bodies, active, sub, half_length, half_width, wings=None, wi
             continue
         x, y, yaw = bodies[k, 0], bodies[k, 1], bodies[k, 2]
         cy, sy = math.cos(yaw), math.sin(yaw)
-        i0 = max(int(math.floor((y - reach) / sub)), 0)
-        i1 = min(int(math.floor((y + reach) / sub)) + 1, rows)
-        j0 = max(int(math.floor((x - reach) / sub)), 0)
-        j1 = min(int(math.floor((x + reach) / sub)) + 1, cols)
+        i0, i1, j0, j1 = _window(x, y, reach, sub, rows, cols)
         for i in range(i0, i1):
             for j in range(j0, j1):
                 dx = (j + 0.5) * sub - x
@@ -352,10 +359,7 @@ def band_ground(fine, x, y, yaw, sub, near, far, half_width):
     rows, cols = fine.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
     span = math.hypot(max(abs(near), abs(far)), half_width) + sub
-    i0 = max(int(math.floor((y - span) / sub)), 0)
-    i1 = min(int(math.floor((y + span) / sub)) + 1, rows)
-    j0 = max(int(math.floor((x - span) / sub)), 0)
-    j1 = min(int(math.floor((x + span) / sub)) + 1, cols)
+    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
     total = 0
     n = 0
     for i in range(i0, i1):
@@ -381,10 +385,7 @@ def pile_load(fine, x, y, yaw, sub, front, half_width, reach, edge):
     rows, cols = fine.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
     span = math.hypot(front + reach, half_width) + sub
-    i0 = max(int(math.floor((y - span) / sub)), 0)
-    i1 = min(int(math.floor((y + span) / sub)) + 1, rows)
-    j0 = max(int(math.floor((x - span) / sub)), 0)
-    j1 = min(int(math.floor((x + span) / sub)) + 1, cols)
+    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
     face_total = 0
     face_n = 0
     volume = 0
@@ -422,10 +423,7 @@ def cut(fine, blocked, x, y, yaw, sub, front, half_width, edge, top):
     rows, cols = fine.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
     span = math.hypot(front + sub, half_width) + sub
-    i0 = max(int(math.floor((y - span) / sub)), 0)
-    i1 = min(int(math.floor((y + span) / sub)) + 1, rows)
-    j0 = max(int(math.floor((x - span) / sub)), 0)
-    j1 = min(int(math.floor((x + span) / sub)) + 1, cols)
+    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
     total = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
