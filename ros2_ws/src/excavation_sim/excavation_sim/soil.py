@@ -265,6 +265,17 @@ def _window(x, y, radius, sub, rows, cols):
     return i0, i1, j0, j1
 
 
+@nb.njit(cache=True, inline="always")
+def _local(i, j, sub, x, y, cy, sy):
+    """Sub-cell ``(i, j)``'s centre ``(u, v)`` in the frame of a robot at ``(x, y)``.
+
+    ``u`` ahead along its heading (``cy, sy``: cosine and sine of its yaw), ``v`` to its left.
+    """
+    dx = (j + 0.5) * sub - x
+    dy = (i + 0.5) * sub - y
+    return dx * cy + dy * sy, -dx * sy + dy * cy
+
+
 @nb.njit(cache=True)
 def body_mask(mask, bodies, active, sub, half_length, half_width, wings=None, wing=0.0):
     """Mark the sub-cells whose centres lie under an active robot's body rectangle.
@@ -283,10 +294,7 @@ def body_mask(mask, bodies, active, sub, half_length, half_width, wings=None, wi
         i0, i1, j0, j1 = _window(x, y, reach, sub, rows, cols)
         for i in range(i0, i1):
             for j in range(j0, j1):
-                dx = (j + 0.5) * sub - x
-                dy = (i + 0.5) * sub - y
-                u = dx * cy + dy * sy
-                v = -dx * sy + dy * cy
+                u, v = _local(i, j, sub, x, y, cy, sy)
                 if abs(u) < half_length and abs(v) < half_width:
                     mask[i, j] = True
                 elif (
@@ -364,10 +372,7 @@ def band_ground(fine, x, y, yaw, sub, near, far, half_width):
     n = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
-            dx = (j + 0.5) * sub - x
-            dy = (i + 0.5) * sub - y
-            u = dx * cy + dy * sy
-            v = -dx * sy + dy * cy
+            u, v = _local(i, j, sub, x, y, cy, sy)
             if abs(v) < half_width and near <= u < far:
                 total += fine[i, j]
                 n += 1
@@ -391,10 +396,7 @@ def pile_load(fine, x, y, yaw, sub, front, half_width, reach, edge):
     volume = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
-            dx = (j + 0.5) * sub - x
-            dy = (i + 0.5) * sub - y
-            u = dx * cy + dy * sy
-            v = -dx * sy + dy * cy
+            u, v = _local(i, j, sub, x, y, cy, sy)
             if abs(v) >= half_width or u < front or u >= front + reach:
                 continue
             above = fine[i, j] - edge
@@ -429,10 +431,7 @@ def cut(fine, blocked, x, y, yaw, sub, front, half_width, edge, top):
         for j in range(j0, j1):
             px = (j + 0.5) * sub
             py = (i + 0.5) * sub
-            dx = px - x
-            dy = py - y
-            u = dx * cy + dy * sy
-            v = -dx * sy + dy * cy
+            u, v = _local(i, j, sub, x, y, cy, sy)
             if abs(v) >= half_width:
                 continue
             if front - sub <= u < front:
