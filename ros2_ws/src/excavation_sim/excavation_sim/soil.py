@@ -58,7 +58,7 @@ Pure module (numpy, numba); no ``rclpy``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numba as nb
@@ -708,15 +708,4 @@ def calibrate(params: SoilParams, cell: float, unit: float) -> Physics:
             )
         forces.append((low + high) / 2)
     mass = params.traction_margin * forces[1] / (params.wheel_friction * params.gravity)
-    return Physics(
-        gamma,
-        params.cohesion,
-        n_gamma,
-        n_c,
-        n_q,
-        cot,
-        params.wheel_friction,
-        params.gravity,
-        (forces[0], forces[1]),
-        mass,
-    )
+    return replace(draft, motor=(forces[0], forces[1]), mass=mass)
