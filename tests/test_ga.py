@@ -213,3 +213,137 @@ def test_a_generation_bred_with_the_compiled_mutation_equals_the_python_one(monk
     monkeypatch.setattr(ga, "mutate_cells", lambda *args: None)
     assert next_generation(slow, population, fitness, params) == children
     assert fast.bit_generator.state == slow.bit_generator.state
+
+
+# --- breeding on packed genes (ant_evolution.ga_kernel.PackedCells) ------------------------
+
+
+def _python_only(monkeypatch):
+    """Breeding without the compiled mutation or the array crossover (the specification)."""
+    import ant_evolution.ga as ga
+
+    monkeypatch.setattr(ga, "mutate_cells", lambda *args: None)
+    monkeypatch.setattr(ga, "crossover_packed", lambda *args: None)
+
+
+def _assert_packed_agrees(genome: Genome) -> None:
+    """A packed genome's arrays are its genes' values (packed afresh from plain genes)."""
+    from ant_evolution.ga_kernel import PackedCells, packed
+
+    cells = genome.cells
+    assert isinstance(cells, PackedCells)
+    fresh = packed(tuple(cells))
+    for name in ("scalars", "sensors", "inputs"):
+        assert np.array_equal(getattr(cells, name), getattr(fresh, name)), name
+    for name in ("positions", "keys", "order", "sorted_keys", "low", "high"):
+        assert np.array_equal(getattr(cells.sites, name), getattr(fresh.sites, name)), name
+
+
+@pytest.mark.parametrize("mutation_prob", [0.025, 0.2])
+def test_generations_bred_on_packed_genes_equal_the_python_ones(monkeypatch, mutation_prob):
+    """Eight ``v1`` generations (crossover, mutation, replication, elitism) with the packed
+    fast paths give the children and generator states of the Python operators, and every
+    packed child's arrays agree with its genes."""
+    rng = np.random.default_rng(11)
+    start = [random_genome(rng, n_neurons=(20, 60)) for _ in range(14)]
+    # replication often, so that daughters are appended to packed genes too
+    start = [
+        dataclasses.replace(g, tissue=dataclasses.replace(g.tissue, replication_probability=0.5))
+        for g in start
+    ]
+    params = GAParams(population=14, mutation_prob=mutation_prob)
+    fast_rng = np.random.Generator(np.random.PCG64(21))
+    slow_rng = _twin(fast_rng)
+    fast, fitness_rng = start, np.random.default_rng(5)
+    fitnesses = [fitness_rng.random(14) for _ in range(8)]
+    for fitness in fitnesses:
+        fast = next_generation(fast_rng, fast, fitness, params)
+        for g in fast:
+            if not any(g is s for s in start):  # an elite of generation 0 stays plain
+                _assert_packed_agrees(g)
+    _python_only(monkeypatch)
+    slow = start
+    for fitness in fitnesses:
+        slow = next_generation(slow_rng, slow, fitness, params)
+    assert fast == slow
+    assert fast_rng.bit_generator.state == slow_rng.bit_generator.state
+    for a, b in zip(fast, slow, strict=True):
+        assert genome_to_dict(a) == genome_to_dict(b)
+
+
+def test_packed_crossover_matches_python_across_seeds_and_repressed_genes(monkeypatch):
+    """Parents whose tissue seeds differ and whose genes are partly repressed: the array
+    crossover exchanges the genes the Python one does, with the same draws."""
+    from ant_evolution.ga_kernel import crossover_packed, packed
+
+    rng = np.random.default_rng(12)
+    for trial in range(40):
+        a = random_genome(rng, n_neurons=(10, 80))
+        b = random_genome(rng, n_neurons=(10, 80))
+        b = dataclasses.replace(
+            b,
+            tissue=dataclasses.replace(b.tissue, seed=(int(trial % 3) - 1, 0, 1)),
+            cells=tuple(
+                dataclasses.replace(c, expressed=bool(i % 4)) for i, c in enumerate(b.cells)
+            ),
+        )
+        pa = dataclasses.replace(a, cells=packed(a.cells))
+        pb = dataclasses.replace(b, cells=packed(b.cells))
+        fast_rng = np.random.Generator(np.random.PCG64(trial))
+        slow_rng = _twin(fast_rng)
+        fast = crossover_packed(fast_rng, pa, pb)
+        _python_only(monkeypatch)
+        slow = crossover(slow_rng, a, b)
+        monkeypatch.undo()
+        assert fast == slow
+        assert fast_rng.bit_generator.state == slow_rng.bit_generator.state
+        for child in fast:
+            if child is not pa and child is not pb:
+                _assert_packed_agrees(child)
+
+
+def test_a_short_block_of_draws_is_drawn_again_from_the_same_state(monkeypatch):
+    """When the raw outputs run short the mutation starts over from the parent's genes with
+    a larger block (nothing of the short attempt stays in the child)."""
+    from ant_controller.genome import MAX_EXTENT
+    from ant_controller.layout import N_BEHAVIOURS
+    from ant_evolution import ga_kernel
+
+    monkeypatch.setattr(ga_kernel, "_block_size", lambda n, n_s, n_i: 40)
+    for seed in range(6):
+        genome = random_genome(np.random.default_rng(seed))
+        python = np.random.Generator(np.random.PCG64(300 + seed))
+        compiled = _twin(python)
+        expected = tuple(mutate_cell(python, g, 0.3) for g in genome.cells)
+        got = ga_kernel.mutate_cells(compiled, genome.cells, 0.3, N_BEHAVIOURS, MAX_EXTENT + 1)
+        assert got == expected
+        assert compiled.bit_generator.state == python.bit_generator.state
+
+
+def test_packed_genes_are_plain_tuples_to_pickle_and_equality():
+    """Workers, checkpoints and genome files see plain genes: the arrays never travel."""
+    import pickle
+
+    from ant_evolution.ga_kernel import PackedCells, packed
+
+    g = random_genome(np.random.default_rng(13))
+    p = dataclasses.replace(g, cells=packed(g.cells))
+    assert isinstance(p.cells, PackedCells) and p == g
+    back = pickle.loads(pickle.dumps(p))
+    assert type(back.cells) is tuple and back == g
+    assert genome_to_dict(p) == genome_to_dict(g)
+    assert not p.cells.scalars.flags.writeable  # children copy; parents are never changed
+    # genes that share a site or differ in vector length stay plain (the Python operators)
+    twin = dataclasses.replace(g.cells[1], position=g.cells[0].position)
+    assert packed((g.cells[0], twin)) is None
+    short = dataclasses.replace(g.cells[1], sensor_weights=g.cells[1].sensor_weights[:3])
+    assert packed((g.cells[0], short)) is None
+
+
+def test_tournament_reads_lists_and_arrays_alike_with_numpy_ties_and_nan():
+    fitness = np.array([0.5, 0.9, 0.9, np.nan, 0.1, 0.9])
+    for seed in range(50):
+        a = tournament(np.random.default_rng(seed), fitness, 3)
+        b = tournament(np.random.default_rng(seed), fitness.tolist(), 3)
+        picks = np.sort(np.random.default_rng(seed).choice(6, size=3, replace=False))
+        assert a == b == int(picks[np.argmax(fitness[picks])])

@@ -58,7 +58,7 @@ from ant_controller.genome import (
 )
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS
 from ant_evolution.errors import ConfigError
-from ant_evolution.ga_kernel import mutate_cells, with_fields
+from ant_evolution.ga_kernel import append_cell, crossover_packed, mutate_cells, with_fields
 
 MUTATION_SCOPES = ("parameter", "gene")
 MUTATION_OPERATORS = ("redraw", "perturb")
@@ -176,13 +176,15 @@ def _mutate_v1(rng: np.random.Generator, genome: Genome, params: GAParams) -> Ge
     if robots is not None and rng.random() < p:
         lo, hi = params.robots_range
         robots = int(np.clip(robots + (1 if rng.random() < 0.5 else -1), lo, hi))
-    tissue = replace(
+    tissue = with_fields(
         t,
-        replication_probability=_redraw(rng, t.replication_probability, 0.0, 0.1, p),
-        decision_ratio=_redraw(rng, t.decision_ratio, 0.0, 1.0, p),
-        robots=robots,
+        {
+            "replication_probability": _redraw(rng, t.replication_probability, 0.0, 0.1, p),
+            "decision_ratio": _redraw(rng, t.decision_ratio, 0.0, 1.0, p),
+            "robots": robots,
+        },
     )
-    return replace(genome, tissue=tissue, cells=cells)
+    return with_fields(genome, {"tissue": tissue, "cells": cells})
 
 
 # Parameter slots of a cell gene, in order: (field, index or -1, kind, low, high).
@@ -344,14 +346,21 @@ def replicate(rng: np.random.Generator, genome: Genome, parent_rule: str = "max"
     fv = _param_vector(fresh)
     keep = int(rng.integers(0, len(pv) + 1))  # the first m% of the parent's contents
     daughter = _from_vector(fresh, pv[:keep] + fv[keep:])
-    return replace(genome, cells=(*genome.cells, daughter))
+    return replace(genome, cells=append_cell(genome.cells, daughter))
 
 
 # --- crossover ------------------------------------------------------------------------------
 
 
 def crossover(rng: np.random.Generator, a: Genome, b: Genome) -> tuple[Genome, Genome]:
-    """Plane-cut crossover with the compatibility criterion; returns (child of A, child of B)."""
+    """Plane-cut crossover with the compatibility criterion; returns (child of A, child of B).
+
+    Parents whose genes are packed (children of the compiled mutation) cross on arrays
+    (:func:`ant_evolution.ga_kernel.crossover_packed`: the same children and draws).
+    """
+    fast = crossover_packed(rng, a, b)
+    if fast is not None:
+        return fast
     axis = int(rng.integers(0, 2))
     coords = [a.absolute(g)[axis] for g in a.cells] + [b.absolute(g)[axis] for g in b.cells]
     if not coords:
@@ -380,10 +389,23 @@ def _relocate(gene: CellGene, absolute, seed) -> CellGene:
 # --- selection and generations ----------------------------------------------------------------
 
 
-def tournament(rng: np.random.Generator, fitness: np.ndarray, size: int) -> int:
-    """Index of the fittest of ``size`` distinct random genomes (ties: the lowest index)."""
-    picks = np.sort(rng.choice(len(fitness), size=min(size, len(fitness)), replace=False))
-    return int(picks[np.argmax(fitness[picks])])
+def tournament(rng: np.random.Generator, fitness, size: int) -> int:
+    """Index of the fittest of ``size`` distinct random genomes (ties: the lowest index).
+
+    ``fitness``: an array or a list (a list is faster to read one by one). A NaN wins, the
+    lowest-indexed one, as under ``numpy.argmax``.
+    """
+    picks = sorted(rng.choice(len(fitness), size=min(size, len(fitness)), replace=False).tolist())
+    best, top = picks[0], fitness[picks[0]]
+    if top != top:
+        return best
+    for i in picks[1:]:
+        v = fitness[i]
+        if v != v:
+            return i
+        if v > top:
+            best, top = i, v
+    return best
 
 
 def next_generation(
@@ -404,9 +426,10 @@ def next_generation(
     order = np.argsort(-fitness, kind="stable")
     out = [population[i] for i in order[: params.elitism]]
     size = params.tournament_size
+    scores = np.asarray(fitness, dtype=np.float64).tolist()
     while len(out) < params.population:
-        a = population[tournament(rng, fitness, size)]
-        b = population[tournament(rng, fitness, size)]
+        a = population[tournament(rng, scores, size)]
+        b = population[tournament(rng, scores, size)]
         if rng.random() < params.crossover_prob:
             a, b = crossover(rng, a, b)
         out.append(mutate(rng, a, params))

@@ -22,6 +22,8 @@ Tests (tests/test_ga.py) compare it gene for gene and state for state with
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba as nb
 import numpy as np
 
@@ -150,28 +152,92 @@ FIELDS = (
 """A cell gene's mutable fields, in the order of ``_mutate``'s change bits."""
 
 
-def mutate_cells(
-    rng: np.random.Generator, cells: tuple, p: float, n_behaviours: int, n_extent: int
-):
-    """``tuple(mutate_cell(rng, g, p) for g in cells)``, compiled; ``rng`` left as that leaves it.
+class PackedCells(tuple):
+    """A genome's cell genes (a plain tuple of ``CellGene``) that also carries them as arrays.
 
-    ``None`` (``rng`` untouched) when the generator is not PCG64 or the genes' vectors
-    differ in length: the caller then runs the Python loop.
-
-    Args:
-        rng: The GA's generator (a PCG64 one).
-        cells: The genome's cell genes, in order.
-        p: The mutation probability per parameter.
-        n_behaviours: ``integers(0, n_behaviours)`` draws a behaviour.
-        n_extent: ``integers(0, n_extent)`` draws a field half-extent.
+    Breeding's working form: ``scalars`` (one row per gene, the columns of ``_mutate``),
+    ``sensors`` and ``inputs`` hold the genes' values and ``sites`` their positions, so
+    that a child's mutation and crossover read arrays instead of rebuilding them from
+    thousands of gene objects every generation. The arrays are read-only (children copy
+    before changing them, and share what they do not change) and always agree with the
+    genes; the tuple is equal to, and pickles and copies as, the plain tuple of the same
+    genes, so workers, checkpoints and genome files never see the arrays.
     """
+
+    scalars: np.ndarray
+    sensors: np.ndarray
+    inputs: np.ndarray
+    sites: Sites
+
+    def __reduce__(self):
+        return (tuple, (tuple(self),))
+
+
+_SPAN = 1 << 16
+_HALF = 1 << 15
+
+
+@dataclass(frozen=True)
+class Sites:
+    """The genes' relative positions, one integer key per site, sorted, and their bounds.
+
+    A key is linear in the position (``((l * S) + m) * S + n`` plus a constant), so the
+    key of an absolute site is the relative key plus the seed's: crossover finds the
+    other parent's gene at a site by a search in sorted keys. Children whose genes keep
+    their sites (mutation, crossover) share their parent's.
+    """
+
+    positions: np.ndarray
+    keys: np.ndarray
+    order: np.ndarray
+    sorted_keys: np.ndarray
+    low: tuple[int, int, int]
+    high: tuple[int, int, int]
+
+    @staticmethod
+    def of(positions: np.ndarray) -> Sites | None:
+        """The sites of ``positions`` (n x 3); ``None`` when two coincide or one is far out."""
+        if positions.size == 0 or int(np.abs(positions).max()) >= _HALF // 2:
+            return None
+        keys = site_key(positions)
+        order = np.argsort(keys, kind="stable")
+        sorted_keys = keys[order]
+        if np.any(sorted_keys[1:] == sorted_keys[:-1]):
+            return None
+        for array in (positions, keys, order, sorted_keys):
+            array.flags.writeable = False
+        low = tuple(int(v) for v in positions.min(axis=0))
+        high = tuple(int(v) for v in positions.max(axis=0))
+        return Sites(positions, keys, order, sorted_keys, low, high)
+
+
+def _seed_key(seed) -> int:
+    """The linear part of a site's key (:func:`site_key` less its constant)."""
+    return (seed[0] * _SPAN + seed[1]) * _SPAN + seed[2]
+
+
+def site_key(positions) -> np.ndarray:
+    """Integer keys of lattice sites (an n x 3 array, or one site as a 1 x 3 one)."""
+    p = np.asarray(positions, dtype=np.int64) + _HALF
+    return (p[:, 0] * _SPAN + p[:, 1]) * _SPAN + p[:, 2]
+
+
+def packed(cells: tuple) -> PackedCells | None:
+    """``cells`` in the packed form (itself when it is already).
+
+    ``None`` when the genes differ in vector length or two share a site (not a valid
+    tissue: the Python operators handle it).
+    """
+    if isinstance(cells, PackedCells):
+        return cells
     n = len(cells)
     if n == 0:
-        return ()
-    if not isinstance(rng.bit_generator, np.random.PCG64):
         return None
     n_s, n_i = len(cells[0].sensor_weights), len(cells[0].input_weights)
     if any(len(g.sensor_weights) != n_s or len(g.input_weights) != n_i for g in cells):
+        return None
+    sites = Sites.of(np.array([g.position for g in cells], dtype=np.int64).reshape(n, 3))
+    if sites is None:
         return None
     scalars = np.array(
         [
@@ -183,11 +249,79 @@ def mutate_cells(
     )  # fmt: skip
     sensors = np.array([g.sensor_weights for g in cells], dtype=np.float64).reshape(n, n_s)
     inputs = np.array([g.input_weights for g in cells], dtype=np.float64).reshape(n, n_i)
+    return _pack(cells, scalars, sensors, inputs, sites)
+
+
+def _pack(genes, scalars, sensors, inputs, sites: Sites) -> PackedCells:
+    out = PackedCells(genes)
+    for array in (scalars, sensors, inputs):
+        array.flags.writeable = False
+    out.scalars, out.sensors, out.inputs, out.sites = scalars, sensors, inputs, sites
+    return out
+
+
+def append_cell(cells: tuple, gene) -> tuple:
+    """``(*cells, gene)``, packed when ``cells`` is (replication's daughter)."""
+    one = packed((gene,)) if isinstance(cells, PackedCells) else None
+    if (
+        one is None
+        or one.sensors.shape[1] != cells.sensors.shape[1]
+        or one.inputs.shape[1] != cells.inputs.shape[1]
+    ):
+        return (*cells, gene)
+    sites = Sites.of(np.concatenate((cells.sites.positions, one.sites.positions)))
+    if sites is None:
+        return (*cells, gene)
+    return _pack(
+        (*cells, gene),
+        *(
+            np.concatenate((getattr(cells, k), getattr(one, k)))
+            for k in ("scalars", "sensors", "inputs")
+        ),
+        sites,
+    )
+
+
+def _block_size(n: int, n_s: int, n_i: int) -> int:
+    """Raw outputs drawn for one genome's mutation.
+
+    Enough for a usual genome (about ``n_s + n_i + 16`` a gene at p = 0.025, the vectors'
+    redraws included) with a margin; a block that runs short is drawn again, twice as large.
+    """
+    return n * (20 + n_s + n_i) + 2 * (24 + 2 * (n_s + n_i)) + 64
+
+
+def mutate_cells(
+    rng: np.random.Generator, cells: tuple, p: float, n_behaviours: int, n_extent: int
+):
+    """``tuple(mutate_cell(rng, g, p) for g in cells)``, compiled; ``rng`` left as that leaves it.
+
+    Returns the genes packed (:class:`PackedCells`), or ``None`` (``rng`` untouched) when
+    the generator is not PCG64 or the genes cannot be packed: the caller then runs the
+    Python loop.
+
+    Args:
+        rng: The GA's generator (a PCG64 one).
+        cells: The genome's cell genes, in order (packed or not).
+        p: The mutation probability per parameter.
+        n_behaviours: ``integers(0, n_behaviours)`` draws a behaviour.
+        n_extent: ``integers(0, n_extent)`` draws a field half-extent.
+    """
+    n = len(cells)
+    if n == 0:
+        return ()
+    if not isinstance(rng.bit_generator, np.random.PCG64):
+        return None
+    parent = packed(cells)
+    if parent is None:
+        return None
+    scalars, sensors, inputs = parent.scalars.copy(), parent.sensors.copy(), parent.inputs.copy()
+    n_s, n_i = sensors.shape[1], inputs.shape[1]
     changed = np.zeros(n, dtype=np.int64)
     bits = rng.bit_generator
     start = bits.state
     cache = np.array([start["has_uint32"], start["uinteger"]], dtype=np.int64)
-    block = n * (24 + 2 * (n_s + n_i)) + 64
+    block = _block_size(n, n_s, n_i)
     while True:
         raw = bits.random_raw(block)
         used = _mutate(raw, cache, p, n_behaviours, n_extent, scalars, sensors, inputs, changed)
@@ -196,44 +330,123 @@ def mutate_cells(
             break
         block *= 2  # a long rejection run: again, with more outputs
         cache[:] = (start["has_uint32"], start["uinteger"])
+        scalars, sensors, inputs = (
+            parent.scalars.copy(),
+            parent.sensors.copy(),
+            parent.inputs.copy(),
+        )
+        changed[:] = 0
     bits.advance(used)
     end = bits.state
     end["has_uint32"], end["uinteger"] = int(cache[0]), int(cache[1])
     bits.state = end
-    rows, sens, ins = scalars.tolist(), sensors.tolist(), inputs.tolist()
-    out = []
-    for c, (g, bits_c) in enumerate(zip(cells, changed.tolist(), strict=True)):
-        if not bits_c:
-            out.append(g)
-            continue
-        row, fields = rows[c], {}
-        while bits_c:
-            k = (bits_c & -bits_c).bit_length() - 1
-            bits_c &= bits_c - 1
-            if k < 2:
-                fields[FIELDS[k]] = bool(row[k])
-            elif k < 4 or k == 8:
-                fields[FIELDS[k]] = int(row[k])
-            elif k < 8:
-                fields[FIELDS[k]] = row[k]
-            elif k == 9:
-                fields["sensor_weights"] = tuple(sens[c])
-            elif k == 10:
-                fields["input_weights"] = tuple(ins[c])
-            else:
-                fields["extent"] = (int(row[9]), int(row[10]), int(row[11]))
-        out.append(with_fields(g, fields))
-    return tuple(out)
+    index = np.flatnonzero(changed)
+    if index.size == 0:
+        return parent
+    out = list(parent)
+    rows = scalars[index].tolist()
+    for c, row, bits_c in zip(index.tolist(), rows, changed[index].tolist(), strict=True):
+        gene = out[c]
+        d = gene.__dict__.copy()
+        if bits_c & 0xFF:  # FIELDS' order: a bit per field that changed
+            if bits_c & 0x1:
+                d["expressed"] = row[0] != 0.0
+            if bits_c & 0x2:
+                d["dead"] = row[1] != 0.0
+            if bits_c & 0x4:
+                d["k1"] = int(row[2])
+            if bits_c & 0x8:
+                d["k2"] = int(row[3])
+            if bits_c & 0xF0:
+                if bits_c & 0x10:
+                    d["replication"] = row[4]
+                if bits_c & 0x20:
+                    d["theta1"] = row[5]
+                if bits_c & 0x40:
+                    d["theta2"] = row[6]
+                if bits_c & 0x80:
+                    d["concentration"] = row[7]
+        if bits_c & 0x100:
+            d["behaviour"] = int(row[8])
+        if bits_c & 0x200:
+            d["sensor_weights"] = tuple(sensors[c].tolist())
+        if bits_c & 0x400:
+            d["input_weights"] = tuple(inputs[c].tolist())
+        if bits_c & 0x800:
+            d["extent"] = (int(row[9]), int(row[10]), int(row[11]))
+        new = _new_object(type(gene))
+        _set_attribute(new, "__dict__", d)
+        out[c] = new
+    return _pack(out, scalars, sensors, inputs, parent.sites)
+
+
+def crossover_packed(rng: np.random.Generator, a, b):
+    """:func:`ant_evolution.ga.crossover` on packed genes: the same children and draws.
+
+    The children's genes are packed too; ``None`` (``rng`` untouched) unless both
+    parents' genes are packed.
+    """
+    ca, cb = a.cells, b.cells
+    if not (isinstance(ca, PackedCells) and isinstance(cb, PackedCells)):
+        return None
+    if ca.sensors.shape[1:] != cb.sensors.shape[1:] or ca.inputs.shape[1:] != cb.inputs.shape[1:]:
+        return None
+    seed_a, seed_b = a.tissue.seed, b.tissue.seed
+    if max(map(abs, (*seed_a, *seed_b))) >= _HALF // 2:
+        return None
+    axis = int(rng.integers(0, 2))
+    sa, sb = ca.sites, cb.sites
+    lo = min(sa.low[axis] + seed_a[axis], sb.low[axis] + seed_b[axis])
+    hi = max(sa.high[axis] + seed_a[axis], sb.high[axis] + seed_b[axis])
+    cut = int(rng.integers(lo, hi + 1)) - seed_a[axis]
+    col_a = sa.positions[:, axis]
+    i = np.flatnonzero(col_a > cut if cut + seed_a[axis] >= 0 else col_a <= cut)
+    # a's gene i and b's gene j share a site when a's key plus a's seed is b's plus b's
+    wanted = sa.keys[i] + (_seed_key(seed_a) - _seed_key(seed_b))
+    at = np.minimum(np.searchsorted(sb.sorted_keys, wanted), len(sb.sorted_keys) - 1)
+    hit = sb.sorted_keys[at] == wanted
+    i, j = i[hit], sb.order[at[hit]]
+    same = ca.scalars[i, 0] == cb.scalars[j, 0]  # the compatibility criterion: expressed
+    i, j = i[same], j[same]
+    if i.size == 0:
+        return a, b
+    a_cells, b_cells = list(ca), list(cb)
+    for x, y in zip(i.tolist(), j.tolist(), strict=True):
+        gene_a, gene_b = ca[x], cb[y]
+        d_a, d_b = gene_b.__dict__.copy(), gene_a.__dict__.copy()
+        d_a["position"], d_b["position"] = gene_a.position, gene_b.position
+        a_cells[x] = _with_dict(type(gene_b), d_a)
+        b_cells[y] = _with_dict(type(gene_a), d_b)
+    arrays_a, arrays_b = [], []
+    for k in ("scalars", "sensors", "inputs"):
+        va, vb = getattr(ca, k).copy(), getattr(cb, k).copy()
+        va[i], vb[j] = getattr(cb, k)[j], getattr(ca, k)[i]
+        arrays_a.append(va)
+        arrays_b.append(vb)
+    child_a = _pack(a_cells, *arrays_a, sa)
+    child_b = _pack(b_cells, *arrays_b, sb)
+    return with_fields(a, {"cells": child_a}), with_fields(b, {"cells": child_b})
 
 
 def with_fields(gene, fields: dict):
     """``dataclasses.replace(gene, **fields)`` at a tenth of the cost.
 
-    For a frozen dataclass without ``__post_init__`` (``CellGene``): a new instance whose
-    fields are ``gene``'s with ``fields`` changed, without running ``__init__`` again
+    For a frozen dataclass without ``__post_init__`` (``CellGene``, ``TissueGene``,
+    ``Genome``): a new instance whose fields are ``gene``'s with ``fields`` changed (the
+    others shared, as ``replace`` shares them), without running ``__init__`` again
     (``replace`` took 11 us a gene, most of a generation's breeding after the kernel).
     """
-    new = object.__new__(type(gene))
-    new.__dict__.update(gene.__dict__)
-    new.__dict__.update(fields)
+    d = gene.__dict__.copy()
+    d.update(fields)
+    return _with_dict(type(gene), d)
+
+
+_new_object = object.__new__
+_set_attribute = object.__setattr__
+
+
+def _with_dict(cls, d: dict):
+    """An instance of the frozen dataclass ``cls`` whose attributes are ``d`` (not copied)."""
+    new = _new_object(cls)
+    _set_attribute(new, "__dict__", d)
     return new
