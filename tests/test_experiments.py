@@ -451,3 +451,37 @@ def test_a_paper_profile_experiment_writes_beside_the_v1_one(tmp_path):
     assert paper.dir("compare") == tmp_path / "compare-paper"
     assert run_dir(paper, "ant", 4, 0).parent.name == "quick-paper"
     assert run_dir(v1, "ant", 4, 0).parent.name == "quick"
+
+
+def test_a_cell_whose_robots_do_not_fit_its_site_is_left_out_not_fatal():
+    """Under the paper profile the fitted site of a 4 x 4 pit is 8 x 8, where 10 robots may
+    find no free place: that cell reads ``-`` and the rest of the grid is scored."""
+    import numpy as np
+
+    from ant_evolution.experiments.core import site
+    from ant_evolution.experiments.grids import every_run_summary, robot_grid
+    from ant_evolution.experiments.sections import UNPLACED_NOTE, peak_table
+    from excavation_sim.world import PlacementError, place_in_worksite
+
+    zones = site(4, 1, fitted=True).zones
+    assert zones.shape == (8, 8)
+    with pytest.raises(PlacementError):
+        for seed in range(50):  # random places fragment the 8 x 8 site long before 16 fit
+            place_in_worksite(zones, 16, np.random.default_rng(seed))
+
+    def score(key, n):
+        if key == 4 and n == 3:
+            raise PlacementError("could not place robot 3 of 3 on a 8 x 8 grid")
+        return np.full(5, 0.1 * n + key / 100)
+
+    rows = robot_grid(score, [4, 6], "pit", [1, 2, 3])
+    lost = [r for r in rows if r["mean"] != r["mean"]]
+    assert [(r["pit"], r["robots"]) for r in lost] == [(4, 3)]
+    text = peak_table(rows, [4, 6], "pit", [1, 2, 3])
+    assert "| 4 | 0.140 | 0.240 | - | 2 robots |" in text
+    assert "| 6 | 0.160 | 0.260 | 0.360 | 3 robots |" in text
+    assert text.endswith(UNPLACED_NOTE)
+    every = [dict(r, run=0) for r in rows] + [dict(r, run=1) for r in rows]
+    (g4, g6) = every_run_summary(every, [(4, [(0,), (1,)]), (6, [(0,), (1,)])], "pit", [1, 2, 3])
+    assert g4.peaks == [2, 2] and g6.peaks == [3, 3]
+    assert np.isnan(g4.mean[2]) and not np.isnan(g4.mean[1])

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from tqdm import tqdm
 
-from ant_evolution.experiments.core import Context, score_depths
+from ant_evolution.experiments.core import Context, score_depths, site_text
 from ant_evolution.experiments.grids import (
     Progress,
     four_robot_controller,
@@ -47,6 +47,6 @@ def run(ctx: Context) -> None:
         ctx, NAME, rows, s.areas, "pit", lambda c, a, n: score_cell(c, ctx, a, n),
         f"fitness after {s.steps} steps", "Antagonism: pit size against robots",
         f"""The 4-robot controller {note} on square pits of {", ".join(map(str, s.areas))} cells
-(dump band 2), {s.eval_scenarios} unseen scenarios per cell split over goal depths
-{", ".join(map(str, s.depths))}, {s.steps} steps.""",
+({site_text(ctx.rules.fitted_site)}), {s.eval_scenarios} unseen scenarios per cell
+split over goal depths {", ".join(map(str, s.depths))}, {s.steps} steps.""",
     )  # fmt: skip

@@ -515,6 +515,13 @@ def site(pit: int, depth: int, fitted: bool = False) -> Blueprint:
     return pit_blueprint((grid, grid), (pit, pit), depth, 2, name=f"{pit}x{pit} depth {depth}")
 
 
+def site_text(fitted: bool) -> str:
+    """How :func:`site` sizes the grid around a pit, for the sections' text."""
+    if fitted:
+        return "dump band 2, the grid the pit and its band: `site = fitted`"
+    return "dump band 2, grid at least 16 x 16, pit + 8 cells when larger"
+
+
 # --- outputs ------------------------------------------------------------------------------
 
 

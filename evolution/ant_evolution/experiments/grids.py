@@ -30,6 +30,7 @@ from ant_evolution.experiments.core import (
     training_fitness,
     write_csv,
 )
+from excavation_sim.world import PlacementError
 
 Progress = Callable[[], object]
 """Called once per scored cell (a progress bar's ``update``)."""
@@ -37,6 +38,19 @@ Progress = Callable[[], object]
 
 def _no_progress() -> None:
     return None
+
+
+def cell_stats(scores: Callable[[], np.ndarray]) -> tuple[float, float]:
+    """Mean and std of a cell's per-scenario fitness.
+
+    NaN when the robots do not fit the cell's site (``PlacementError``: 10 robots on the
+    paper profile's fitted 8 x 8 site around a 4 x 4 pit, say).
+    """
+    try:
+        sc = scores()
+    except PlacementError:
+        return float("nan"), float("nan")
+    return float(sc.mean()), float(sc.std())
 
 
 def robot_grid(
@@ -58,9 +72,8 @@ def robot_grid(
     rows = []
     for key in keys:
         for n in robots:
-            sc = score_cell(key, n)
-            rows.append({key_label: key, "robots": n, "mean": float(sc.mean()),
-                         "std": float(sc.std())})  # fmt: skip
+            mean, std = cell_stats(lambda: score_cell(key, n))  # noqa: B023 (called at once)
+            rows.append({key_label: key, "robots": n, "mean": mean, "std": std})
             progress()
     return rows
 
@@ -106,9 +119,9 @@ def every_run_grid(
     for key, runs in groups:
         for k, ctl, fit in runs:
             for n in robots:
-                sc = score_cell(ctl, key, n)
+                mean, std = cell_stats(lambda: score_cell(ctl, key, n))  # noqa: B023
                 rows.append({"run": k, "training_fitness": fit, key_label: key, "robots": n,
-                             "mean": float(sc.mean()), "std": float(sc.std())})  # fmt: skip
+                             "mean": mean, "std": std})  # fmt: skip
                 progress()
     return rows
 
@@ -157,7 +170,7 @@ def every_run_summary(
         if not runs:
             continue
         per_run = np.array([[grid[(run[0], key, n)] for n in robots] for run in runs])
-        peaks = [robots[int(np.argmax(row))] for row in per_run]
+        peaks = [robots[sections.peak_index(row)] for row in per_run]
         out.append(EveryRunGroup(key, len(runs), per_run.mean(0), per_run.std(0), peaks,
                                  float(np.median(peaks))))  # fmt: skip
     return out

@@ -27,6 +27,7 @@ from ant_evolution.experiments.core import (
     Scale,
     depth_split,
     score_parts,
+    site_text,
 )
 from ant_evolution.experiments.grids import (
     Progress,
@@ -47,16 +48,16 @@ def _area_cell(scale: Scale, pit: int, robots: int) -> Cell:
     return pit, depth_split(scale, robots)
 
 
-def _depth_text(scale: Scale, note: str) -> str:
-    return f"""The 4-robot controller {note} on the 8 x 8 pit at goal depths
+def _depth_text(scale: Scale, note: str, fitted: bool) -> str:
+    return f"""The 4-robot controller {note} on the 8 x 8 pit ({site_text(fitted)}) at goal depths
 {", ".join(map(str, scale.depths))}, {scale.eval_scenarios} unseen scenarios per cell,
 {scale.long_steps} steps."""
 
 
-def _area_text(scale: Scale, note: str) -> str:
+def _area_text(scale: Scale, note: str, fitted: bool) -> str:
     sizes = ", ".join(map(str, scale.area_sizes))
     return f"""The 4-robot controller {note} on square pits of {sizes}
-cells (grid at least 16 x 16, pit + 8 cells when larger), {scale.eval_scenarios} unseen
+cells ({site_text(fitted)}), {scale.eval_scenarios} unseen
 scenarios per cell split over goal depths {", ".join(map(str, scale.depths))},
 {scale.long_steps} steps."""
 
@@ -71,7 +72,8 @@ class Sweep:
         keys: The scale's keys.
         cell: ``cell(scale, key, robots)``: the site of a cell.
         title: The section's title.
-        text: ``text(scale, note)``: the section's paragraph on what ran.
+        text: ``text(scale, note, fitted)``: the section's paragraph on what ran (``fitted``:
+            the profile's ``site`` switch).
     """
 
     name: str
@@ -79,7 +81,7 @@ class Sweep:
     keys: Callable[[Scale], tuple[int, ...]]
     cell: Callable[[Scale, int, int], Cell]
     title: str
-    text: Callable[[Scale, str], str]
+    text: Callable[[Scale, str, bool], str]
 
 
 SWEEPS = {
@@ -122,7 +124,8 @@ def run(ctx: Context, name: str) -> None:
     write_grid(
         ctx, name, rows, keys, sweep.key_label,
         lambda c, key, n: score_cell(c, ctx, sweep, key, n),
-        f"fitness after {s.long_steps} steps", sweep.title, sweep.text(s, note),
+        f"fitness after {s.long_steps} steps", sweep.title,
+        sweep.text(s, note, ctx.rules.fitted_site),
     )  # fmt: skip
 
 

@@ -19,8 +19,24 @@ if TYPE_CHECKING:
 
 
 def fmt(x: float) -> str:
-    """A fitness as the tables print it (three decimals)."""
-    return f"{x:.3f}"
+    """A fitness as the tables print it (three decimals; ``-`` where robots did not fit)."""
+    return "-" if x != x else f"{x:.3f}"
+
+
+def peak_index(means: Sequence[float]) -> int:
+    """Index of the highest mean (the first of equals).
+
+    Cells whose robots did not fit (NaN) are left out; 0 when no cell has a mean.
+    """
+    best = None
+    for i, m in enumerate(means):
+        if m == m and (best is None or m > means[best]):
+            best = i
+    return 0 if best is None else best
+
+
+UNPLACED_NOTE = "`-`: the robots do not fit the cell's site (no free 2 x 2 place was left)."
+"""The line under a table with a cell whose robots could not be placed."""
 
 
 def table(head: Sequence[str], align: str, body: Sequence[Sequence[str]]) -> str:
@@ -91,10 +107,13 @@ def peak_table(rows: list[dict], keys, key_label: str, robots) -> str:
     body = []
     for key in keys:
         sel = {r["robots"]: r["mean"] for r in rows if r[key_label] == key}
-        peak = max(robots, key=lambda n: sel[n])
+        peak = list(robots)[peak_index([sel[n] for n in robots])]
         body.append([str(key), *(fmt(sel[n]) for n in robots), f"{peak} robots"])
     head = [key_label, *(str(n) for n in robots), "peak at"]
-    return table(head, "l" + "r" * (len(robots) + 1), body)
+    text = table(head, "l" + "r" * (len(robots) + 1), body)
+    if any(r["mean"] != r["mean"] for r in rows):
+        text += "\n\n" + UNPLACED_NOTE
+    return text
 
 
 def every_run_part(
@@ -115,7 +134,10 @@ def every_run_part(
         counts = ", ".join(f"{n}: {g.peaks.count(n)}" for n in sorted(set(g.peaks)))
         body.append(
             [str(g.key), str(g.runs)]
-            + [f"{m:.3f} +- {d:.3f}" for m, d in zip(g.mean, g.std, strict=True)]
+            + [
+                fmt(m) if m != m else f"{m:.3f} +- {d:.3f}"
+                for m, d in zip(g.mean, g.std, strict=True)
+            ]
             + [f"{counts} (median {float(g.median_peak):g})"]
         )
     head = [key_label, "runs", *(str(n) for n in robots), "peak of each run's controller"]
