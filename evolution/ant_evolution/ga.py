@@ -58,7 +58,13 @@ from ant_controller.genome import (
 )
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS
 from ant_evolution.errors import ConfigError
-from ant_evolution.ga_kernel import append_cell, crossover_packed, mutate_cells, with_fields
+from ant_evolution.ga_kernel import (
+    PackedCells,
+    append_cell,
+    crossover_packed,
+    mutate_cells,
+    with_fields,
+)
 
 MUTATION_SCOPES = ("parameter", "gene")
 MUTATION_OPERATORS = ("redraw", "perturb")
@@ -315,31 +321,43 @@ def replicate(rng: np.random.Generator, genome: Genome, parent_rule: str = "max"
     unchanged when no cell is grown or the parent has no free neighbouring site inside
     the lattice.
     """
-    grown = [g for g in genome.cells if g.expressed and not g.dead]
+    cells = genome.cells
+    if isinstance(cells, PackedCells):  # flags and replication values from the arrays
+        grown_at = np.flatnonzero((cells.scalars[:, 0] != 0.0) & (cells.scalars[:, 1] == 0.0))
+        replication = cells.scalars[grown_at, 4]
+        grown = [cells[i] for i in grown_at.tolist()]
+    else:
+        grown = [g for g in cells if g.expressed and not g.dead]
+        replication = np.array([g.replication for g in grown], dtype=np.float64)
     if not grown:
         return genome
     if parent_rule == "proportional":
-        weights = np.array([g.replication for g in grown], dtype=np.float64)
-        total = float(weights.sum())
+        total = float(replication.sum())
         if total > 0.0:
-            i = int(np.searchsorted(np.cumsum(weights), rng.random() * total, side="right"))
+            i = int(np.searchsorted(np.cumsum(replication), rng.random() * total, side="right"))
             parent = grown[min(i, len(grown) - 1)]
         else:
             parent = grown[int(rng.integers(0, len(grown)))]
     else:
-        parent = max(grown, key=lambda g: g.replication)
-    taken = {genome.absolute(g) for g in genome.cells}
+        parent = grown[int(np.argmax(replication))]  # the first of equals, as max() picks
+    seed = genome.tissue.seed
+    if isinstance(cells, PackedCells):
+
+        def taken(site) -> bool:
+            return cells.sites.holds(tuple(site[a] - seed[a] for a in range(3)))
+
+    else:
+        taken = {genome.absolute(g) for g in cells}.__contains__
     base = genome.absolute(parent)
     sites = [
         s
         for s in (tuple(base[a] + d[a] for a in range(3)) for d in _NEIGHBOURS)
-        if genome.lattice.contains(s) and s not in taken
+        if genome.lattice.contains(s) and not taken(s)
     ]
     if not sites:
         return genome
     site = sites[int(rng.integers(0, len(sites)))]
     kind = DECISION if rng.random() < genome.tissue.decision_ratio else MOTOR
-    seed = genome.tissue.seed
     rel = tuple(site[a] - seed[a] for a in range(3))
     fresh = random_cell(rng, kind, rel)
     pv = _param_vector(parent)

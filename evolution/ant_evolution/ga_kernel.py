@@ -210,6 +210,39 @@ class Sites:
         high = tuple(int(v) for v in positions.max(axis=0))
         return Sites(positions, keys, order, sorted_keys, low, high)
 
+    def holds(self, position) -> bool:
+        """Whether a gene sits at ``position`` (relative)."""
+        key = _key(position)
+        at = int(np.searchsorted(self.sorted_keys, key))
+        return at < len(self.sorted_keys) and int(self.sorted_keys[at]) == key
+
+    def with_site(self, position) -> Sites | None:
+        """These sites and one more at the end (a daughter cell).
+
+        ``None`` when the site is taken or far out.
+        """
+        p = tuple(int(v) for v in position)
+        if max(map(abs, p)) >= _HALF // 2:
+            return None
+        key = _key(p)
+        at = int(np.searchsorted(self.sorted_keys, key))
+        if at < len(self.sorted_keys) and int(self.sorted_keys[at]) == key:
+            return None
+        positions = np.concatenate((self.positions, np.array([p], dtype=np.int64)))
+        keys = np.append(self.keys, np.int64(key))
+        order = np.insert(self.order, at, len(self.keys))
+        sorted_keys = np.insert(self.sorted_keys, at, np.int64(key))
+        for array in (positions, keys, order, sorted_keys):
+            array.flags.writeable = False
+        low = tuple(min(a, b) for a, b in zip(self.low, p, strict=True))
+        high = tuple(max(a, b) for a, b in zip(self.high, p, strict=True))
+        return Sites(positions, keys, order, sorted_keys, low, high)
+
+
+def _key(position) -> int:
+    """:func:`site_key` of one site, in Python integers."""
+    return ((position[0] + _HALF) * _SPAN + (position[1] + _HALF)) * _SPAN + position[2] + _HALF
+
 
 def _seed_key(seed) -> int:
     """The linear part of a site's key (:func:`site_key` less its constant)."""
@@ -262,22 +295,22 @@ def _pack(genes, scalars, sensors, inputs, sites: Sites) -> PackedCells:
 
 def append_cell(cells: tuple, gene) -> tuple:
     """``(*cells, gene)``, packed when ``cells`` is (replication's daughter)."""
-    one = packed((gene,)) if isinstance(cells, PackedCells) else None
     if (
-        one is None
-        or one.sensors.shape[1] != cells.sensors.shape[1]
-        or one.inputs.shape[1] != cells.inputs.shape[1]
+        not isinstance(cells, PackedCells)
+        or len(gene.sensor_weights) != cells.sensors.shape[1]
+        or len(gene.input_weights) != cells.inputs.shape[1]
     ):
         return (*cells, gene)
-    sites = Sites.of(np.concatenate((cells.sites.positions, one.sites.positions)))
+    sites = cells.sites.with_site(gene.position)
     if sites is None:
         return (*cells, gene)
+    row = (gene.expressed, gene.dead, gene.k1, gene.k2, gene.replication, gene.theta1,
+           gene.theta2, gene.concentration, gene.behaviour, *gene.extent)  # fmt: skip
     return _pack(
         (*cells, gene),
-        *(
-            np.concatenate((getattr(cells, k), getattr(one, k)))
-            for k in ("scalars", "sensors", "inputs")
-        ),
+        np.concatenate((cells.scalars, np.array([row], dtype=np.float64))),
+        np.concatenate((cells.sensors, np.array([gene.sensor_weights], dtype=np.float64))),
+        np.concatenate((cells.inputs, np.array([gene.input_weights], dtype=np.float64))),
         sites,
     )
 
@@ -345,7 +378,11 @@ def mutate_cells(
         return parent
     out = list(parent)
     rows = scalars[index].tolist()
-    for c, row, bits_c in zip(index.tolist(), rows, changed[index].tolist(), strict=True):
+    bits_of = changed[index]
+    # the changed weight vectors leave the arrays in one call each
+    sensor_rows = iter(sensors[index[bits_of & 0x200 != 0]].tolist())
+    input_rows = iter(inputs[index[bits_of & 0x400 != 0]].tolist())
+    for c, row, bits_c in zip(index.tolist(), rows, bits_of.tolist(), strict=True):
         gene = out[c]
         d = gene.__dict__.copy()
         if bits_c & 0xFF:  # FIELDS' order: a bit per field that changed
@@ -366,14 +403,15 @@ def mutate_cells(
                     d["theta2"] = row[6]
                 if bits_c & 0x80:
                     d["concentration"] = row[7]
-        if bits_c & 0x100:
-            d["behaviour"] = int(row[8])
-        if bits_c & 0x200:
-            d["sensor_weights"] = tuple(sensors[c].tolist())
-        if bits_c & 0x400:
-            d["input_weights"] = tuple(inputs[c].tolist())
-        if bits_c & 0x800:
-            d["extent"] = (int(row[9]), int(row[10]), int(row[11]))
+        if bits_c & 0xF00:
+            if bits_c & 0x100:
+                d["behaviour"] = int(row[8])
+            if bits_c & 0x200:
+                d["sensor_weights"] = tuple(next(sensor_rows))
+            if bits_c & 0x400:
+                d["input_weights"] = tuple(next(input_rows))
+            if bits_c & 0x800:
+                d["extent"] = (int(row[9]), int(row[10]), int(row[11]))
         new = _new_object(type(gene))
         _set_attribute(new, "__dict__", d)
         out[c] = new
@@ -411,8 +449,12 @@ def crossover_packed(rng: np.random.Generator, a, b):
     if i.size == 0:
         return a, b
     a_cells, b_cells = list(ca), list(cb)
+    same_seed = seed_a == seed_b  # the usual case: a moved gene keeps its position
     for x, y in zip(i.tolist(), j.tolist(), strict=True):
         gene_a, gene_b = ca[x], cb[y]
+        if same_seed:  # genes are immutable: the gene itself, not an equal copy
+            a_cells[x], b_cells[y] = gene_b, gene_a
+            continue
         d_a, d_b = gene_b.__dict__.copy(), gene_a.__dict__.copy()
         d_a["position"], d_b["position"] = gene_a.position, gene_b.position
         a_cells[x] = _with_dict(type(gene_b), d_a)
