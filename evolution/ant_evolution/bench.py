@@ -354,14 +354,20 @@ def main(argv: list[str] | None = None) -> int:
             f"methods' generations run in turn on one pool ({args.generations} each, seed "
             "1000). Wall seconds: generation 0, then medians over the later generations.",
             "",
-            "| method | generation 0 | later generation | evaluation | breeding (tell) | / ANT |",
-            "|---|---:|---:|---:|---:|---:|",
+            "| method | generation 0 | later generation | evaluation | breeding (tell) | "
+            "breeding / evaluation | / ANT |",
+            "|---|---:|---:|---:|---:|---:|---:|",
         ]
         for k, c in costs.items():
             lines.append(
-                f"| {k} | {c['gen0']:.2f} | {c['total']:.2f} | {c['eval']:.2f} | "
-                f"{c['tell']:.2f} | {c['total'] / ant:.1f}x |"
+                f"| {k} | {c['gen0']:.2f} | {c['total']:.3f} | {c['eval']:.3f} | "
+                f"{c['tell']:.3f} | {c['tell'] / c['eval']:.2f}x | {c['total'] / ant:.1f}x |"
             )
+        lines += [
+            "",
+            "Targets: ANT's breeding at most 0.2 x its evaluation; NEAT's generation at most "
+            "1.5 x ANT's.",
+        ]
     text = "\n".join(lines)
     print(text)
     if args.write:
