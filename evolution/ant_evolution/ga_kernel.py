@@ -85,10 +85,11 @@ def _vector(raw, pos, p, vec, c):
 def _mutate(raw, cache, p, n_behaviours, n_extent, scalars, sensors, inputs, changed):
     """Mutate the arrays in place; return the raw outputs used, or -1 when ``raw`` ran short.
 
-    ``scalars`` columns are :data:`FIELDS`' scalars (extent's three last): expressed, dead,
-    k1, k2 (0/1), replication, theta1, theta2, concentration (ranges ``[0, 1]``,
-    ``[-1, 1]``, ``[-1, 1]``, ``[0, 1]``), behaviour, extent. ``changed`` gets, per gene, a
-    bit per field that changed (:data:`FIELDS` order).
+    ``scalars`` columns: expressed, dead, k1, k2 (0/1), replication, theta1, theta2,
+    concentration (ranges ``[0, 1]``, ``[-1, 1]``, ``[-1, 1]``, ``[0, 1]``), behaviour, and
+    the three extents. ``changed`` gets, per gene, a bit per field that changed, bit k for:
+    expressed, dead, k1, k2, replication, theta1, theta2, concentration, behaviour,
+    sensor_weights, input_weights, extent.
     """
     pos = 0
     n = scalars.shape[0]
@@ -133,23 +134,6 @@ def _mutate(raw, cache, p, n_behaviours, n_extent, scalars, sensors, inputs, cha
         if hit:
             changed[c] |= 1 << 10
     return pos
-
-
-FIELDS = (
-    "expressed",
-    "dead",
-    "k1",
-    "k2",
-    "replication",
-    "theta1",
-    "theta2",
-    "concentration",
-    "behaviour",
-    "sensor_weights",
-    "input_weights",
-    "extent",
-)
-"""A cell gene's mutable fields, in the order of ``_mutate``'s change bits."""
 
 
 class PackedCells(tuple):
@@ -242,11 +226,6 @@ class Sites:
 def _key(position) -> int:
     """:func:`site_key` of one site, in Python integers."""
     return ((position[0] + _HALF) * _SPAN + (position[1] + _HALF)) * _SPAN + position[2] + _HALF
-
-
-def _seed_key(seed) -> int:
-    """The linear part of a site's key (:func:`site_key` less its constant)."""
-    return (seed[0] * _SPAN + seed[1]) * _SPAN + seed[2]
 
 
 def site_key(positions) -> np.ndarray:
@@ -385,7 +364,7 @@ def mutate_cells(
     for c, row, bits_c in zip(index.tolist(), rows, bits_of.tolist(), strict=True):
         gene = out[c]
         d = gene.__dict__.copy()
-        if bits_c & 0xFF:  # FIELDS' order: a bit per field that changed
+        if bits_c & 0xFF:  # a bit per field that changed, in _mutate's order
             if bits_c & 0x1:
                 d["expressed"] = row[0] != 0.0
             if bits_c & 0x2:
@@ -440,7 +419,7 @@ def crossover_packed(rng: np.random.Generator, a, b):
     col_a = sa.positions[:, axis]
     i = np.flatnonzero(col_a > cut if cut + seed_a[axis] >= 0 else col_a <= cut)
     # a's gene i and b's gene j share a site when a's key plus a's seed is b's plus b's
-    wanted = sa.keys[i] + (_seed_key(seed_a) - _seed_key(seed_b))
+    wanted = sa.keys[i] + (_key(seed_a) - _key(seed_b))  # keys are linear in the site
     at = np.minimum(np.searchsorted(sb.sorted_keys, wanted), len(sb.sorted_keys) - 1)
     hit = sb.sorted_keys[at] == wanted
     i, j = i[hit], sb.order[at[hit]]
