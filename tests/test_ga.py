@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -267,8 +268,8 @@ def test_generations_bred_on_packed_genes_equal_the_python_ones(monkeypatch, mut
         slow = next_generation(slow_rng, slow, fitness, params)
     assert fast == slow
     assert fast_rng.bit_generator.state == slow_rng.bit_generator.state
-    for a, b in zip(fast, slow, strict=True):
-        assert genome_to_dict(a) == genome_to_dict(b)
+    for a, b in zip(fast, slow, strict=True):  # type for type: the same genome file
+        assert json.dumps(genome_to_dict(a)) == json.dumps(genome_to_dict(b))
 
 
 def test_packed_crossover_matches_python_across_seeds_and_repressed_genes(monkeypatch):
@@ -320,24 +321,50 @@ def test_a_short_block_of_draws_is_drawn_again_from_the_same_state(monkeypatch):
         assert compiled.bit_generator.state == python.bit_generator.state
 
 
-def test_packed_genes_are_plain_tuples_to_pickle_and_equality():
-    """Workers, checkpoints and genome files see plain genes: the arrays never travel."""
+def test_packed_genes_read_compare_and_pickle_as_the_plain_tuple():
+    """A packed genome is its genes to every reader: equal and hashing as the plain tuple,
+    indexed, sliced and iterated alike, the same genome file; it pickles as its arrays and
+    a worker builds the same genes from them."""
     import pickle
 
     from ant_evolution.ga_kernel import PackedCells, packed
 
     g = random_genome(np.random.default_rng(13))
     p = dataclasses.replace(g, cells=packed(g.cells))
-    assert isinstance(p.cells, PackedCells) and p == g
+    assert isinstance(p.cells, PackedCells) and p == g and g == p
+    assert hash(p) == hash(g) and hash(p.cells) == hash(g.cells)
+    assert p.cells[-1] is g.cells[-1] and p.cells[2:5] == g.cells[2:5]
+    assert list(p.cells) == list(g.cells) and len(p.cells) == len(g.cells)
     back = pickle.loads(pickle.dumps(p))
-    assert type(back.cells) is tuple and back == g
-    assert genome_to_dict(p) == genome_to_dict(g)
-    assert not p.cells.scalars.flags.writeable  # children copy; parents are never changed
-    # genes that share a site or differ in vector length stay plain (the Python operators)
+    assert isinstance(back.cells, PackedCells)
+    assert all(x is None for x in back.cells._genes)  # built when first read
+    assert back.cells[3] == g.cells[3] and back.cells._genes[3] is not None
+    assert back == g
+    assert json.dumps(genome_to_dict(back)) == json.dumps(genome_to_dict(g))  # types too
+    assert not back.cells.scalars.flags.writeable  # children copy; parents never change
+    with pytest.raises(IndexError):
+        p.cells[len(g.cells)]
+    # genes that share a site, differ in vector length or are not of the canonical
+    # types stay plain (the Python operators handle them)
     twin = dataclasses.replace(g.cells[1], position=g.cells[0].position)
     assert packed((g.cells[0], twin)) is None
     short = dataclasses.replace(g.cells[1], sensor_weights=g.cells[1].sensor_weights[:3])
     assert packed((g.cells[0], short)) is None
+    for odd in ({"theta1": 1}, {"k1": True}, {"sensor_weights": (np.float64(0.5),) * 14}):
+        assert packed((g.cells[0], dataclasses.replace(g.cells[1], **odd))) is None
+    assert packed((g.cells[0], dataclasses.replace(g.cells[1], theta1=float("inf")))) is None
+
+
+def test_a_generation_bred_on_packed_genes_builds_no_gene_objects():
+    """Mutation and crossover write rows: the changed genes are built only when read."""
+    rng = np.random.default_rng(14)
+    population = [random_genome(rng) for _ in range(10)]
+    params = GAParams(population=10)
+    gen_rng = np.random.Generator(np.random.PCG64(3))
+    for _ in range(2):
+        population = next_generation(gen_rng, population, rng.random(10), params)
+    unbuilt = sum(x is None for g in population for x in getattr(g.cells, "_genes", ()))
+    assert unbuilt > 0.3 * sum(len(g.cells) for g in population)
 
 
 def test_tournament_reads_lists_and_arrays_alike_with_numpy_ties_and_nan():

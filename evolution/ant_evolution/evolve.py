@@ -37,6 +37,7 @@ from ant_evolution.backends import Evaluator, compile_genome
 from ant_evolution.errors import ConfigError
 from ant_evolution.evaluate import DEFAULT_STEPS, ScenarioSet
 from ant_evolution.ga import GAParams, next_generation
+from ant_evolution.ga_kernel import PackedCells
 from ant_evolution.limits import MAX_CONFIG_BYTES, check_config_value
 from ant_evolution.loop import RunState, run_strategy
 from ant_evolution.profiles import (
@@ -357,7 +358,10 @@ class GAState:
 
 def neurons(genome: Genome) -> int:
     """Grown, living neurons (expressed genes without the cell-death flag)."""
-    return sum(g.expressed and not g.dead for g in genome.cells)
+    cells = genome.cells
+    if isinstance(cells, PackedCells):  # from the arrays: the genes need not be built
+        return len(cells.grown())
+    return sum(g.expressed and not g.dead for g in cells)
 
 
 class AntStrategy:

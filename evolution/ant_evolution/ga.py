@@ -323,23 +323,22 @@ def replicate(rng: np.random.Generator, genome: Genome, parent_rule: str = "max"
     """
     cells = genome.cells
     if isinstance(cells, PackedCells):  # flags and replication values from the arrays
-        grown_at = np.flatnonzero((cells.scalars[:, 0] != 0.0) & (cells.scalars[:, 1] == 0.0))
-        replication = cells.scalars[grown_at, 4]
-        grown = [cells[i] for i in grown_at.tolist()]
+        grown = cells.grown().tolist()
+        replication = cells.scalars[grown, 4]
     else:
-        grown = [g for g in cells if g.expressed and not g.dead]
-        replication = np.array([g.replication for g in grown], dtype=np.float64)
+        grown = [i for i, g in enumerate(cells) if g.expressed and not g.dead]
+        replication = np.array([cells[i].replication for i in grown], dtype=np.float64)
     if not grown:
         return genome
     if parent_rule == "proportional":
         total = float(replication.sum())
         if total > 0.0:
             i = int(np.searchsorted(np.cumsum(replication), rng.random() * total, side="right"))
-            parent = grown[min(i, len(grown) - 1)]
+            parent = cells[grown[min(i, len(grown) - 1)]]
         else:
-            parent = grown[int(rng.integers(0, len(grown)))]
+            parent = cells[grown[int(rng.integers(0, len(grown)))]]
     else:
-        parent = grown[int(np.argmax(replication))]  # the first of equals, as max() picks
+        parent = cells[grown[int(np.argmax(replication))]]  # the first of equals, as max()
     seed = genome.tissue.seed
     if isinstance(cells, PackedCells):
 

@@ -22,10 +22,13 @@ Tests (tests/test_ga.py) compare it gene for gene and state for state with
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
+
+from ant_controller.genome import DECISION, MOTOR, CellGene
 
 _DOUBLE = 1.0 / 9007199254740992.0  # 2**-53
 
@@ -136,27 +139,6 @@ def _mutate(raw, cache, p, n_behaviours, n_extent, scalars, sensors, inputs, cha
     return pos
 
 
-class PackedCells(tuple):
-    """A genome's cell genes (a plain tuple of ``CellGene``) that also carries them as arrays.
-
-    Breeding's working form: ``scalars`` (one row per gene, the columns of ``_mutate``),
-    ``sensors`` and ``inputs`` hold the genes' values and ``sites`` their positions, so
-    that a child's mutation and crossover read arrays instead of rebuilding them from
-    thousands of gene objects every generation. The arrays are read-only (children copy
-    before changing them, and share what they do not change) and always agree with the
-    genes; the tuple is equal to, and pickles and copies as, the plain tuple of the same
-    genes, so workers, checkpoints and genome files never see the arrays.
-    """
-
-    scalars: np.ndarray
-    sensors: np.ndarray
-    inputs: np.ndarray
-    sites: Sites
-
-    def __reduce__(self):
-        return (tuple, (tuple(self),))
-
-
 _SPAN = 1 << 16
 _HALF = 1 << 15
 
@@ -234,16 +216,190 @@ def site_key(positions) -> np.ndarray:
     return (p[:, 0] * _SPAN + p[:, 1]) * _SPAN + p[:, 2]
 
 
-def packed(cells: tuple) -> PackedCells | None:
+class PackedCells(Sequence):
+    """A genome's cell genes held as arrays; each ``CellGene`` object is built when first read.
+
+    Breeding's working form. ``kinds`` (0 motor, 1 decision), ``scalars`` (one row per
+    gene, the columns of ``_mutate``), ``sensors`` and ``inputs`` hold the genes' values
+    and ``sites`` their positions, so that mutation, crossover and replication read and
+    write rows instead of gene objects. A child shares the gene objects of its parent's
+    genes it did not change and builds the others only when something reads them (the
+    development in an evaluating worker, a checkpoint, the best genome's file): in the
+    breeding process a generation builds no gene objects at all. The arrays are read-only
+    (children copy before changing them, and share what they do not change) and always
+    agree with the genes.
+
+    To the rest of the code it is the tuple of its genes: a sequence that compares equal
+    to, and hashes as, the plain tuple of the same genes. It pickles as its arrays (a
+    worker builds the genes from the rows, beside its evaluation); genome files and
+    checkpoints hold the genes, as ever (``genome_to_dict`` reads them).
+
+    Only genes of the canonical types pack (``float`` values, ``int`` bits, extents and
+    positions, ``bool`` flags: what ``random_cell``, the operators and ``genome_from_dict``
+    make), so a gene built from its row is the gene, type for type, and genome files
+    come out byte for byte as from the Python operators.
+    """
+
+    __slots__ = ("kinds", "scalars", "sensors", "inputs", "sites", "_genes")
+
+    def __init__(self, kinds, scalars, sensors, inputs, sites: Sites, genes: list) -> None:
+        for array in (kinds, scalars, sensors, inputs):
+            array.flags.writeable = False
+        self.kinds, self.scalars, self.sensors, self.inputs = kinds, scalars, sensors, inputs
+        self.sites = sites
+        self._genes = genes  # a gene object, or None until first read
+
+    def __len__(self) -> int:
+        return len(self._genes)
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return self.genes()[index]
+        gene = self._genes[index]
+        if gene is None:
+            self._build([range(len(self._genes))[index]])
+            gene = self._genes[index]
+        return gene
+
+    def __iter__(self):
+        return iter(self.genes())
+
+    def genes(self) -> tuple:
+        """The genes as a plain tuple (building those not built yet)."""
+        genes = self._genes
+        missing = [i for i, g in enumerate(genes) if g is None]
+        if missing:
+            self._build(missing)
+        return tuple(genes)
+
+    def _build(self, index: list[int]) -> None:
+        genes = self._genes
+        rows = self.scalars[index].tolist()
+        sensors = self.sensors[index].tolist()
+        inputs = self.inputs[index].tolist()
+        positions = self.sites.positions[index].tolist()
+        kinds = self.kinds[index].tolist()
+        for i, r, s, w, p, k in zip(index, rows, sensors, inputs, positions, kinds, strict=True):
+            genes[i] = _with_dict(
+                CellGene,
+                {
+                    "kind": _KINDS[k],
+                    "expressed": r[0] != 0.0,
+                    "dead": r[1] != 0.0,
+                    "position": tuple(p),
+                    "replication": r[4],
+                    "theta1": r[5],
+                    "theta2": r[6],
+                    "k1": int(r[2]),
+                    "k2": int(r[3]),
+                    "sensor_weights": tuple(s),
+                    "input_weights": tuple(w),
+                    "behaviour": int(r[8]),
+                    "concentration": r[7],
+                    "extent": (int(r[9]), int(r[10]), int(r[11])),
+                },
+            )
+
+    def __eq__(self, other) -> bool:
+        if isinstance(other, PackedCells):
+            other = other.genes()
+        elif not isinstance(other, tuple):
+            return NotImplemented
+        return self.genes() == other
+
+    def __hash__(self) -> int:
+        return hash(self.genes())
+
+    def __repr__(self) -> str:
+        return repr(self.genes())
+
+    def __reduce__(self):
+        return (
+            _restore,
+            (self.kinds, self.scalars, self.sensors, self.inputs, self.sites.positions),
+        )
+
+    def grown(self) -> np.ndarray:
+        """Indices of the expressed, living genes (the cells that grow), in gene order."""
+        return np.flatnonzero((self.scalars[:, 0] != 0.0) & (self.scalars[:, 1] == 0.0))
+
+    def with_rows(self, scalars, sensors, inputs, changed: list[int]) -> PackedCells:
+        """These genes with new values (same kinds and sites): the rows ``changed`` differ."""
+        genes = self._genes.copy()
+        for i in changed:
+            genes[i] = None
+        return PackedCells(self.kinds, scalars, sensors, inputs, self.sites, genes)
+
+
+def _restore(kinds, scalars, sensors, inputs, positions) -> PackedCells:
+    """A pickled :class:`PackedCells` (its genes built when first read)."""
+    sites = Sites.of(np.array(positions, dtype=np.int64))
+    if sites is None:
+        raise ValueError("packed cell genes with coinciding or far-out sites")
+    return PackedCells(
+        np.array(kinds, dtype=np.int8),
+        np.array(scalars, dtype=np.float64),
+        np.array(sensors, dtype=np.float64),
+        np.array(inputs, dtype=np.float64),
+        sites,
+        [None] * len(scalars),
+    )
+
+
+_KINDS = (MOTOR, DECISION)
+_KIND_CODE = {MOTOR: 0, DECISION: 1}
+
+
+def _canonical(g) -> bool:
+    """Whether a gene's values have the types a gene built from its row has."""
+    return (
+        type(g) is CellGene
+        and g.kind in _KIND_CODE
+        and type(g.expressed) is bool
+        and type(g.dead) is bool
+        and type(g.k1) is int
+        and type(g.k2) is int
+        and type(g.behaviour) is int
+        and type(g.replication) is float
+        and type(g.theta1) is float
+        and type(g.theta2) is float
+        and type(g.concentration) is float
+        and type(g.position) is tuple
+        and type(g.extent) is tuple
+        and type(g.sensor_weights) is tuple
+        and type(g.input_weights) is tuple
+        and len(g.position) == 3
+        and len(g.extent) == 3
+        and all(type(v) is int for v in (*g.position, *g.extent))
+        and all(type(v) is float for v in (*g.sensor_weights, *g.input_weights))
+    )
+
+
+def _row(g) -> tuple:
+    """A gene's ``scalars`` row."""
+    return (g.expressed, g.dead, g.k1, g.k2, g.replication, g.theta1, g.theta2,
+            g.concentration, g.behaviour, *g.extent)  # fmt: skip
+
+
+def _exact(*arrays: np.ndarray) -> bool:
+    """Finite values whose integers a float64 holds exactly (rows give the genes back)."""
+    return all(bool(np.all(np.abs(a) < _EXACT)) for a in arrays)
+
+
+_EXACT = float(2**53)
+
+
+def packed(cells) -> PackedCells | None:
     """``cells`` in the packed form (itself when it is already).
 
-    ``None`` when the genes differ in vector length or two share a site (not a valid
-    tissue: the Python operators handle it).
+    ``None`` when the genes differ in vector length, two share a site, or a gene is not
+    of the canonical types or holds a value a row cannot give back exactly (not a tissue
+    the operators make: the Python operators handle it).
     """
     if isinstance(cells, PackedCells):
         return cells
     n = len(cells)
-    if n == 0:
+    if n == 0 or not all(map(_canonical, cells)):
         return None
     n_s, n_i = len(cells[0].sensor_weights), len(cells[0].input_weights)
     if any(len(g.sensor_weights) != n_s or len(g.input_weights) != n_i for g in cells):
@@ -251,46 +407,37 @@ def packed(cells: tuple) -> PackedCells | None:
     sites = Sites.of(np.array([g.position for g in cells], dtype=np.int64).reshape(n, 3))
     if sites is None:
         return None
-    scalars = np.array(
-        [
-            (g.expressed, g.dead, g.k1, g.k2, g.replication, g.theta1, g.theta2,
-             g.concentration, g.behaviour, *g.extent)
-            for g in cells
-        ],
-        dtype=np.float64,
-    )  # fmt: skip
+    scalars = np.array([_row(g) for g in cells], dtype=np.float64)
     sensors = np.array([g.sensor_weights for g in cells], dtype=np.float64).reshape(n, n_s)
     inputs = np.array([g.input_weights for g in cells], dtype=np.float64).reshape(n, n_i)
-    return _pack(cells, scalars, sensors, inputs, sites)
+    if not _exact(scalars, sensors, inputs):
+        return None
+    kinds = np.array([_KIND_CODE[g.kind] for g in cells], dtype=np.int8)
+    return PackedCells(kinds, scalars, sensors, inputs, sites, list(cells))
 
 
-def _pack(genes, scalars, sensors, inputs, sites: Sites) -> PackedCells:
-    out = PackedCells(genes)
-    for array in (scalars, sensors, inputs):
-        array.flags.writeable = False
-    out.scalars, out.sensors, out.inputs, out.sites = scalars, sensors, inputs, sites
-    return out
-
-
-def append_cell(cells: tuple, gene) -> tuple:
+def append_cell(cells, gene) -> tuple | PackedCells:
     """``(*cells, gene)``, packed when ``cells`` is (replication's daughter)."""
     if (
         not isinstance(cells, PackedCells)
+        or not _canonical(gene)
         or len(gene.sensor_weights) != cells.sensors.shape[1]
         or len(gene.input_weights) != cells.inputs.shape[1]
     ):
         return (*cells, gene)
     sites = cells.sites.with_site(gene.position)
-    if sites is None:
+    row = np.array([_row(gene)], dtype=np.float64)
+    sensors = np.array([gene.sensor_weights], dtype=np.float64)
+    inputs = np.array([gene.input_weights], dtype=np.float64)
+    if sites is None or not _exact(row, sensors, inputs):
         return (*cells, gene)
-    row = (gene.expressed, gene.dead, gene.k1, gene.k2, gene.replication, gene.theta1,
-           gene.theta2, gene.concentration, gene.behaviour, *gene.extent)  # fmt: skip
-    return _pack(
-        (*cells, gene),
-        np.concatenate((cells.scalars, np.array([row], dtype=np.float64))),
-        np.concatenate((cells.sensors, np.array([gene.sensor_weights], dtype=np.float64))),
-        np.concatenate((cells.inputs, np.array([gene.input_weights], dtype=np.float64))),
+    return PackedCells(
+        np.append(cells.kinds, np.int8(_KIND_CODE[gene.kind])),
+        np.concatenate((cells.scalars, row)),
+        np.concatenate((cells.sensors, sensors)),
+        np.concatenate((cells.inputs, inputs)),
         sites,
+        [*cells._genes, gene],
     )
 
 
@@ -355,46 +502,7 @@ def mutate_cells(
     index = np.flatnonzero(changed)
     if index.size == 0:
         return parent
-    out = list(parent)
-    rows = scalars[index].tolist()
-    bits_of = changed[index]
-    # the changed weight vectors leave the arrays in one call each
-    sensor_rows = iter(sensors[index[bits_of & 0x200 != 0]].tolist())
-    input_rows = iter(inputs[index[bits_of & 0x400 != 0]].tolist())
-    for c, row, bits_c in zip(index.tolist(), rows, bits_of.tolist(), strict=True):
-        gene = out[c]
-        d = gene.__dict__.copy()
-        if bits_c & 0xFF:  # a bit per field that changed, in _mutate's order
-            if bits_c & 0x1:
-                d["expressed"] = row[0] != 0.0
-            if bits_c & 0x2:
-                d["dead"] = row[1] != 0.0
-            if bits_c & 0x4:
-                d["k1"] = int(row[2])
-            if bits_c & 0x8:
-                d["k2"] = int(row[3])
-            if bits_c & 0xF0:
-                if bits_c & 0x10:
-                    d["replication"] = row[4]
-                if bits_c & 0x20:
-                    d["theta1"] = row[5]
-                if bits_c & 0x40:
-                    d["theta2"] = row[6]
-                if bits_c & 0x80:
-                    d["concentration"] = row[7]
-        if bits_c & 0xF00:
-            if bits_c & 0x100:
-                d["behaviour"] = int(row[8])
-            if bits_c & 0x200:
-                d["sensor_weights"] = tuple(next(sensor_rows))
-            if bits_c & 0x400:
-                d["input_weights"] = tuple(next(input_rows))
-            if bits_c & 0x800:
-                d["extent"] = (int(row[9]), int(row[10]), int(row[11]))
-        new = _new_object(type(gene))
-        _set_attribute(new, "__dict__", d)
-        out[c] = new
-    return _pack(out, scalars, sensors, inputs, parent.sites)
+    return parent.with_rows(scalars, sensors, inputs, index.tolist())
 
 
 def crossover_packed(rng: np.random.Generator, a, b):
@@ -427,25 +535,24 @@ def crossover_packed(rng: np.random.Generator, a, b):
     i, j = i[same], j[same]
     if i.size == 0:
         return a, b
-    a_cells, b_cells = list(ca), list(cb)
-    same_seed = seed_a == seed_b  # the usual case: a moved gene keeps its position
-    for x, y in zip(i.tolist(), j.tolist(), strict=True):
-        gene_a, gene_b = ca[x], cb[y]
-        if same_seed:  # genes are immutable: the gene itself, not an equal copy
-            a_cells[x], b_cells[y] = gene_b, gene_a
-            continue
-        d_a, d_b = gene_b.__dict__.copy(), gene_a.__dict__.copy()
-        d_a["position"], d_b["position"] = gene_a.position, gene_b.position
-        a_cells[x] = _with_dict(type(gene_b), d_a)
-        b_cells[y] = _with_dict(type(gene_a), d_b)
+    a_genes, b_genes = ca._genes.copy(), cb._genes.copy()
+    i_list, j_list = i.tolist(), j.tolist()
+    if seed_a == seed_b:  # the usual case: a moved gene keeps its position, so moves itself
+        for x, y in zip(i_list, j_list, strict=True):
+            a_genes[x], b_genes[y] = cb._genes[y], ca._genes[x]
+    else:  # at another position: built from its row when first read
+        for x in i_list:
+            a_genes[x] = None
+        for y in j_list:
+            b_genes[y] = None
     arrays_a, arrays_b = [], []
-    for k in ("scalars", "sensors", "inputs"):
+    for k in ("kinds", "scalars", "sensors", "inputs"):
         va, vb = getattr(ca, k).copy(), getattr(cb, k).copy()
         va[i], vb[j] = getattr(cb, k)[j], getattr(ca, k)[i]
         arrays_a.append(va)
         arrays_b.append(vb)
-    child_a = _pack(a_cells, *arrays_a, sa)
-    child_b = _pack(b_cells, *arrays_b, sb)
+    child_a = PackedCells(*arrays_a, sa, a_genes)
+    child_b = PackedCells(*arrays_b, sb, b_genes)
     return with_fields(a, {"cells": child_a}), with_fields(b, {"cells": child_b})
 
 
