@@ -272,6 +272,53 @@ def test_generations_bred_on_packed_genes_equal_the_python_ones(monkeypatch, mut
         assert json.dumps(genome_to_dict(a)) == json.dumps(genome_to_dict(b))
 
 
+@pytest.mark.parametrize(
+    "readings",
+    [
+        {"mutation_scope": "gene", "mutation_operator": "perturb"},  # the paper profile
+        {"mutation_scope": "gene", "mutation_operator": "redraw"},
+        {"mutation_scope": "parameter", "mutation_operator": "perturb"},
+    ],
+)
+def test_slot_mutation_on_packed_genes_equals_the_python_one(monkeypatch, readings):
+    """Mutation by parameter slots (``paper``'s readings) packs its children too: eight
+    generations give the Python operators' children, draws and genome files."""
+    import ant_evolution.ga as ga
+    from ant_evolution.ga_kernel import PackedCells
+
+    rng = np.random.default_rng(15)
+    start = [random_genome(rng, n_neurons=(20, 60)) for _ in range(14)]
+    start = [
+        dataclasses.replace(g, tissue=dataclasses.replace(g.tissue, replication_probability=0.5))
+        for g in start
+    ]
+    params = GAParams(
+        population=14, mutation_prob=0.2, replication_parent="proportional", **readings
+    )
+    fast_rng = np.random.Generator(np.random.PCG64(22))
+    slow_rng = _twin(fast_rng)
+    fitnesses = [np.random.default_rng(6 + k).random(14) for k in range(8)]
+    fast = start
+    for fitness in fitnesses:
+        fast = next_generation(fast_rng, fast, fitness, params)
+    assert sum(isinstance(g.cells, PackedCells) for g in fast) >= 10
+    for g in fast:
+        if isinstance(g.cells, PackedCells):
+            _assert_packed_agrees(g)
+    _python_only(monkeypatch)
+    monkeypatch.setattr(
+        ga, "with_genes", lambda cells, ch: tuple(ch.get(i, g) for i, g in enumerate(cells))
+    )
+    slow = start
+    for fitness in fitnesses:
+        slow = next_generation(slow_rng, slow, fitness, params)
+    assert not any(isinstance(g.cells, PackedCells) for g in slow)
+    assert fast == slow
+    assert fast_rng.bit_generator.state == slow_rng.bit_generator.state
+    for a, b in zip(fast, slow, strict=True):
+        assert json.dumps(genome_to_dict(a)) == json.dumps(genome_to_dict(b))
+
+
 def test_packed_crossover_matches_python_across_seeds_and_repressed_genes(monkeypatch):
     """Parents whose tissue seeds differ and whose genes are partly repressed: the array
     crossover exchanges the genes the Python one does, with the same draws."""

@@ -64,6 +64,7 @@ from ant_evolution.ga_kernel import (
     crossover_packed,
     mutate_cells,
     with_fields,
+    with_genes,
 )
 
 MUTATION_SCOPES = ("parameter", "gene")
@@ -257,11 +258,20 @@ def _chosen_slots(rng: np.random.Generator, n_slots: int, params: GAParams) -> l
 
 
 def _mutate_slots(rng: np.random.Generator, genome: Genome, params: GAParams) -> Genome:
-    """Mutation under the ``gene`` scope or the ``perturb`` operator (see the module)."""
-    cells = tuple(
-        _mutate_gene_slots(rng, g, _chosen_slots(rng, len(_CELL_SLOTS), params), params)
-        for g in genome.cells
-    )
+    """Mutation under the ``gene`` scope or the ``perturb`` operator (see the module).
+
+    Only the genes that mutate are read (a packed genome builds no others), in gene order,
+    each right after its slots are drawn; the child is packed when its parent's genes pack
+    (:func:`ant_evolution.ga_kernel.with_genes`).
+    """
+    cells = genome.cells
+    n_slots = len(_CELL_SLOTS)
+    changes: dict[int, CellGene] = {}
+    for i in range(len(cells)):
+        slots = _chosen_slots(rng, n_slots, params)
+        if slots:
+            changes[i] = _mutate_gene_slots(rng, cells[i], slots, params)
+    cells = with_genes(cells, changes)
     t = genome.tissue
     n_tissue = 3 if t.robots is not None else 2
     changes: dict = {}

@@ -441,6 +441,43 @@ def append_cell(cells, gene) -> tuple | PackedCells:
     )
 
 
+def with_genes(cells, changes: dict[int, CellGene]):
+    """``cells`` with the genes at the indices of ``changes`` replaced (same kinds and sites).
+
+    Packed (:func:`packed`) when the genes pack: the new genes' rows are written and the
+    others' gene objects shared, as a mutation under ``mutate_cells`` does; otherwise a
+    plain tuple. ``cells`` itself when nothing changes.
+    """
+    if not changes:
+        return cells
+    parent = packed(cells)
+    if parent is not None and all(
+        _canonical(g)
+        and _KIND_CODE[g.kind] == parent.kinds[i]
+        and g.position == tuple(parent.sites.positions[i].tolist())
+        and len(g.sensor_weights) == parent.sensors.shape[1]
+        and len(g.input_weights) == parent.inputs.shape[1]
+        for i, g in changes.items()
+    ):
+        index = list(changes)
+        genes = [changes[i] for i in index]
+        rows = np.array([_row(g) for g in genes], dtype=np.float64)
+        sensor_rows = np.array([g.sensor_weights for g in genes], dtype=np.float64)
+        input_rows = np.array([g.input_weights for g in genes], dtype=np.float64)
+        if _exact(rows, sensor_rows, input_rows):
+            scalars, sensors, inputs = (
+                parent.scalars.copy(),
+                parent.sensors.copy(),
+                parent.inputs.copy(),
+            )
+            scalars[index], sensors[index], inputs[index] = rows, sensor_rows, input_rows
+            child = parent.with_rows(scalars, sensors, inputs, [])
+            for i, g in zip(index, genes, strict=True):
+                child._genes[i] = g
+            return child
+    return tuple(changes.get(i, g) for i, g in enumerate(cells))
+
+
 def _block_size(n: int, n_s: int, n_i: int) -> int:
     """Raw outputs drawn for one genome's mutation.
 
