@@ -1,4 +1,12 @@
-"""``v1``'s per-parameter mutation of a genome's cell genes, compiled, draw for draw.
+"""Breeding on arrays: the packed form of a genome's cell genes, and ``v1``'s mutation compiled.
+
+:class:`PackedCells` holds a genome's cell genes as rows of read-only arrays and builds a
+``CellGene`` object only when something reads it; :func:`mutate_cells`,
+:func:`crossover_packed`, :func:`append_cell` and :func:`with_genes` give
+:mod:`ant_evolution.ga`'s operators their children on rows, the same children and draws
+as the Python operators (the specification, which handles every genome these do not).
+
+``v1``'s per-parameter mutation, compiled, draw for draw:
 
 :func:`ant_evolution.ga.mutate_cell` is the specification: every parameter of a cell gene
 mutates with probability p, drawing from the GA's ``numpy.random.Generator`` in a fixed
@@ -350,24 +358,19 @@ _KINDS = (MOTOR, DECISION)
 _KIND_CODE = {MOTOR: 0, DECISION: 1}
 
 
+_TYPES = {
+    "expressed": bool, "dead": bool, "k1": int, "k2": int, "behaviour": int,
+    "replication": float, "theta1": float, "theta2": float, "concentration": float,
+    "position": tuple, "extent": tuple, "sensor_weights": tuple, "input_weights": tuple,
+}  # fmt: skip
+
+
 def _canonical(g) -> bool:
     """Whether a gene's values have the types a gene built from its row has."""
     return (
         type(g) is CellGene
         and g.kind in _KIND_CODE
-        and type(g.expressed) is bool
-        and type(g.dead) is bool
-        and type(g.k1) is int
-        and type(g.k2) is int
-        and type(g.behaviour) is int
-        and type(g.replication) is float
-        and type(g.theta1) is float
-        and type(g.theta2) is float
-        and type(g.concentration) is float
-        and type(g.position) is tuple
-        and type(g.extent) is tuple
-        and type(g.sensor_weights) is tuple
-        and type(g.input_weights) is tuple
+        and all(type(getattr(g, name)) is t for name, t in _TYPES.items())
         and len(g.position) == 3
         and len(g.extent) == 3
         and all(type(v) is int for v in (*g.position, *g.extent))
