@@ -185,6 +185,54 @@ def test_compiled_mutation_gives_mutate_cells_genes_and_generator_state(p):
         assert compiled.random() == python.random()
 
 
+@pytest.mark.parametrize("scope", ["gene", "parameter"])
+@pytest.mark.parametrize("operator", ["redraw", "perturb"])
+@pytest.mark.parametrize("p", [0.025, 0.3, 1.0])
+def test_compiled_slot_mutation_gives_the_python_loops_genes_and_generator_state(
+    monkeypatch, scope, operator, p
+):
+    """``mutate_by_slots`` is ``_mutate_slots``' cell loop, gene for gene and state for
+    state, also from a state that keeps half a 32-bit draw and with blocks of raw draws
+    that run short (drawn again from the same state)."""
+    import ant_evolution.ga as ga
+    from ant_evolution import ga_kernel
+
+    params = GAParams(mutation_prob=p, mutation_scope=scope, mutation_operator=operator)
+    for seed in range(8):
+        if seed >= 6:  # short blocks: every genome runs out at least once
+            monkeypatch.setattr(ga_kernel, "_on_raw_outputs", _short_blocks(ga_kernel))
+        genome = random_genome(np.random.default_rng(seed))
+        python = np.random.Generator(np.random.PCG64(200 + seed))
+        if seed % 2:
+            python.integers(0, 5)  # leaves the high half of a 64-bit output kept
+        compiled = _twin(python)
+        changes = {}
+        for i, g in enumerate(genome.cells):
+            slots = ga._chosen_slots(python, len(ga._CELL_SLOTS), params)
+            if slots:
+                changes[i] = ga._mutate_gene_slots(python, g, slots, params)
+        expected = tuple(changes.get(i, g) for i, g in enumerate(genome.cells))
+        got = ga_kernel.mutate_by_slots(
+            compiled, genome.cells, p, ga._CELL_SLOTS, scope, operator, params.mutation_width
+        )
+        assert got == expected
+        assert json.dumps([dataclasses.asdict(g) for g in got]) == json.dumps(
+            [dataclasses.asdict(g) for g in expected]
+        )
+        assert compiled.bit_generator.state == python.bit_generator.state
+        assert compiled.random() == python.random()
+        monkeypatch.undo()
+
+
+def _short_blocks(ga_kernel):
+    real = ga_kernel._on_raw_outputs
+
+    def short(rng, parent, block, kernel, *args):
+        return real(rng, parent, 8, kernel, *args)
+
+    return short
+
+
 def test_compiled_bounded_integers_follow_numpy_through_rejections():
     """Lemire's method with a bound whose rejections are frequent (3e9 of 2**32)."""
     from ant_evolution.ga_kernel import _integer
@@ -224,6 +272,7 @@ def _python_only(monkeypatch):
     import ant_evolution.ga as ga
 
     monkeypatch.setattr(ga, "mutate_cells", lambda *args: None)
+    monkeypatch.setattr(ga, "mutate_by_slots", lambda *args: None)
     monkeypatch.setattr(ga, "crossover_packed", lambda *args: None)
 
 
@@ -280,11 +329,16 @@ def test_generations_bred_on_packed_genes_equal_the_python_ones(monkeypatch, mut
         {"mutation_scope": "parameter", "mutation_operator": "perturb"},
     ],
 )
-def test_slot_mutation_on_packed_genes_equals_the_python_one(monkeypatch, readings):
-    """Mutation by parameter slots (``paper``'s readings) packs its children too: eight
-    generations give the Python operators' children, draws and genome files."""
+@pytest.mark.parametrize("compiled", [True, False])
+def test_slot_mutation_on_packed_genes_equals_the_python_one(monkeypatch, readings, compiled):
+    """Mutation by parameter slots (``paper``'s readings), compiled or in Python on packed
+    genes, packs its children too: eight generations give the Python operators' children,
+    draws and genome files."""
     import ant_evolution.ga as ga
     from ant_evolution.ga_kernel import PackedCells
+
+    if not compiled:
+        monkeypatch.setattr(ga, "mutate_by_slots", lambda *args: None)
 
     rng = np.random.default_rng(15)
     start = [random_genome(rng, n_neurons=(20, 60)) for _ in range(14)]

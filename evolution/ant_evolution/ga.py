@@ -62,6 +62,7 @@ from ant_evolution.ga_kernel import (
     PackedCells,
     append_cell,
     crossover_packed,
+    mutate_by_slots,
     mutate_cells,
     with_fields,
     with_genes,
@@ -260,18 +261,30 @@ def _chosen_slots(rng: np.random.Generator, n_slots: int, params: GAParams) -> l
 def _mutate_slots(rng: np.random.Generator, genome: Genome, params: GAParams) -> Genome:
     """Mutation under the ``gene`` scope or the ``perturb`` operator (see the module).
 
-    Only the genes that mutate are read (a packed genome builds no others), in gene order,
-    each right after its slots are drawn; the child is packed when its parent's genes pack
-    (:func:`ant_evolution.ga_kernel.with_genes`).
+    The cell genes mutate compiled on their rows
+    (:func:`ant_evolution.ga_kernel.mutate_by_slots`: the same draws, genes and generator
+    state) when they pack; otherwise in Python, where only the genes that mutate are read,
+    in gene order, each right after its slots are drawn, and the child is packed when its
+    parent's genes pack (:func:`ant_evolution.ga_kernel.with_genes`).
     """
-    cells = genome.cells
-    n_slots = len(_CELL_SLOTS)
-    changes: dict[int, CellGene] = {}
-    for i in range(len(cells)):
-        slots = _chosen_slots(rng, n_slots, params)
-        if slots:
-            changes[i] = _mutate_gene_slots(rng, cells[i], slots, params)
-    cells = with_genes(cells, changes)
+    cells = mutate_by_slots(
+        rng,
+        genome.cells,
+        params.mutation_prob,
+        _CELL_SLOTS,
+        params.mutation_scope,
+        params.mutation_operator,
+        params.mutation_width,
+    )
+    if cells is None:  # not a PCG64 generator, or genes that do not pack
+        cells = genome.cells
+        n_slots = len(_CELL_SLOTS)
+        changes: dict[int, CellGene] = {}
+        for i in range(len(cells)):
+            slots = _chosen_slots(rng, n_slots, params)
+            if slots:
+                changes[i] = _mutate_gene_slots(rng, cells[i], slots, params)
+        cells = with_genes(cells, changes)
     t = genome.tissue
     n_tissue = 3 if t.robots is not None else 2
     changes: dict = {}

@@ -2,9 +2,11 @@
 
 :class:`PackedCells` holds a genome's cell genes as rows of read-only arrays and builds a
 ``CellGene`` object only when something reads it; :func:`mutate_cells`,
-:func:`crossover_packed`, :func:`append_cell` and :func:`with_genes` give
-:mod:`ant_evolution.ga`'s operators their children on rows, the same children and draws
-as the Python operators (the specification, which handles every genome these do not).
+:func:`mutate_by_slots`, :func:`crossover_packed`, :func:`append_cell` and
+:func:`with_genes` give :mod:`ant_evolution.ga`'s operators their children on rows, the
+same children and draws as the Python operators (the specification, which handles every
+genome these do not). :func:`mutate_by_slots` is the ``paper`` profile's mutation (by
+slots: per gene or per parameter, redrawn or perturbed), compiled as below.
 
 ``v1``'s per-parameter mutation, compiled, draw for draw:
 
@@ -30,6 +32,7 @@ Tests (tests/test_ga.py) compare it gene for gene and state for state with
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -144,6 +147,90 @@ def _mutate(raw, cache, p, n_behaviours, n_extent, scalars, sensors, inputs, cha
         pos, hit = _vector(raw, pos, p, inputs, c)
         if hit:
             changed[c] |= 1 << 10
+    return pos
+
+
+# slot kinds of :func:`_mutate_by_slots` (``ant_evolution.ga._CELL_SLOTS``' kinds)
+SLOT_KINDS = ("flag", "bit", "real", "int", "category")
+# where a field's values lie: (array, first column); 0 scalars, 1 sensors, 2 inputs
+COLUMNS = {
+    "expressed": (0, 0), "dead": (0, 1), "k1": (0, 2), "k2": (0, 3), "replication": (0, 4),
+    "theta1": (0, 5), "theta2": (0, 6), "concentration": (0, 7), "behaviour": (0, 8),
+    "extent": (0, 9), "sensor_weights": (1, 0), "input_weights": (2, 0),
+}  # fmt: skip
+
+
+@nb.njit(cache=True)
+def _slot_value(raw, pos, cache, kind, value, lo, hi, perturb, width):
+    """``ga._new_value`` on one slot: (new value, position), position -1 when ``raw`` ran short."""
+    if kind == 0:  # flag: not value
+        return (0.0 if value != 0.0 else 1.0), pos
+    if kind == 1:  # bit: 1 - value
+        return 1.0 - value, pos
+    if kind == 4 or (kind == 3 and not perturb):  # integers(lo, hi) / integers(lo, hi + 1)
+        n = int(hi) - int(lo) + (1 if kind == 3 else 0)
+        v, pos = _integer(raw, pos, cache, n)
+        if v < 0:
+            return 0.0, -1
+        return float(v + int(lo)), pos
+    d, pos = _double(raw, pos)
+    if kind == 3:  # an integer steps by one: random() < 0.5 up, else down, clipped
+        step = 1 if d < 0.5 else -1
+        return float(min(max(int(value) + step, int(lo)), int(hi))), pos
+    if not perturb:  # uniform(lo, hi)
+        return lo + (hi - lo) * d, pos
+    w = width * (hi - lo)
+    u = -w + (w - -w) * d  # uniform(-w, w), as numpy computes it
+    return min(max(value + u, lo), hi), pos
+
+
+@nb.njit(cache=True)
+def _mutate_by_slots(
+    raw, cache, p, gene_scope, perturb, width, where, column, kind, lo, hi,
+    scalars, sensors, inputs, changed,
+):  # fmt: skip
+    """``ga._mutate_slots``' cell loop on the arrays; the outputs used, or -1 when short.
+
+    Per gene, as ``_chosen_slots`` draws: under the gene scope ``random() < p`` and then
+    one slot ``integers(0, n_slots)``; under the parameter scope ``random(n_slots) < p``.
+    Each chosen slot in order then draws its new value (:func:`_slot_value`).
+    """
+    pos = 0
+    n = scalars.shape[0]
+    n_slots = kind.shape[0]
+    need = 6 if gene_scope else 2 * n_slots + 4
+    arrays = (scalars, sensors, inputs)
+    chosen = np.empty(n_slots, dtype=np.int64)
+    for c in range(n):
+        if pos + need >= raw.shape[0]:
+            return -1
+        m = 0
+        if gene_scope:
+            d, pos = _double(raw, pos)
+            if d < p:
+                s, pos = _integer(raw, pos, cache, n_slots)
+                if s < 0:
+                    return -1
+                chosen[0] = s
+                m = 1
+        else:
+            for s in range(n_slots):
+                d, pos = _double(raw, pos)
+                if d < p:
+                    chosen[m] = s
+                    m += 1
+        for k in range(m):
+            s = chosen[k]
+            if pos + 2 >= raw.shape[0]:
+                return -1
+            a = arrays[where[s]]
+            value, pos = _slot_value(
+                raw, pos, cache, kind[s], a[c, column[s]], lo[s], hi[s], perturb, width
+            )
+            if pos < 0:
+                return -1
+            a[c, column[s]] = value
+            changed[c] = 1
     return pos
 
 
@@ -506,24 +593,89 @@ def mutate_cells(
         n_behaviours: ``integers(0, n_behaviours)`` draws a behaviour.
         n_extent: ``integers(0, n_extent)`` draws a field half-extent.
     """
-    n = len(cells)
-    if n == 0:
+    parent = _kernel_parent(rng, cells)
+    if not isinstance(parent, PackedCells):
+        return parent
+    n_s, n_i = parent.sensors.shape[1], parent.inputs.shape[1]
+    block = _block_size(len(parent), n_s, n_i)
+    return _on_raw_outputs(rng, parent, block, _mutate, p, n_behaviours, n_extent)
+
+
+def mutate_by_slots(
+    rng: np.random.Generator, cells, p: float, slots, scope: str, operator: str, width: float
+):
+    """``ga._mutate_slots``' cell loop, compiled; ``rng`` left as that loop leaves it.
+
+    Returns the genes packed, or ``None`` (``rng`` untouched) when the generator is not
+    PCG64 or the genes cannot be packed: the caller then runs the Python loop.
+
+    Args:
+        rng: The GA's generator (a PCG64 one).
+        cells: The genome's cell genes, in order (packed or not).
+        p: The mutation probability (per gene or per parameter, as ``scope`` says).
+        slots: ``ga._CELL_SLOTS``: (field, index or -1, kind, low, high) per slot.
+        scope: ``"gene"`` or ``"parameter"``.
+        operator: ``"redraw"`` or ``"perturb"``.
+        width: The perturbation's half-width as a fraction of the range.
+    """
+    parent = _kernel_parent(rng, cells)
+    if not isinstance(parent, PackedCells):
+        return parent
+    where, column, kind, lo, hi = _slot_arrays(tuple(slots))
+    widths = (parent.sensors.shape[1], parent.inputs.shape[1])
+    if widths != (int(np.sum(where == 1)), int(np.sum(where == 2))):
+        return None  # not a slot per weight: the Python loop
+    gene_scope = scope == "gene"
+    block = len(parent) * (3 if gene_scope else 2 * len(slots) + 2) + 64
+    return _on_raw_outputs(
+        rng, parent, block, _mutate_by_slots, p, gene_scope, operator == "perturb",
+        float(width), where, column, kind, lo, hi,
+    )  # fmt: skip
+
+
+def _kernel_parent(rng: np.random.Generator, cells):
+    """``cells`` packed for a kernel.
+
+    ``()`` when there are none; ``None`` when a kernel cannot run (not a PCG64 generator,
+    or genes that do not pack).
+    """
+    if len(cells) == 0:
         return ()
     if not isinstance(rng.bit_generator, np.random.PCG64):
         return None
-    parent = packed(cells)
-    if parent is None:
-        return None
+    return packed(cells)
+
+
+@functools.lru_cache(maxsize=8)
+def _slot_arrays(slots: tuple) -> tuple[np.ndarray, ...]:
+    """Per slot: array (0 scalars, 1 sensors, 2 inputs), column, kind, low and high."""
+    where = np.array([COLUMNS[f][0] for f, _, _, _, _ in slots], dtype=np.int64)
+    column = np.array([COLUMNS[f][1] + max(i, 0) for f, i, _, _, _ in slots], dtype=np.int64)
+    kind = np.array([SLOT_KINDS.index(k) for _, _, k, _, _ in slots], dtype=np.int64)
+    lo = np.array([s[3] for s in slots], dtype=np.float64)
+    hi = np.array([s[4] for s in slots], dtype=np.float64)
+    for array in (where, column, kind, lo, hi):
+        array.flags.writeable = False
+    return where, column, kind, lo, hi
+
+
+def _on_raw_outputs(rng: np.random.Generator, parent: PackedCells, block: int, kernel, *args):
+    """The child of ``kernel(raw, cache, *args, scalars, sensors, inputs, changed)``.
+
+    The kernel mutates copies of the parent's arrays from a block of the generator's raw
+    outputs and returns how many it used (-1 when the block ran short: it runs again on
+    fresh copies, from the same state, with a block twice as large). The generator is
+    then left where the draws would have left it: advanced by the outputs used, with the
+    kept half of a 32-bit draw in ``cache``.
+    """
     scalars, sensors, inputs = parent.scalars.copy(), parent.sensors.copy(), parent.inputs.copy()
-    n_s, n_i = sensors.shape[1], inputs.shape[1]
-    changed = np.zeros(n, dtype=np.int64)
+    changed = np.zeros(len(parent), dtype=np.int64)
     bits = rng.bit_generator
     start = bits.state
     cache = np.array([start["has_uint32"], start["uinteger"]], dtype=np.int64)
-    block = _block_size(n, n_s, n_i)
     while True:
         raw = bits.random_raw(block)
-        used = _mutate(raw, cache, p, n_behaviours, n_extent, scalars, sensors, inputs, changed)
+        used = kernel(raw, cache, *args, scalars, sensors, inputs, changed)
         bits.state = start
         if used >= 0:
             break
