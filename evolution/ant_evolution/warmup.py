@@ -33,7 +33,8 @@ def compile_kind(kind: str) -> float:
     (``run_episode``), one world's sensing and step (the lockstep simulator's), one
     decision (the controller node's) and, for tissues and the hand-coded rules, the
     per-phase timing of ``ant-bench`` (:func:`ant_evolution.breakdown.phase_times`); for
-    networks, a NEAT genome's layout and one NEAT generation's compiled mutation too.
+    tissues, one generation's compiled mutation under each profile; for networks, a NEAT
+    genome's layout and one NEAT generation's compiled mutation too.
     """
     import numpy as np
 
@@ -67,6 +68,11 @@ def compile_kind(kind: str) -> float:
     else:
         program.decide(codes)
         phase_times(program, sets[0], repeats=1)
+    if kind == "ant":  # breeding's compiled mutations, under both profiles
+        for profile in ("v1", "paper"):
+            ant = AntStrategy(dataclasses.replace(config, population=4).with_profile(profile))
+            genomes, ant_state = ant.ask(ant.init())
+            ant.tell(ant_state, np.arange(len(genomes), dtype=np.float64))
     program_fitness(program, sets)
     advance(world, program, 2)
     world.step(np.zeros(world.n_robots, dtype=np.int64))
