@@ -16,7 +16,7 @@ import json, sys
 import numba
 
 from ant_controller import hand_coded, tissue
-from ant_evolution import breakdown, kernel, warmup
+from ant_evolution import breakdown, ga_kernel, kernel, warmup
 from ant_evolution.baselines import neat_baseline, network
 from excavation_sim import world
 
@@ -35,6 +35,8 @@ ENTRIES = {
     "replay_sense": breakdown.replay_sense,
     "replay_decide": breakdown.replay_decide,
     "replay_apply": breakdown.replay_apply,
+    "_mutate": ga_kernel._mutate,
+    "_mutate_by_slots": ga_kernel._mutate_by_slots,
 }
 
 
@@ -60,7 +62,7 @@ PHASES = ("record_scenario", "replay_sense", "replay_decide", "replay_apply")  #
 # The entry points compile_kind must compile for each kind (its docstring).
 ENTRY_POINTS = {
     "hand-coded": (*STEP, "hand_coded_program", *PHASES),
-    "ant": (*STEP, "tissue.decide", *PHASES),
+    "ant": (*STEP, "tissue.decide", *PHASES, "_mutate", "_mutate_by_slots"),  # and breeding
     "network": (*STEP, "program_decide", "_lay_out", "_mutate_genes"),
 }
 # Entry points with a decision program among their arguments.
