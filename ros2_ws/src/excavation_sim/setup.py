@@ -10,6 +10,7 @@ setup(
     name=package_name,
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
+    package_data={package_name: ["soil_presets.yaml"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
@@ -27,7 +28,7 @@ setup(
         "terrain_mapper",
         "pyyaml",
     ],
-    zip_safe=True,
+    zip_safe=False,
     maintainer="ANT excavation maintainers",
     maintainer_email="maintainers@ant-excavation.org",
     description="Simulated worksite: soil, bulldozer robots, blade model and fitness.",

@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from excavation_bringup import site as sitefile
-from excavation_common.constants import SOIL_MODES
+from excavation_sim.soil import SoilError, check_soil
 
 DRIVES = ("grid", "continuous")
 PERCEPTIONS = ("truth", "full")
@@ -129,12 +129,15 @@ class Deployment:
             ("perception", self.perception, PERCEPTIONS),
             ("hardware", self.hardware, HARDWARE),
             ("supervisor", self.supervisor, SUPERVISORS),
-            ("soil", self.soil, SOIL_MODES),
         ):
             if value not in choices:
                 raise DeploymentError(
                     f"{name} = {value!r}: expected one of {', '.join(map(repr, choices))}"
                 )
+        try:
+            check_soil(self.soil)
+        except SoilError as e:
+            raise DeploymentError(str(e)) from None
         if self.occlude and not self.full:
             raise DeploymentError(
                 "occlude: hides a robot from the camera, so needs perception 'full'"

@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from excavation_common.constants import SOIL_MODES
 from excavation_common.errors import FieldError
 from excavation_common.loaders import parse_yaml, read_text_bounded
 from excavation_common.network import (
@@ -40,6 +39,7 @@ from excavation_common.network import (
     valid_address,
     yaml_range,
 )
+from excavation_sim.soil import SoilError, check_soil
 
 FORMAT = "ant-site/1"
 
@@ -498,8 +498,10 @@ def _sim(r: _Reader, doc: dict) -> SimSettings:
         r.error("sim.exact", exact, "expected true or false")
         exact = d.exact
     soil = s.get("soil", d.soil)
-    if soil not in SOIL_MODES:
-        r.error("sim.soil", soil, f"expected one of {', '.join(SOIL_MODES)}")
+    try:
+        check_soil(soil)
+    except SoilError as e:
+        r.error("sim.soil", soil, str(e))
         soil = d.soil
     return SimSettings(
         r.number(s, "sim", "seed", d.seed, 0, 2**31 - 1, integer=True),

@@ -49,6 +49,7 @@ from excavation_bringup.launch import (
     compose,
 )
 from excavation_common.limits import MAX_ROBOTS, int_in
+from excavation_sim.soil import soil_arg
 
 
 @dataclass
@@ -504,7 +505,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument(
         "--soil",
-        choices=("grid", "physical"),
+        type=soil_arg,
         default="grid",
         help="--drive continuous: grid (the world model's soil rules) or physical (a fine "
         "height field, cutting resistance and traction)",

@@ -195,11 +195,24 @@ def blade_from_joint(
     return blade, volume
 
 
+HALF_SLACK = 3e-5
+"""Units: a height this close below a half counts as the half (metres carry float error)."""
+
+
 def heights_to_units(heights_m: np.ndarray, height_unit: float) -> np.ndarray:
-    """Metres to whole soil units (rounded); NaN stays unknown as ``INT32_MIN``."""
+    """Metres to whole soil units, halves up; NaN stays unknown as ``INT32_MIN``.
+
+    Halves round up, as the simulator rounds the physical soil's cell means
+    (``excavation_sim.soil.round_heights``), so a controller reading a height map through
+    this conversion senses what the offline world senses (``np.round`` would take halves
+    to even: 0.5 -> 0 where the world says 1). ``HALF_SLACK`` absorbs the float error of
+    a half that went through metres (a float32 height map holds about 7 digits: at 300 units a half may come back 2e-5 low;
+    the physical soil's cell means step by 1 / (16 x 1000) = 6e-5 units, so no other value is
+    moved).
+    """
     units = np.full(heights_m.shape, np.iinfo(np.int32).min, dtype=np.int32)
     known = np.isfinite(heights_m)
-    units[known] = np.round(heights_m[known] / height_unit).astype(np.int32)
+    units[known] = np.floor(heights_m[known] / height_unit + 0.5 + HALF_SLACK).astype(np.int32)
     return units
 
 

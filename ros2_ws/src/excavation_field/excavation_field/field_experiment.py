@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import os
 import statistics
 import sys
@@ -50,6 +51,7 @@ import numpy as np
 
 from excavation_common.files import write_text_atomic
 from excavation_common.limits import int_in
+from excavation_sim.soil import soil_arg
 
 GENOME = Path("genomes/best.json")
 NAMES = ("landing-pad", "field")
@@ -232,8 +234,12 @@ class Setup:
 
     @property
     def dir(self) -> Path:
-        """``OUT/NAME`` (``OUT/NAME-physical`` with physical soil)."""
-        d = self.out / (self.name if self.soil == "grid" else f"{self.name}-{self.soil}")
+        """``OUT/NAME`` (``OUT/NAME-physical``, ``OUT/NAME-physical-dome`` ... otherwise).
+
+        The soil spec's ``:``, ``,`` and ``=`` become ``-`` in the folder's name.
+        """
+        slug = re.sub(r"[^A-Za-z0-9._-]", "-", self.soil)
+        d = self.out / (self.name if self.soil == "grid" else f"{self.name}-{slug}")
         (d / "trials").mkdir(parents=True, exist_ok=True)
         return d
 
@@ -721,7 +727,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--domain", type=int_in(0, MAX_DOMAIN), default=None, help="ROS domain id")
     p.add_argument(
         "--soil",
-        choices=("grid", "physical"),
+        type=soil_arg,
         default="grid",
         help="the continuous trials' soil: grid (the world model's rules) or physical",
     )

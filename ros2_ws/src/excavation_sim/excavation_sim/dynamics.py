@@ -59,7 +59,7 @@ from ant_controller.sensing import (
 )
 from excavation_common.frames import heading_to_yaw, robot_center
 from excavation_common.params import param
-from excavation_sim.rules import P_NORMAL_CLIMB, P_THROTTLE_CLIMB
+from excavation_sim.rules import P_NORMAL_CLIMB, P_NORMAL_LOAD, P_THROTTLE_CLIMB, P_THROTTLE_LOAD
 from excavation_sim.soil import Site, Soil, SoilParams
 from excavation_sim.world import (
     BLADE,
@@ -142,14 +142,18 @@ class Dynamics:
         self.rng = rng
         self.soil: Soil | None = None
         if soil is not None and soil.physical:
+            soil = soil.resolved()
             rows, cols = world.heights.shape
-            self.soil = Soil(world.heights, Site(rows, cols, self.cell, height_unit), soil)
+            capacities = (int(world.params[P_NORMAL_LOAD]), int(world.params[P_THROTTLE_LOAD]))
+            site = Site(rows, cols, self.cell, height_unit)
+            self.soil = Soil(world.heights, site, soil, capacities=capacities)
             self.soil.settle(self._bodies_at_start(), world.active)
             self.soil.cell_heights(world.heights)
+            # A grid event moves the footprint only: no climb limit and no push capacity
+            # (the soil and the force decide those), on a copy of the heights.
             self.footprint_params = world.params.copy()
-            self.footprint_params[P_NORMAL_CLIMB] = self.footprint_params[P_THROTTLE_CLIMB] = (
-                1 << 40
-            )
+            for key in (P_NORMAL_CLIMB, P_THROTTLE_CLIMB, P_NORMAL_LOAD, P_THROTTLE_LOAD):
+                self.footprint_params[key] = 1 << 40
         n = world.n_robots
         self.bodies = np.zeros((n, 3))
         for k in range(n):
@@ -161,6 +165,7 @@ class Dynamics:
         self.stalled = np.zeros(n, dtype=np.int64)  # +1 forward refused, -1 backward refused
         self.slipping = np.zeros(n, dtype=bool)  # the last step's push was too heavy
         self.ground = np.zeros(n, dtype=np.int64)  # physical soil: each blade's reference
+        self.lift = np.zeros(n, dtype=np.int64)  # the edge above the ground, quanta
         for k in range(n):
             self._measure_ground(k)
         self.time = 0.0
@@ -198,13 +203,25 @@ class Dynamics:
         self._measure_ground(k)
 
     def _measure_ground(self, k: int) -> None:
-        if self.soil is not None:
-            self.ground[k] = self.soil.ground(*self.bodies[k])
+        """Physical soil: robot k's blade edge, set against the ground under its front axle.
+
+        The edge stands ``b_h`` units off that ground; with ``epsilon`` a blade set above
+        that holds nothing (no soil above that edge ahead of it) cuts as level, the
+        paper's epsilon rule taken, like the grid's, once per move.
+        """
+        soil = self.soil
+        if soil is None:
+            return
+        x, y, yaw = self.bodies[k]
+        self.ground[k] = soil.ground(x, y, yaw)
+        offset = blade_offset(int(self.world.robots[k, BLADE]))
+        self.lift[k] = offset * soil.q
+        if soil.params.epsilon and offset > 0 and soil.held(x, y, yaw, self.edge(k)) == 0:
+            self.lift[k] = 0
 
     def edge(self, k: int) -> int:
-        """Physical soil: robot k's blade edge height, quanta (see ``set_blade``)."""
-        offset = blade_offset(int(self.world.robots[k, BLADE]))
-        return int(self.ground[k]) + offset * self.soil.q
+        """Physical soil: robot k's blade edge height, quanta (see ``_measure_ground``)."""
+        return int(self.ground[k] + self.lift[k])
 
     # --- stepping ---------------------------------------------------------------------------
 
@@ -291,11 +308,15 @@ class Dynamics:
         if self.soil is None:
             apply_behaviours(w.heights, w.robots, w.active, k, word, w.rng, w.params)
             return not w.robots[k, STUCK]
-        # Physical soil: the footprint moves as with the blade home and no climb limit
-        # (the soil and the force decide those); the blade setting is kept.
+        # Physical soil: the footprint moves with no climb limit or push capacity (the
+        # soil and the force decide those), on a copy of the heights (the fine field is the
+        # soil). With ``refusals`` an engaged blade keeps the grid's refusals (a push into
+        # another robot or off the site); without, the move is made as with the blade home.
         blade = w.robots[k, BLADE]
-        w.robots[k, BLADE] = BLADE_HOME
-        apply_behaviours(w.heights, w.robots, w.active, k, word, w.rng, self.footprint_params)
+        if not self.soil.params.refusals:
+            w.robots[k, BLADE] = BLADE_HOME
+        heights = w.heights.copy()
+        apply_behaviours(heights, w.robots, w.active, k, word, w.rng, self.footprint_params)
         w.robots[k, BLADE] = blade
         return not w.robots[k, STUCK]
 
@@ -376,8 +397,11 @@ class Dynamics:
         return float(x), float(y), float(yaw)
 
     def fitness(self) -> float:
-        """The paper's fitness; with physical soil, of the cells' sub-cell means."""
-        if self.soil is None:
+        """The paper's fitness; with physical soil, of the cells' sub-cell means.
+
+        (``fitness_heights: rounded``: of the whole-unit heights the controllers read.)
+        """
+        if self.soil is None or self.soil.params.fitness_heights == "rounded":
             return self.world.fitness()
         w = self.world
         return float(fitness(self.soil.cell_means(), w.zones, w.goal))
@@ -386,9 +410,10 @@ class Dynamics:
         """Push force on robot k's blade (N): the held soil, ``max_force`` at 24 units.
 
         Physical soil: McKyes's force on the blade, scaled so that the level push the
-        throttle-up motor just gives (24-25 units) reads ``max_force``.
+        throttle-up motor just gives (24-25 units) reads ``max_force``; with ``load:
+        volume``, the grid's rule on the whole-unit heights.
         """
-        if self.soil is not None:
+        if self.soil is not None and self.soil.params.load == "force":
             blade = int(self.world.robots[k, BLADE])
             if blade == BLADE_HOME:
                 return 0.0

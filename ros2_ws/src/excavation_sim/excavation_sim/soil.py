@@ -57,15 +57,18 @@ Pure module (numpy, numba); no ``rclpy``.
 
 from __future__ import annotations
 
+import argparse
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from functools import lru_cache
+from pathlib import Path
 
 import numba as nb
 import numpy as np
+import yaml
 
 from excavation_common.constants import SOIL_MODES
-from excavation_common.params import param
+from excavation_common.params import ParameterError, defaults, param, validate
 
 MAX_FINE_CELLS = 4_000_000
 """Largest fine field (sub-cells) a world may ask for: checked before allocating."""
@@ -87,7 +90,9 @@ class SoilParams:
     """
 
     soil: str = param(
-        "grid", "soil model: grid (the world model's rules) or physical", choices=SOIL_MODES
+        "grid",
+        "soil model: grid (the world model's rules) or physical[:PRESET][,KEY=VALUE...] "
+        "(presets: grid, dome, lunar; keys: the parameters below)",
     )
     subcells: int = param(4, "sub-cells per cell side (soil: physical)", low=1, high=16)
     quanta: int = param(1000, "height quanta per soil unit (soil: physical)", low=1, high=10**6)
@@ -117,13 +122,32 @@ class SoilParams:
         1.25, "wheel traction over the throttle-up motor force (sets the mass)", low=1.0
     )
     relax_passes: int = param(2, "repose sweeps per simulator step", low=1, high=64)
+    # Switches of the departures from the grid (docs/world-model.md, "What the physical
+    # soil keeps and what it fixed"); the attribution study turns each one alone.
+    fill: bool = param(True, "a carrying blade fills hollows below its edge (physics)")
+    epsilon: bool = param(True, "the paper's epsilon rule: an empty blade set above cuts as level")
+    refusals: bool = param(
+        True, "an engaged blade refuses a move that pushes into a robot or off the site"
+    )
+    load: str = param(
+        "force",
+        "what L1 reads: force (the blade's force) or volume (the grid's V_blade)",
+        choices=("force", "volume"),
+    )
+    fitness_heights: str = param(
+        "mean",
+        "what the fitness reads: mean (the sub-cell means) or rounded (whole units)",
+        choices=("mean", "rounded"),
+    )
+    repose: bool = param(True, "slopes relax to the angle of repose")
 
     def check(self) -> None:
         """Cross-field rules: the blade and the soil must admit a failure plane.
 
         Raises:
-            SoilError: Naming the angles.
+            SoilError: Naming the angles, or the part of ``soil`` that is not a soil.
         """
+        parse_soil(self.soil)
         if self.blade_friction_angle >= self.friction_angle + 30:
             raise SoilError(
                 f"blade_friction_angle = {self.blade_friction_angle}: must stay well "
@@ -133,8 +157,135 @@ class SoilParams:
 
     @property
     def physical(self) -> bool:
-        """True for ``soil: physical``."""
-        return self.soil == "physical"
+        """True for ``soil: physical`` (with or without a preset)."""
+        return parse_soil(self.soil)[0] == "physical"
+
+    def resolved(self) -> SoilParams:
+        """These parameters with ``soil``'s preset and overrides applied.
+
+        ``physical:PRESET,KEY=VALUE``: the preset's values replace these, then each
+        ``KEY=VALUE`` replaces its parameter. The result's ``soil`` is the spec itself, so
+        resolving twice changes nothing.
+        """
+        mode, preset, overrides = parse_soil(self.soil)
+        if mode != "physical":
+            return self
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        values.update(PRESETS[preset].values)
+        values.update(_typed_overrides(overrides, self.soil))
+        try:
+            return validate(SoilParams, values, node="soil")
+        except ParameterError as e:
+            raise SoilError(f"soil = {self.soil!r}: {e}") from None
+
+
+# --- soil specs and presets -------------------------------------------------------------
+
+_DEFAULTS = defaults(SoilParams)
+_FIELDS = frozenset(_DEFAULTS) - {"soil"}
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A named world of soil and robot (``soil_presets.yaml``): values and their sources."""
+
+    name: str
+    title: str
+    values: dict
+    sources: dict
+
+
+def _load_presets() -> dict[str, Preset]:
+    """The presets of ``soil_presets.yaml`` beside this module (checked against the fields)."""
+    path = Path(__file__).with_name("soil_presets.yaml")
+    data = yaml.safe_load(path.read_text())
+    names = {f.name for f in fields(SoilParams)} - {"soil"}
+    out = {}
+    for name, body in data["presets"].items():
+        values, sources = {}, {}
+        for key, entry in body.get("parameters", {}).items():
+            if key not in names:
+                raise SoilError(f"{path.name}: preset {name}: unknown parameter {key!r}")
+            values[key] = entry["value"]
+            sources[key] = entry["source"]
+        out[name] = Preset(name, body["title"], values, sources)
+    return out
+
+
+def parse_soil(spec: str) -> tuple[str, str, list[tuple[str, str]]]:
+    """``(mode, preset, overrides)`` of a soil spec (``soil`` of :class:`SoilParams`).
+
+    ``grid``; ``physical`` (the preset ``grid``: calibrated to the grid's capacities);
+    ``physical:PRESET``; either followed by ``,KEY=VALUE`` pairs naming parameters of
+    :class:`SoilParams` (``physical:dome,repose=false``).
+
+    Raises:
+        SoilError: Naming the part of the spec that is not a soil.
+    """
+    if not isinstance(spec, str):
+        raise SoilError(f"soil = {spec!r}: expected a string such as 'physical:dome'")
+    head, *pairs = spec.split(",")
+    mode, _, preset = head.partition(":")
+    if mode not in SOIL_MODES:
+        raise SoilError(f"soil = {spec!r}: {mode!r} is not one of {', '.join(SOIL_MODES)}")
+    if mode == "grid":
+        if preset or pairs:
+            raise SoilError(f"soil = {spec!r}: the grid soil takes no preset or parameters")
+        return mode, "", []
+    preset = preset or "grid"
+    if preset not in PRESETS:
+        raise SoilError(f"soil = {spec!r}: unknown preset {preset!r} (one of {', '.join(PRESETS)})")
+    overrides = []
+    for pair in pairs:
+        key, eq, value = pair.partition("=")
+        key = key.strip()
+        if not eq or key in ("", "soil") or key not in _FIELDS:
+            raise SoilError(f"soil = {spec!r}: {pair!r} is not KEY=VALUE with a soil parameter")
+        overrides.append((key, value.strip()))
+    return mode, preset, overrides
+
+
+def _typed_overrides(pairs: list[tuple[str, str]], spec: str) -> dict:
+    """The ``KEY=VALUE`` overrides of a spec as the fields' types, each checked."""
+    out = {}
+    for key, text in pairs:
+        kind = type(_DEFAULTS[key])
+        try:
+            if kind is bool:
+                if text.lower() not in ("true", "false"):
+                    raise ValueError(text)
+                value = text.lower() == "true"
+            else:
+                value = kind(text)
+        except ValueError:
+            raise SoilError(f"soil = {spec!r}: {key} = {text!r} is not a {kind.__name__}") from None
+        out[key] = value
+    return out
+
+
+PRESETS: dict[str, Preset] = _load_presets()
+"""The named worlds: ``grid`` (calibrated to the grid's capacities), ``dome``, ``lunar``."""
+
+
+def check_soil(spec: str) -> str:
+    """``spec`` when it names a soil (:func:`parse_soil`, presets and values checked).
+
+    Raises:
+        SoilError: Naming what is wrong.
+    """
+    SoilParams(soil=spec).resolved()
+    return spec
+
+
+def soil_arg(text: str) -> str:
+    """An ``argparse`` type for ``--soil``: :func:`check_soil` with argparse's error."""
+    try:
+        return check_soil(text)
+    except SoilError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+soil_arg.__name__ = "soil"
 
 
 @dataclass(frozen=True)
@@ -413,14 +564,15 @@ def pile_load(fine, x, y, yaw, sub, front, half_width, reach, edge):
 
 
 @nb.njit(cache=True)
-def cut(fine, blocked, x, y, yaw, sub, front, half_width, edge, top):
+def cut(fine, blocked, x, y, yaw, sub, front, half_width, edge, top, fill=True):
     """The blade at ``(x, y, yaw)`` levels the sub-cells just behind its edge to ``edge``.
 
     Soil above the edge goes to the sub-cell one sub-cell ahead (the pile); a sub-cell
     below it takes what the one ahead holds above the edge, up to the edge; soil ahead
     standing more than ``top`` quanta above the edge falls over the blade onto the sub-cell
     1.5 sub-cells behind the edge. A target off the field or under another robot's body
-    (``blocked`` and not behind this blade) is left alone. Returns the quanta cut.
+    (``blocked`` and not behind this blade) is left alone. Without ``fill`` a sub-cell
+    below the edge stays as it is. Returns the quanta cut.
     """
     rows, cols = fine.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
@@ -443,7 +595,7 @@ def cut(fine, blocked, x, y, yaw, sub, front, half_width, edge, top):
                     fine[i, j] -= excess
                     fine[ti, tj] += excess
                     total += excess
-                elif excess < 0:
+                elif excess < 0 and fill:
                     spare = fine[ti, tj] - edge
                     if spare > 0:
                         take = -excess if -excess < spare else spare
@@ -482,6 +634,7 @@ class Soil:
         site: Site,
         params: SoilParams,
         physics: Physics | None = None,
+        capacities: tuple[int, int] = (12, 24),
     ) -> None:
         params.check()
         s = params.subcells
@@ -504,7 +657,7 @@ class Soil:
             math.tan(math.radians(params.repose_angle)) * self.sub / site.unit * self.q
         )
         self.top = int(params.blade_height / site.unit * self.q)
-        self.physics = physics or calibrate(params, site.cell, site.unit)
+        self.physics = physics or calibrate(params, site.cell, site.unit, capacities)
         self.total = int(self.fine.sum())
 
     # --- measures ------------------------------------------------------------------------------
@@ -559,6 +712,16 @@ class Soil:
         )
         return self.force_of(face, volume)
 
+    def held(self, x: float, y: float, yaw: float, edge: int) -> int:
+        """Soil above ``edge`` ahead of a blade at ``(x, y, yaw)`` (quanta, over sub-cells).
+
+        The physical ``V_blade``: what lies against the blade within ``pile_reach`` cells.
+        """
+        reach = self.params.pile_reach * self.site.cell
+        return int(
+            pile_load(self.fine, x, y, yaw, self.sub, self.front, self.half_width, reach, edge)[1]
+        )
+
     def force_of(self, face_quanta: float, volume_quanta: float) -> float:
         """The force of ``face`` quanta against the blade and ``volume`` quanta ahead of it."""
         unit = self.site.unit / self.q
@@ -583,6 +746,7 @@ class Soil:
                 self.half_width,
                 edge,
                 self.top,
+                self.params.fill,
             )
         )
 
@@ -601,6 +765,8 @@ class Soil:
             blades_down,
             self.params.end_plates * self.site.cell,
         )
+        if not self.params.repose:
+            return 0
         return int(relax(self.fine, self.blocked, self.max_diff, self.params.relax_passes))
 
     def heap(self, x: float, y: float, yaw: float, units: float) -> None:
@@ -673,13 +839,16 @@ def level_pile_force(units: float, params: SoilParams, cell: float, unit: float,
 
 
 @lru_cache(maxsize=32)
-def calibrate(params: SoilParams, cell: float, unit: float) -> Physics:
+def calibrate(
+    params: SoilParams, cell: float, unit: float, capacities: tuple[int, int] = (12, 24)
+) -> Physics:
     """The soil's physics with the motor forces set by the grid's push capacities.
 
-    Without throttle-up the motor stalls between a level push of 12 and of 13 units on
-    flat ground, with throttle-up between 24 and 25 (the world model's ``normal_load`` and
-    ``throttle_load``): each force is the mean of the two piles' resistances. The mass
-    gives traction ``traction_margin`` times the larger force.
+    ``capacities``: the world profile's ``normal_load`` and ``throttle_load`` (12 and 24
+    under ``v1``, 24 and 24 under ``paper``). Without throttle-up the motor stalls between
+    a level push of ``capacities[0]`` units and one more on flat ground, with throttle-up
+    likewise at ``capacities[1]``: each force is the mean of the two piles' resistances.
+    The mass gives traction ``traction_margin`` times the larger force.
     """
     n_gamma, n_c, n_q, beta = n_factors(params)
     gamma = params.density * params.gravity
@@ -697,7 +866,7 @@ def calibrate(params: SoilParams, cell: float, unit: float) -> Physics:
         0.0,
     )
     forces = []
-    for capacity in (12, 24):
+    for capacity in capacities:
         low = level_pile_force(capacity, params, cell, unit, draft)
         high = level_pile_force(capacity + 1, params, cell, unit, draft)
         if not high > low:
