@@ -206,9 +206,9 @@ def heights_to_units(heights_m: np.ndarray, height_unit: float) -> np.ndarray:
     (``excavation_sim.soil.round_heights``), so a controller reading a height map through
     this conversion senses what the offline world senses (``np.round`` would take halves
     to even: 0.5 -> 0 where the world says 1). ``HALF_SLACK`` absorbs the float error of
-    a half that went through metres (a float32 height map holds about 7 digits: at 300 units a half may come back 2e-5 low;
-    the physical soil's cell means step by 1 / (16 x 1000) = 6e-5 units, so no other value is
-    moved).
+    a half that went through metres (a float32 height map holds about 7 digits: at 300
+    units a half may come back 2e-5 low; the physical soil's cell means step by
+    1 / (16 x 1000) = 6e-5 units, so no other value moves).
     """
     units = np.full(heights_m.shape, np.iinfo(np.int32).min, dtype=np.int32)
     known = np.isfinite(heights_m)
