@@ -34,6 +34,7 @@ setup(
         "console_scripts": [
             "ant-soak = excavation_field.soak:main",
             "ant-field-experiment = excavation_field.field_experiment:main",
+            "ant-soil-study = excavation_field.soil_study:main",
         ],
     },
 )
