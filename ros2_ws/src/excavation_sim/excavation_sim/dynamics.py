@@ -269,27 +269,28 @@ class Dynamics:
             self.soil.cell_heights(self.world.heights)
         self.time += p.dt
 
-    def resistance(self, k: int) -> float:
-        """What resists robot k's forward push now, N: the soil on its blade and the grade."""
-        soil = self.soil
-        if soil is None:
-            return 0.0
-        x, y, yaw = self.bodies[k]
-        blade = int(self.world.robots[k, BLADE])
-        force = 0.0 if blade == BLADE_HOME else soil.resistance(x, y, yaw, self.edge(k))
-        physics = soil.physics
-        return force + physics.mass * physics.gravity * math.sin(soil.pitch(x, y, yaw))
-
     def _push(self, k: int, v: float) -> float:
-        """Robot k's forward speed after the soil: 0 when its wheels cannot give the push."""
+        """Robot k's forward speed after the soil: 0 when its wheels cannot give the push.
+
+        With terramechanics traction the wheels slip in proportion to the load, so a heavy
+        push also slows the robot (:meth:`~excavation_sim.soil.Physics.speed_factor`).
+        """
         self.slipping[k] = False
         if v <= 0:
             return v
-        if self.resistance(k) > self.soil.physics.available(bool(self.throttle[k])):
+        soil = self.soil
+        x, y, yaw = self.bodies[k]
+        blade = 0.0
+        if self.world.robots[k, BLADE] != BLADE_HOME:
+            blade = soil.resistance(x, y, yaw, self.edge(k))
+        physics = soil.physics
+        grade = physics.mass * physics.gravity * math.sin(soil.pitch(x, y, yaw))
+        factor = physics.speed_factor(blade + grade, blade, bool(self.throttle[k]))
+        if factor == 0.0:
             self.slipping[k] = True
             self.counters.slips += 1
             return 0.0
-        return v
+        return v * factor
 
     def offset(self, k: int) -> float:
         """Robot k's travel past its footprint centre along its grid heading, in cells."""
@@ -419,7 +420,7 @@ class Dynamics:
                 return 0.0
             x, y, yaw = self.bodies[k]
             force = self.soil.resistance(x, y, yaw, self.edge(k))
-            return force * max_force / self.soil.physics.motor[1]
+            return force * max_force / self.soil.physics.load_scale()
         r = self.world.robots[k]
         volume = blade_volume(
             self.world.heights, int(r[ROW]), int(r[COL]), int(r[HEADING]), int(r[BLADE])

@@ -122,6 +122,63 @@ class SoilParams:
         1.25, "wheel traction over the throttle-up motor force (sets the mass)", low=1.0
     )
     relax_passes: int = param(2, "repose sweeps per simulator step", low=1, high=64)
+    # The robot (calibration: robot; docs/world-model.md, "Presets").
+    calibration: str = param(
+        "grid",
+        "motor forces from the grid's push capacities (grid) or from the robot below (robot)",
+        choices=("grid", "robot"),
+    )
+    robot_mass: float = param(15.0, "calibration robot: robot mass, kg", low=0.01, high=1e6)
+    drive_power: float = param(
+        0.0,
+        "calibration robot: drive power, W (0: the wheels' traction limits the push)",
+        low=0.0,
+        high=1e7,
+    )
+    push_speed: float = param(
+        0.15, "calibration robot: speed at which drive_power pushes, m/s", low=0.001, high=10.0
+    )
+    normal_fraction: float = param(
+        0.5,
+        "calibration robot: push without throttle-up, share of the full push",
+        low=0.01,
+        high=1.0,
+    )
+    blade_limit: float = param(
+        0.0, "calibration robot: most force the blade takes, N (0: no limit)", low=0.0, high=1e7
+    )
+    load_full_scale: float = param(
+        0.0,
+        "force that L1 reads as a full blade, N (0: the full push of the robot)",
+        low=0.0,
+        high=1e7,
+    )
+    traction: str = param(
+        "coulomb",
+        "wheels: coulomb (wheel_friction m g, all or nothing) or terramechanics (Bekker "
+        "sinkage and rolling resistance, Janosi-Hanamoto slip)",
+        choices=("coulomb", "terramechanics"),
+    )
+    bekker_n: float = param(1.1, "Bekker sinkage exponent n", low=0.1, high=3.0)
+    bekker_kc: float = param(990.0, "Bekker cohesive modulus k_c, N/m^(n+1)", low=0.0, high=1e9)
+    bekker_kphi: float = param(
+        1.52843e6, "Bekker frictional modulus k_phi, N/m^(n+2)", low=1.0, high=1e10
+    )
+    shear_cohesion: float = param(
+        1040.0, "traction: the soil's cohesion under the wheels, Pa", low=0.0, high=1e6
+    )
+    shear_friction_angle: float = param(
+        28.0, "traction: the soil's friction angle under the wheels, deg", low=1.0, high=70.0
+    )
+    janosi_k: float = param(
+        0.025, "Janosi-Hanamoto shear deformation modulus K, m", low=1e-4, high=1.0
+    )
+    contact_width: float = param(
+        0.05, "traction: width of each side's running gear, m", low=0.001, high=10.0
+    )
+    contact_length: float = param(
+        0.3, "traction: length of each side's ground contact, m", low=0.001, high=20.0
+    )
     # Switches of the departures from the grid (docs/world-model.md, "What the physical
     # soil keeps and what it fixed"); the attribution study turns each one alone.
     fill: bool = param(True, "a carrying blade fills hollows below its edge (physics)")
@@ -358,10 +415,94 @@ class Physics:
     gravity: float
     motor: tuple[float, float]
     mass: float
+    full_scale: float = 0.0
+    blade_limit: float = 0.0
+    wheels: Terrain | None = None
 
     def available(self, throttle: bool) -> float:
         """Push the robot gives: its motor force, at most what its wheels' traction gives."""
+        if self.wheels is not None:
+            return min(self.motor[int(throttle)], self.wheels.thrust(1.0) - self.wheels.rolling)
         return min(self.motor[int(throttle)], self.wheel_friction * self.mass * self.gravity)
+
+    def load_scale(self) -> float:
+        """The force L1 reads as a full blade, N."""
+        return self.full_scale or self.motor[1]
+
+    def speed_factor(self, demand: float, blade: float, throttle: bool) -> float:
+        """Share of the commanded speed the robot makes against ``demand`` N (0: it stalls).
+
+        ``blade``: the part of the demand on the blade (over ``blade_limit`` it stalls).
+        Coulomb wheels: all or nothing. Terramechanics: the wheels slip until their thrust
+        (Janosi-Hanamoto) meets the demand plus the rolling resistance; the robot advances
+        at ``1 - slip`` of its wheel speed, and stalls where no slip gives enough thrust or
+        the motors cannot give it.
+        """
+        if self.blade_limit and blade > self.blade_limit:
+            return 0.0
+        if demand > self.motor[int(throttle)]:
+            return 0.0
+        if self.wheels is None:
+            return 1.0 if demand <= self.available(throttle) else 0.0
+        slip = self.wheels.slip_for(demand + self.wheels.rolling)
+        return 0.0 if slip is None else 1.0 - slip
+
+
+@dataclass(frozen=True)
+class Terrain:
+    """The running gear on the soil: Bekker sinkage and rolling, Janosi-Hanamoto thrust.
+
+    The forms of J. Y. Wong, *Theory of Ground Vehicles* (ch. 2), which Project Chrono's
+    SCM terrain also uses. Two sides, each a ``b`` x ``l`` contact, carry the weight.
+
+    Attributes:
+        weight: The robot's weight, N.
+        sinkage: Static sinkage ``z = (p / (k_c / b + k_phi))^(1/n)``, m, with ``p`` the
+            ground pressure.
+        rolling: Compaction resistance ``2 b (k_c / b + k_phi) z^(n+1) / (n + 1)``, N.
+        shear_max: The largest thrust ``2 b l c + W tan(phi)``, N.
+        ratio: ``l / K``: contact length over the shear deformation modulus.
+    """
+
+    weight: float
+    sinkage: float
+    rolling: float
+    shear_max: float
+    ratio: float
+
+    @classmethod
+    def of(cls, params: SoilParams, mass: float) -> Terrain:
+        """The running gear of a robot of ``mass`` kg on the soil of ``params``."""
+        b, l = params.contact_width, params.contact_length
+        weight = mass * params.gravity
+        modulus = params.bekker_kc / b + params.bekker_kphi
+        z = (weight / (2 * b * l) / modulus) ** (1 / params.bekker_n)
+        rolling = 2 * b * modulus * z ** (params.bekker_n + 1) / (params.bekker_n + 1)
+        phi = math.radians(params.shear_friction_angle)
+        shear = 2 * b * l * params.shear_cohesion + weight * math.tan(phi)
+        return cls(weight, z, rolling, shear, l / params.janosi_k)
+
+    def thrust(self, slip: float) -> float:
+        """Thrust at ``slip`` (0-1): ``H_max [1 - K / (s l) (1 - exp(-s l / K))]``, N."""
+        x = slip * self.ratio
+        if x < 1e-9:
+            return 0.0
+        return self.shear_max * (1 - (1 - math.exp(-x)) / x)
+
+    def slip_for(self, force: float) -> float | None:
+        """The slip whose thrust is ``force`` (bisection to 1e-6), or ``None`` above 100 %."""
+        if force <= 0:
+            return 0.0
+        if force > self.thrust(1.0):
+            return None
+        low, high = 0.0, 1.0
+        while high - low > 1e-6:
+            mid = (low + high) / 2
+            if self.thrust(mid) < force:
+                low = mid
+            else:
+                high = mid
+        return high
 
 
 def mckyes_force(
@@ -865,6 +1006,8 @@ def calibrate(
         (0.0, 0.0),
         0.0,
     )
+    if params.calibration == "robot":
+        return robot_physics(params, draft)
     forces = []
     for capacity in capacities:
         low = level_pile_force(capacity, params, cell, unit, draft)
@@ -877,4 +1020,54 @@ def calibrate(
             )
         forces.append((low + high) / 2)
     mass = params.traction_margin * forces[1] / (params.wheel_friction * params.gravity)
-    return replace(draft, motor=(forces[0], forces[1]), mass=mass)
+    wheels = Terrain.of(params, mass) if params.traction == "terramechanics" else None
+    return replace(draft, motor=(forces[0], forces[1]), mass=mass, wheels=wheels)
+
+
+def robot_physics(params: SoilParams, draft: Physics) -> Physics:
+    """The physics of ``calibration: robot``: the forces come from the robot.
+
+    The full push is the drive's power over its pushing speed (``drive_power /
+    push_speed``), or, with no power given, what the wheels' traction gives; without
+    throttle-up the robot pushes ``normal_fraction`` of it. The blade takes at most
+    ``blade_limit``; L1 reads ``load_full_scale`` (or the full push) as a full blade.
+    """
+    mass = params.robot_mass
+    wheels = Terrain.of(params, mass) if params.traction == "terramechanics" else None
+    if wheels is not None:
+        traction = wheels.thrust(1.0) - wheels.rolling
+    else:
+        traction = params.wheel_friction * mass * params.gravity
+    if traction <= 0:
+        raise SoilError(
+            f"robot_mass = {mass}: the wheels' thrust does not overcome their rolling "
+            f"resistance ({wheels.thrust(1.0):.3g} N against {wheels.rolling:.3g} N)"
+        )
+    full = params.drive_power / params.push_speed if params.drive_power > 0 else traction
+    return replace(
+        draft,
+        motor=(params.normal_fraction * full, full),
+        mass=mass,
+        full_scale=params.load_full_scale or full,
+        blade_limit=params.blade_limit,
+        wheels=wheels,
+    )
+
+
+def stall_capacity(
+    params: SoilParams, cell: float, unit: float, throttle: bool, most: int = 400
+) -> int | None:
+    """The smallest level pile (whole units, on flat ground) at which a push stalls.
+
+    ``None`` when even ``most`` units do not stall it (or no longer fit the probe).
+    The measured counterpart of the grid's push capacities (12 / 24 under ``v1``).
+    """
+    physics = calibrate(params, cell, unit)
+    for units in range(1, most + 1):
+        try:
+            force = level_pile_force(units, params, cell, unit, physics)
+        except SoilError:
+            return None
+        if physics.speed_factor(force, force, throttle) == 0.0:
+            return units
+    return None
