@@ -507,8 +507,9 @@ def main(argv: list[str] | None = None) -> int:
         "--soil",
         type=soil_arg,
         default="grid",
-        help="--drive continuous: grid (the world model's soil rules) or physical (a fine "
-        "height field, cutting resistance and traction)",
+        help="--drive continuous: grid (the world model's soil rules), physical (the fine "
+        "soil calibrated to the grid), physical:dome or physical:lunar (the paper's two "
+        "real worlds), each optionally followed by ,KEY=VALUE soil parameters",
     )
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)

@@ -729,7 +729,9 @@ def main(argv: list[str] | None = None) -> int:
         "--soil",
         type=soil_arg,
         default="grid",
-        help="the continuous trials' soil: grid (the world model's rules) or physical",
+        help="the continuous trials' soil: grid (the world model's soil rules), physical (the fine "
+        "soil calibrated to the grid), physical:dome or physical:lunar (the paper's two "
+        "real worlds), each optionally followed by ,KEY=VALUE soil parameters",
     )
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--out", type=Path, required=True)

@@ -281,9 +281,13 @@ class Dynamics:
         soil = self.soil
         x, y, yaw = self.bodies[k]
         blade = 0.0
+        physics = soil.physics
         if self.world.robots[k, BLADE] != BLADE_HOME:
             blade = soil.resistance(x, y, yaw, self.edge(k))
-        physics = soil.physics
+            if soil.params.force_control and physics.blade_limit and blade > physics.blade_limit:
+                # the blade's force control lifts the edge until the force is in its limit
+                self.lift[k] += soil.relief(x, y, yaw, self.edge(k), physics.blade_limit)
+                blade = soil.resistance(x, y, yaw, self.edge(k))
         grade = physics.mass * physics.gravity * math.sin(soil.pitch(x, y, yaw))
         factor = physics.speed_factor(blade + grade, blade, bool(self.throttle[k]))
         if factor == 0.0:

@@ -147,6 +147,11 @@ class SoilParams:
     blade_limit: float = param(
         0.0, "calibration robot: most force the blade takes, N (0: no limit)", low=0.0, high=1e7
     )
+    force_control: bool = param(
+        False,
+        "over blade_limit the blade rises until its force is within the limit (a PID on the "
+        "blade's force, as the dome robots'); off: the push stalls",
+    )
     load_full_scale: float = param(
         0.0,
         "force that L1 reads as a full blade, N (0: the full push of the robot)",
@@ -863,6 +868,23 @@ class Soil:
             pile_load(self.fine, x, y, yaw, self.sub, self.front, self.half_width, reach, edge)[1]
         )
 
+    def relief(self, x: float, y: float, yaw: float, edge: int, limit: float) -> int:
+        """How far (quanta) the edge must rise for the blade's force to be within ``limit``.
+
+        Bisection on whole quanta up to 8 units above ``edge``: the smallest rise whose
+        force is at most ``limit`` (the highest tried when none is).
+        """
+        if self.resistance(x, y, yaw, edge) <= limit:
+            return 0
+        low, high = 0, 8 * self.q
+        while high - low > 1:
+            mid = (low + high) // 2
+            if self.resistance(x, y, yaw, edge + mid) <= limit:
+                high = mid
+            else:
+                low = mid
+        return high
+
     def force_of(self, face_quanta: float, volume_quanta: float) -> float:
         """The force of ``face`` quanta against the blade and ``volume`` quanta ahead of it."""
         unit = self.site.unit / self.q
@@ -1055,19 +1077,35 @@ def robot_physics(params: SoilParams, draft: Physics) -> Physics:
 
 
 def stall_capacity(
-    params: SoilParams, cell: float, unit: float, throttle: bool, most: int = 400
-) -> int | None:
-    """The smallest level pile (whole units, on flat ground) at which a push stalls.
+    params: SoilParams, cell: float, unit: float, throttle: bool, most: float = 400.0
+) -> float | None:
+    """The level pile (units, to 0.01, on flat ground) at which a push stalls.
 
-    ``None`` when even ``most`` units do not stall it (or no longer fit the probe).
-    The measured counterpart of the grid's push capacities (12 / 24 under ``v1``).
+    The measured counterpart of the grid's push capacities (12 / 24 under ``v1``): the
+    smallest pile whose McKyes force the robot cannot give (over ``blade_limit``, the
+    motors or the wheels; with ``force_control`` the blade rises there instead of stalling,
+    so it is the most a push carries). ``None`` when no pile up to ``most`` units (that
+    fits the probe) stalls it.
     """
     physics = calibrate(params, cell, unit)
-    for units in range(1, most + 1):
-        try:
-            force = level_pile_force(units, params, cell, unit, physics)
-        except SoilError:
-            return None
-        if physics.speed_factor(force, force, throttle) == 0.0:
-            return units
-    return None
+
+    def stalls(units: float) -> bool:
+        force = level_pile_force(units, params, cell, unit, physics)
+        return physics.speed_factor(force, force, throttle) == 0.0
+
+    high = 0.25
+    try:
+        while not stalls(high):
+            high *= 2
+            if high > most:
+                return None
+    except SoilError:
+        return None
+    low = 0.0
+    while high - low > 0.005:
+        mid = (low + high) / 2
+        if stalls(mid):
+            high = mid
+        else:
+            low = mid
+    return round(high, 2)
