@@ -178,3 +178,16 @@ def test_terramechanics_slows_a_loaded_push():
         travelled.append(dyn.bodies[0, 0] - x)
     assert travelled[1] < travelled[0] < 0.15 * 0.05
     assert not math.isclose(travelled[0], travelled[1])
+
+
+def test_the_docs_tables_are_the_presets():
+    """docs/world-model.md shows what ``python -m excavation_sim.presets`` prints."""
+    from pathlib import Path
+
+    text = (Path(__file__).parent.parent / "docs" / "world-model.md").read_text()
+    for tag, rows in (("capacities", capacity_rows()), ("sources", source_rows())):
+        start = text.index(f"<!-- presets:{tag} -->\n") + len(f"<!-- presets:{tag} -->\n")
+        end = text.index(f"<!-- /presets:{tag} -->")
+        assert text[start:end].strip() == "\n".join(rows), (
+            f"rerun python -m excavation_sim.presets ({tag})"
+        )

@@ -82,11 +82,11 @@ class SoilError(ValueError):
 class SoilParams:
     """The soil and the blade of ``soil: physical`` (node parameters of ``dynamics``).
 
-    Defaults: dry loose sand, as in the paper's test dome (bulk density 1,600 kg/m^3, no
-    cohesion, internal friction 35 degrees, repose 33 degrees, soil-steel friction two
-    thirds of the internal angle; McKyes 1985, table 4.1 ranges for loose sands). For a
-    lunar simulant take ``gravity`` 1.62, ``density`` 1,700, ``cohesion`` 1,000 and
-    ``friction_angle`` 42 (JSC-1A; docs/world-model.md).
+    Defaults: dry loose sand (bulk density 1,600 kg/m^3, no cohesion, internal friction
+    35 degrees, repose 33 degrees, soil-steel friction two thirds of the internal angle;
+    McKyes 1985, table 4.1 ranges for loose sands), calibrated to the grid. The presets of
+    ``soil_presets.yaml`` (``soil: physical:dome``, ``physical:lunar``) set sourced values
+    for the paper's two real worlds (docs/world-model.md, "Presets").
     """
 
     soil: str = param(
