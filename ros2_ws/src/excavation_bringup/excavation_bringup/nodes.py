@@ -380,7 +380,7 @@ def dynamics(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeSp
         "idle_time_factor": profile.idle_time_factor,
         "soil": dep.soil,
         # the synthetic laser of full perception sees the physical soil's fine field
-        "fine_height_map": dep.full and dep.soil == "physical" and dep.sim,
+        "fine_height_map": dep.full and dep.soil != "grid" and dep.sim,
     } | vars(physics)
     if profile.dynamics_command_timeout is not None:
         params["command_timeout"] = min(
