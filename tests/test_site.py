@@ -51,7 +51,7 @@ BROKEN = {
     "override_range": "overrides.team_tick.blade_wait = -1.0: must be >= 0.0",
     "override_choice": "overrides.executor.mode = 'auto': must be one of tick, free",
     "override_rule": "overrides.executor = {'max_speed': 0.2}: throttle_speed 0.15 < max_speed 0.2",
-    "sim_soil": "sim.soil = 'sand': expected one of grid, physical",
+    "sim_soil": "sim.soil = 'sand': soil = 'sand': 'sand' is not one of grid, physical",
 }
 
 
@@ -428,6 +428,13 @@ def test_sim_soil_reaches_the_simulated_worlds_dynamics(tmp_path):
     assert errors == [] and site.sim.soil == "physical"
     nodes = {s.name: s for s in dome_graph(site, tmp_path / "run", "sim").nodes}
     assert nodes["dynamics"].params["soil"] == "physical"
+    assert nodes["dynamics"].params["fine_height_map"] is True
+    lunar = tmp_path / "lunar.yaml"
+    lunar.write_text(text.replace("soil: physical ", "soil: 'physical:lunar,repose=false' "))
+    site, errors = sitefile.check_site(lunar, sim=True)
+    assert errors == [] and site.sim.soil == "physical:lunar,repose=false"
+    nodes = {s.name: s for s in dome_graph(site, tmp_path / "run2", "sim").nodes}
+    assert nodes["dynamics"].params["soil"] == "physical:lunar,repose=false"
     assert nodes["dynamics"].params["fine_height_map"] is True
     grid = sitefile.check_site(CONFIG / "site_sim.yaml", sim=True)[0]
     assert {s.name: s for s in dome_graph(grid, tmp_path / "g", "sim").nodes}["dynamics"].params[
