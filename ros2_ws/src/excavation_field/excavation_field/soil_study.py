@@ -251,6 +251,32 @@ def table(rows: list[dict], robots: tuple[int, ...]) -> str:
                     else f"{mean:.2f} (1)"
                 )
         lines.append(f"| {s.what} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "Final fitness, physical / grid (means over the same scenarios; start "
+        + (f"{rows[0]['f0']:.3f}" if rows else "-")
+        + "), and robot-steps stalled per trial:",
+        "",
+        head + " |",
+        "|---|" + "---|" * (len(robots) * len(CONTROLLERS)),
+    ]
+    for s in SWITCHES:
+        cells = []
+        for n in robots:
+            for c in CONTROLLERS:
+                cell = [
+                    r
+                    for r in rows
+                    if r["switch"] == s.key and r["controller"] == c and r["robots"] == n
+                ]
+                cells.append(
+                    "-"
+                    if not cell
+                    else f"{np.mean([r['physical'] for r in cell]):.3f} / "
+                    f"{np.mean([r['grid'] for r in cell]):.3f}; "
+                    f"{np.mean([r['slips'] for r in cell]):.0f}"
+                )
+        lines.append(f"| {s.what} | " + " | ".join(cells) + " |")
     lines += ["", "First differing word, soil as shipped (trials; inputs that differ there):", ""]
     for c in CONTROLLERS:
         firsts = [r for r in rows if r["switch"] == "shipped" and r["controller"] == c]
@@ -289,7 +315,15 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--domain", type=int_in(0, 101), default=101, help="ROS domain id")
     p.add_argument("--limit", type=int_in(1, 100_000), default=None, help="trials this run")
+    p.add_argument(
+        "--report", action="store_true", help="rewrite DIR/attribution.md from its trials only"
+    )
     args = p.parse_args(argv)
+    if args.report:
+        text = table(load_rows(args.out), tuple(args.robots))
+        write_text_atomic(args.out / "attribution.md", text)
+        print(text)
+        return 0
     os.environ["ROS_DOMAIN_ID"] = str(args.domain)
     from tqdm import tqdm
 
