@@ -110,3 +110,18 @@ def test_physical_soil_can_disagree_with_the_grid(domains):
     assert 0.5 * grid_fitness <= soil.fitness <= 2 * grid_fitness
     assert soil.trace != grid_trace
     assert main(["--hand-coded", "--soil", "physical", "--steps", "1"]) == 2  # needs continuous
+
+
+@pytest.mark.parametrize("soil", ["physical:dome", "physical:lunar,repose=false"])
+def test_the_presets_run_end_to_end(domains, soil):
+    """``ant-trial --soil physical:dome`` (and ``:lunar`` with an override) through the
+    nodes: every word applied, the soil conserved to the quantum."""
+    r = continuous(domains(), "hand-coded", 2, 5, 0, exact=True, soil=soil)
+    assert sum(r.missed.values()) == 0 and r.robots_late == 0
+    assert r.soil_volume == 0 and len(r.trace) == 6
+
+
+def test_a_soil_spec_that_names_no_soil_is_refused_first(capsys):
+    with pytest.raises(SystemExit):
+        main(["--hand-coded", "--drive", "continuous", "--soil", "physical:moon"])
+    assert "unknown preset 'moon'" in capsys.readouterr().err
