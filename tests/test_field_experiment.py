@@ -132,3 +132,23 @@ def test_physical_soil_runs_apart_and_reports_each_trial_against_its_grid(tmp_pa
     assert "| 2 | 0 | 0.87 | 1 | 0.200 / 0.500 | 7 | 0 |" in out
     setup = Setup("field", "quick", PLANS["field", "quick"], GENOME, tmp_path, 0, "physical")
     assert setup.dir == tmp_path / "field-physical"
+
+
+def test_a_preset_and_the_hand_coded_rules_get_folders_and_text_of_their_own(tmp_path):
+    from excavation_field.field_experiment import HAND_CODED, _controller, _options
+
+    plan = PLANS["field", "quick"]
+    setup = Setup("field", "quick", plan, HAND_CODED, tmp_path, 0, "physical:dome,repose=false")
+    assert setup.dir == tmp_path / "field-physical-dome-repose-false-hand-coded"
+    assert _controller(setup).startswith("The hand-coded rules")
+    assert _options(setup) == " --hand-coded --soil physical:dome,repose=false"
+    genome = Setup("field", "quick", plan, GENOME, tmp_path, 0, "physical:lunar")
+    assert genome.dir == tmp_path / "field-physical-lunar"
+    assert GENOME in _controller(genome)
+
+
+def test_the_hand_coded_field_experiment_runs(tmp_path, domains):
+    argv = ["field", "--scale", "quick", "--hand-coded", "--domain", str(domains())]
+    assert main([*argv, "--no-progress", "--out", str(tmp_path)]) == 0
+    section = (tmp_path / "field-hand-coded" / "section.md").read_text()
+    assert "The hand-coded rules" in section and "--hand-coded" in section

@@ -54,6 +54,7 @@ from excavation_common.limits import int_in
 from excavation_sim.soil import soil_arg
 
 GENOME = Path("genomes/best.json")
+HAND_CODED = "hand-coded"
 NAMES = ("landing-pad", "field")
 SOLVED = 0.95
 """The fitness a trial counts as done at (``ticks_to_095``: its first tick at or above)."""
@@ -236,10 +237,13 @@ class Setup:
     def dir(self) -> Path:
         """``OUT/NAME`` (``OUT/NAME-physical``, ``OUT/NAME-physical-dome`` ... otherwise).
 
-        The soil spec's ``:``, ``,`` and ``=`` become ``-`` in the folder's name.
+        The soil spec's ``:``, ``,`` and ``=`` become ``-`` in the folder's name; the
+        hand-coded rules add ``-hand-coded``.
         """
         slug = re.sub(r"[^A-Za-z0-9._-]", "-", self.soil)
         d = self.out / (self.name if self.soil == "grid" else f"{self.name}-{slug}")
+        if self.genome == HAND_CODED:
+            d = d.with_name(d.name + "-hand-coded")
         (d / "trials").mkdir(parents=True, exist_ok=True)
         return d
 
@@ -257,7 +261,11 @@ def run(setup: Setup, progress: bool = True) -> Path:
 
     plan, d = setup.plan, setup.dir
     blueprint, spec = _blueprint(setup.name, plan, d)
-    ctl = Controller.from_file(setup.genome)
+    ctl = (
+        Controller.hand_coded()
+        if setup.genome == HAND_CODED
+        else Controller.from_file(setup.genome)
+    )
     genome_key = _digest(setup.genome)
     jobs = [("grid", n, s) for n in plan.robots for s in range(plan.grid_seeds)]
     jobs += [("continuous", n, s) for n in plan.robots for s in range(plan.continuous_seeds)]
@@ -291,6 +299,8 @@ def run(setup: Setup, progress: bool = True) -> Path:
 def _digest(path: str) -> str:
     import hashlib
 
+    if path == HAND_CODED:
+        return HAND_CODED
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
 
 
@@ -550,7 +560,8 @@ def _figure(setup: Setup, trials: dict) -> None:
         ax.set(xlabel="timestep (tick)", ylim=(0, 1.02))
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle(f"{setup.name}: genome {Path(setup.genome).name}", fontsize=9)
+    who = HAND_CODED if setup.genome == HAND_CODED else f"genome {Path(setup.genome).name}"
+    fig.suptitle(f"{setup.name}: {who}", fontsize=9)
     fig.tight_layout()
     fig.savefig(setup.dir / f"{setup.name.replace('-', '_')}.png")
     plt.close(fig)
@@ -562,7 +573,15 @@ def _options(setup: Setup) -> str:
     for name in ("steps", "grid_seeds", "continuous_seeds"):
         if getattr(plan, name) != getattr(base, name):
             out += f" --{name.replace('_', '-')} {getattr(plan, name)}"
+    out += " --hand-coded" if setup.genome == HAND_CODED else ""
     return out + (f" --soil {setup.soil}" if setup.soil != "grid" else "")
+
+
+def _controller(setup: Setup) -> str:
+    """The controller's name in a section's text."""
+    if setup.genome == HAND_CODED:
+        return "The hand-coded rules (appendix 8.1)"
+    return f"`{setup.genome}` (the 4-robot controller)"
 
 
 def _pct(x: float) -> str:
@@ -625,7 +644,7 @@ def _landing_section(setup: Setup, summary, extras, peaks) -> str:
     extra = "\n".join(f"* {_extras_line(extras, n)}" for n in p.robots if n in extras)
     return f"""### Landing pad: grid against continuous motion (1-{max(p.robots)} robots)
 
-`genomes/best.json` (the 4-robot controller) on the landing pad and ramp
+{_controller(setup)} on the landing pad and ramp
 (`{landing_pad_site().name}`: pad 9 x 10 cells 2 units deep, ramp 4 x 5 cells 1 unit deep),
 {p.steps} ticks; grid: {p.grid_seeds} scenarios per robot count, continuous motion
 (`ant-trial --drive continuous`, default slip and noise, truth poses and heights):
@@ -684,7 +703,7 @@ def _field_section(
     ]
     return f"""### Field: 2 robots, grid against continuous motion with full perception
 
-`genomes/best.json` (the 4-robot controller) with 2 robots on the training blueprint at
+{_controller(setup)} with 2 robots on the training blueprint at
 goal depth {p.depth} (`default:{p.depth}`), {p.steps} ticks; grid: {p.grid_seeds}
 scenarios, continuous motion (default slip and noise, full perception: camera +
 localiser, laser + mapper): {p.continuous_seeds} of them. Scale `{setup.scale}`:
@@ -721,6 +740,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("name", choices=NAMES)
     p.add_argument("--scale", choices=("quick", "tested"), default="tested")
     p.add_argument("--genome", type=Path, default=GENOME, help="the 4-robot controller")
+    p.add_argument(
+        "--hand-coded", action="store_true", help="the hand-coded rules instead of a genome"
+    )
     p.add_argument("--steps", type=int_in(1, 100_000), default=None, help="ticks per trial")
     p.add_argument("--grid-seeds", type=int_in(1, 10_000), default=None)
     p.add_argument("--continuous-seeds", type=int_in(0, 1_000), default=None)
@@ -736,7 +758,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
-    if not args.genome.is_file():
+    if not args.hand_coded and not args.genome.is_file():
         p.error(f"--genome {args.genome}: no such file")
     plan = PLANS[args.name, args.scale]
     changes = {
@@ -754,7 +776,8 @@ def main(argv: list[str] | None = None) -> int:
     plan = replace(plan, every=min(plan.every, plan.steps))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     domain = args.domain if args.domain is not None else int(os.environ.get("ROS_DOMAIN_ID", "0"))
-    setup = Setup(args.name, args.scale, plan, str(args.genome), args.out, domain, args.soil)
+    genome = HAND_CODED if args.hand_coded else str(args.genome)
+    setup = Setup(args.name, args.scale, plan, genome, args.out, domain, args.soil)
     from excavation_common.errors import FieldError
 
     started = time.monotonic()
