@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers.trials import offline
+from helpers.trials import GENOME, offline
 
 from excavation_bringup.trial import run_trial
 
@@ -48,3 +48,25 @@ def test_trial_modes_equal_offline(blade_driver, processes, domain):
     assert sum(result.missed.values()) == 0
     assert np.array_equal(result.heights, heights)
     assert result.fitness == fitness
+
+
+@pytest.mark.parametrize("drive", ["grid", "continuous"])
+def test_a_healthy_trial_logs_no_warning(drive, domain):
+    """Start-up waits (no heartbeat yet, no enable state yet) are INFO: a healthy 4-robot
+    trial's log holds no WARN or ERROR line (a user reads those as faults)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
+    exe = Path(sys.executable).with_name("ant-trial")
+    cmd = [str(exe), "--genome", str(GENOME), "--robots", "4", "--steps", "4"]
+    run = subprocess.run(
+        [*cmd, "--drive", drive], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    log = run.stdout + run.stderr
+    assert "[INFO]" in log  # the nodes did log
+    noisy = [line for line in log.splitlines() if "[WARN]" in line or "[ERROR]" in line]
+    assert noisy == []

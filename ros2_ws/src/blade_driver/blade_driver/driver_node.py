@@ -138,6 +138,7 @@ class BladeDriverNode(LifecycleNode):
         self.core = BladeDriverCore(p.driver())
         self.gate = MotionGate(deadman=p.deadman, rearm_after_loss=p.rearm_after_loss)
         self.hold: str | None = self.gate.reason(self._wall())
+        self.opened = False  # the gate has opened once: a hold after it is a loss (WARN)
         self.lifecycle = "unconfigured"
         self.errors: dict[str, str] = {}
         self.force: float | None = None
@@ -293,9 +294,12 @@ class BladeDriverNode(LifecycleNode):
         if MotionGate.kind(reason) == MotionGate.kind(self.hold):
             return  # the same state (a lost heartbeat's age grows: not a change)
         self.hold = reason
-        if reason is not None:
+        if reason is not None and self.opened:
             self.get_logger().warning(f"blade home: {reason}")
+        elif reason is not None:  # still coming up: waiting is not a fault
+            self.get_logger().info(f"blade home until the team is armed: {reason}")
         else:
+            self.opened = True
             self.get_logger().info("team armed: blade follows the controller")
         if self.lifecycle in ("inactive", "active"):
             if self.params.backend == "sim":
