@@ -25,8 +25,6 @@ import sys
 import time
 from pathlib import Path
 
-from tqdm import tqdm
-
 from ant_evolution.errors import CheckpointError, ConfigError
 from ant_evolution.evolve import EvolveConfig, blueprints_of, load_config, run_evolution
 from ant_evolution.limits import (
@@ -41,6 +39,7 @@ from ant_evolution.profiles import add_profile_options, apply_assignments
 from ant_evolution.ros_evaluator import TrialError
 from blueprint_server.errors import BlueprintError
 from excavation_common.limits import int_in
+from excavation_common.progress import tqdm
 from excavation_sim.world import PlacementError
 
 

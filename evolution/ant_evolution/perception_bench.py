@@ -34,12 +34,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from ant_controller.controller import Controller
 from ant_evolution.evaluate import advance
 from blueprint_server.blueprint import default_blueprint
 from excavation_common.frames import yaw_to_heading
+from excavation_common.progress import tqdm
 from excavation_sim.camera import (
     CameraParams,
     OverheadCamera,

@@ -19,14 +19,13 @@ import csv
 import sys
 from pathlib import Path
 
-from tqdm import tqdm
-
 from ant_controller.controller import Controller
 from ant_controller.errors import GenomeFormatError
 from ant_evolution.errors import ConfigError
 from ant_evolution.evaluate import DEFAULT_STEPS, evaluate
 from ant_evolution.limits import MAX_DEPTH_UNITS, MAX_ROBOTS, check_workload, option
 from ant_evolution.profiles import add_profile_options, switches_of, world_rules_of
+from excavation_common.progress import tqdm
 
 
 def _int_list(high: int):

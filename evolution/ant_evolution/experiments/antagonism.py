@@ -7,8 +7,6 @@ ANT run's controller, and writes the CSVs, the figures and ``section.md``.
 
 from __future__ import annotations
 
-from tqdm import tqdm
-
 from ant_evolution.experiments.core import Context, score_depths, site_text
 from ant_evolution.experiments.grids import (
     Progress,
@@ -16,6 +14,7 @@ from ant_evolution.experiments.grids import (
     robot_grid,
     write_grid,
 )
+from excavation_common.progress import tqdm
 
 NAME = "antagonism"
 

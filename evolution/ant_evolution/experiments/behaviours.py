@@ -28,7 +28,6 @@ import dataclasses
 import json
 
 import numpy as np
-from tqdm import tqdm
 
 from ant_controller.controller import Controller
 from ant_controller.genome import Genome
@@ -57,6 +56,7 @@ from ant_evolution.loop import (
     run_generations,
     save_checkpoint,
 )
+from excavation_common.progress import tqdm
 from excavation_sim.detectors import DETECTOR_TITLES, DETECTORS, detect, random_turn_direction
 from excavation_sim.world import HEADING
 

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from ant_controller.controller import Controller
 from ant_controller.genome_io import load_genome
@@ -28,6 +27,7 @@ from ant_evolution.evaluate import ScenarioSet
 from ant_evolution.evolve import EvolveConfig, run_evolution
 from ant_evolution.profiles import profile_switches, world_rules_of
 from blueprint_server.blueprint import Blueprint, pit_blueprint
+from excavation_common.progress import tqdm
 from excavation_sim.rules import DEFAULT_RULES, WorldRules
 
 METHODS = ("ant", "ant-nocc", "fixed", "neat")

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from ant_controller.controller import Controller
 from ant_controller.genome_io import load_genome
@@ -30,6 +29,7 @@ from ant_evolution.experiments.core import (
     training_fitness,
     write_csv,
 )
+from excavation_common.progress import tqdm
 from excavation_sim.world import PlacementError
 
 Progress = Callable[[], object]

@@ -19,8 +19,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from tqdm import tqdm
-
 from ant_evolution.experiments.core import (
     EVAL_SEED,
     Context,
@@ -35,6 +33,7 @@ from ant_evolution.experiments.grids import (
     robot_grid,
     write_grid,
 )
+from excavation_common.progress import tqdm
 
 Cell = tuple[int, list[tuple[int, int, int]]]
 """A long run's site: the pit's size and its ``(depth, scenarios, seed)`` parts."""

@@ -10,8 +10,6 @@ and ``section.md``.
 
 from __future__ import annotations
 
-from tqdm import tqdm
-
 from ant_controller.controller import Controller
 from ant_evolution.experiments.core import (
     METHOD_LABELS,
@@ -35,6 +33,7 @@ from ant_evolution.experiments.sections import (
     table,
     write_section,
 )
+from excavation_common.progress import tqdm
 
 NAME = "scaleup"
 HAND_CODED = "hand-coded"

@@ -13,7 +13,7 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
     ],
-    install_requires=["numpy", "pyyaml"],
+    install_requires=["numpy", "pyyaml", "tqdm"],
     zip_safe=True,
     maintainer="ANT excavation maintainers",
     maintainer_email="maintainers@ant-excavation.org",

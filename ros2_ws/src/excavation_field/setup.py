@@ -20,6 +20,7 @@ setup(
         "blueprint_server",
         "drive_executor",
         "terrain_mapper",
+        "excavation_bags",
         "ant-evolution",
         "numpy",
         "matplotlib",

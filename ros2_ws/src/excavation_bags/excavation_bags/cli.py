@@ -271,7 +271,7 @@ class Progress:
         """Advance the line to ``node``'s position; the player finished."""
         if not self.quiet:
             if self.bar is None:
-                from tqdm import tqdm
+                from excavation_common.progress import tqdm
 
                 total = len(node.messages) if not node.loop else None
                 self.bar = tqdm(

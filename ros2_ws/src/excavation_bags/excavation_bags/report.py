@@ -168,8 +168,8 @@ def plot_snapshots(data: TrialData, report: Report, count: int = 5) -> None:
 def write_gif(data: TrialData, report: Report, stride: int | None = None, fps: float = 8.0) -> None:
     """``trial.gif``: one image per (``stride``-th) frame; progress on a tqdm bar."""
     from PIL import Image
-    from tqdm import tqdm
 
+    from excavation_common.progress import tqdm
     from excavation_sim.snapshots import draw_world
 
     why = _needs(data, HEIGHTS, ZONES) or ("no frames" if not data.heights else None)

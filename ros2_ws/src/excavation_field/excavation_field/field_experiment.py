@@ -255,9 +255,8 @@ class Setup:
 
 def run(setup: Setup, progress: bool = True) -> Path:
     """Run (or resume) one experiment and write its outputs; returns ``OUT/NAME``."""
-    from tqdm import tqdm
-
     from ant_controller.controller import Controller
+    from excavation_common.progress import tqdm
 
     plan, d = setup.plan, setup.dir
     blueprint, spec = _blueprint(setup.name, plan, d)

@@ -325,7 +325,7 @@ def main(argv: list[str] | None = None) -> int:
         print(text)
         return 0
     os.environ["ROS_DOMAIN_ID"] = str(args.domain)
-    from tqdm import tqdm
+    from excavation_common.progress import tqdm
 
     (args.out / "trials").mkdir(parents=True, exist_ok=True)
     jobs = [
