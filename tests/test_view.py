@@ -201,3 +201,31 @@ def test_quaternion_of_a_rotation():
         ]
     )
     assert np.allclose(back, rot, atol=1e-9)
+
+
+def test_the_view_checks_its_site_for_what_runs_it():
+    """A rehearsal's site keeps the dome's compressed camera: the view started for a
+    rehearsal (``--hardware emulated``, as ``ant-dome rehearse --view`` starts it) takes
+    it, where a ``--sim`` check refuses it (the reason ``--view`` once failed there)."""
+    from excavation_bringup.site import SiteError
+    from excavation_bringup.view import view_site
+
+    config = Path(__file__).resolve().parents[1] / "ros2_ws/src/excavation_bringup/config"
+    rehearsal = str(config / "site_rehearsal.yaml")
+    assert view_site(rehearsal, "emulated", "calibration.yaml").n_robots >= 1
+    with pytest.raises(SiteError, match="with --sim the synthetic camera"):
+        view_site(rehearsal, "sim", "calibration.yaml")
+    assert view_site(str(config / "site_sim.yaml"), None, None).n_robots >= 1
+
+
+def test_ant_dome_starts_the_view_with_its_hardware(tmp_path):
+    from excavation_bringup.deployment import Deployment
+    from excavation_bringup.nodes import RunFiles
+    from excavation_bringup.nodes import view as view_spec
+    from excavation_bringup.site import load_site
+
+    config = Path(__file__).resolve().parents[1] / "ros2_ws/src/excavation_bringup/config"
+    site = load_site(config / "site_rehearsal.yaml", emulated=True)
+    dep = Deployment("", site.n_robots, 4, 0, hardware="emulated", site=site, drive="continuous")
+    spec = view_spec(dep, RunFiles(tmp_path), 8765)
+    assert spec.args[spec.args.index("--hardware") + 1] == "emulated"

@@ -668,6 +668,8 @@ def view(dep: Deployment, files: RunFiles, port: int) -> NodeSpec:
             str(files.calibration),
             "--port",
             str(port),
+            "--hardware",
+            dep.hardware,
         ),
         module="excavation_bringup.view",
     )

@@ -415,13 +415,19 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--host", default="127.0.0.1", help="address to serve on (default loopback)")
     p.add_argument("--port", type=int, default=8765)
     p.add_argument("--period", type=float, default=0.5, help="s between repeats of the state")
+    p.add_argument(
+        "--hardware",
+        choices=("sim", "dome", "emulated"),
+        default=None,
+        help="what runs the site: ant-dome up --sim (sim), the dome (dome) or a rehearsal's "
+        "emulated drivers (emulated); default: sim when the site's camera is the simulator's "
+        "or --calibration is given",
+    )
     args = p.parse_args(remove_ros_args(["ant-view", *argv])[1:])
     site = None
     try:
         if args.site:
-            from excavation_bringup.site import load_site
-
-            site = load_site(args.site, sim=args.calibration is not None or _simulated(args.site))
+            site = view_site(args.site, args.hardware, args.calibration)
         frames = site_frames(site, args.calibration)
     except FieldError as exc:
         print(f"ant-view: error: {exc}", file=sys.stderr)
@@ -445,6 +451,22 @@ def main(argv: list[str] | None = None) -> int:
         rclpy.try_shutdown()
         server.stop()
     return 0
+
+
+def view_site(path: str, hardware: str | None, calibration: str | None):
+    """The site the view shows, checked for what runs it (``hardware``, else guessed).
+
+    A rehearsal (``emulated``) keeps the dome's camera (a compressed stream, say), which a
+    ``--sim`` check would refuse; ``ant-dome`` always says which it runs.
+
+    Raises:
+        excavation_bringup.site.SiteError: The first problem the check finds.
+    """
+    from excavation_bringup.site import load_site
+
+    if hardware is None:
+        hardware = "sim" if calibration is not None or _simulated(path) else "dome"
+    return load_site(path, sim=hardware == "sim", emulated=hardware == "emulated")
 
 
 def _simulated(path: str) -> bool:
