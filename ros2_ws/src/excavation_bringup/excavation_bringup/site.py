@@ -39,6 +39,7 @@ from excavation_common.network import (
     valid_address,
     yaml_range,
 )
+from excavation_common.topics import topic_name_problem
 from excavation_sim.soil import SoilError, check_soil
 
 FORMAT = "ant-site/1"
@@ -79,8 +80,6 @@ HAND_CODED = "hand-coded"
 
 MAP_INFO_OWNER = "server"
 """The one node that publishes ``/worksite/map_info`` in a site: the blueprint server."""
-
-_TOPIC = re.compile(r"^/?[A-Za-z_~{][A-Za-z0-9_/{}~]*$")
 
 
 class SiteError(FieldError):
@@ -288,8 +287,9 @@ class _Reader:
         if choices is not None and value not in choices:
             self.error(f"{where}.{key}", value, f"must be one of {', '.join(choices)}")
             return default
-        if topic and value and not _TOPIC.match(value):
-            self.error(f"{where}.{key}", value, "is not a valid ROS topic name")
+        problem = topic_name_problem(value) if topic and value else None
+        if problem:
+            self.error(f"{where}.{key}", value, f"is not a valid ROS topic name: {problem}")
             return default
         return value
 

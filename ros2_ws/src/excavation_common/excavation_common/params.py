@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from excavation_common.errors import FieldError
+from excavation_common.topics import topic_name_problem
 
 
 class ParameterError(FieldError):
@@ -143,6 +144,10 @@ def validate(cls: type, values: dict[str, Any], node: str = "<node>") -> Any:
             raise ParameterError(
                 node, name, value, f"must be one of {', '.join(map(str, spec.choices))}"
             )
+        if name.endswith("topic") and isinstance(value, str) and value:
+            problem = topic_name_problem(value)
+            if problem:
+                raise ParameterError(node, name, value, f"is not a ROS topic name: {problem}")
         out[name] = value
     result = cls(**out)
     check = getattr(result, "check", None)

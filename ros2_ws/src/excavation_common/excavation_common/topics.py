@@ -32,3 +32,37 @@ def tick_remaps(robots: Iterable[int], k: int, dome_blade: bool) -> list[str]:
     if dome_blade:
         out.append(f"/robot_{k}/blade/joint_states:=/robot_{k}/{DOME_BLADE_OUT}")
     return out
+
+
+def topic_name_problem(name: str) -> str | None:
+    """Why ``name`` is no valid ROS 2 topic name (``None``: it is one).
+
+    The rules rcl checks when a node creates a publisher or subscription (REP 144's
+    names): not empty; only letters, digits, ``_``, ``/``, ``~`` and ``{}``; a ``~`` only
+    first; no token (between slashes) starting with a digit; no
+    ``//`` and no trailing ``/``; braces balanced and not nested. Checked where a name
+    is configured (node parameters, site files), so that a bad one is refused with its
+    field named instead of crashing the node that would use it.
+    """
+    if not name:
+        return "is empty"
+    bad = sorted({c for c in name if not (c.isascii() and (c.isalnum() or c in "_/~{}"))})
+    if bad:
+        return f"has {''.join(bad)!r}: only letters, digits, _, /, ~ and {{}} may appear"
+    if "~" in name[1:]:
+        return "has a ~ that is not its first character"
+    if name.endswith("/"):
+        return "ends with /"
+    if "//" in name:
+        return "has //"
+    depth = 0
+    for c in name:
+        depth += (c == "{") - (c == "}")
+        if depth not in (0, 1):
+            return "has unbalanced or nested braces"
+    if depth:
+        return "has unbalanced braces"
+    for token in name.split("/"):
+        if token[:1].isdigit():
+            return f"has a part that starts with a digit ({token!r})"
+    return None

@@ -1,0 +1,57 @@
+"""Topic names are checked where they are configured, by rcl's rules (not at first use)."""
+
+from __future__ import annotations
+
+import pytest
+from rclpy.expand_topic_name import expand_topic_name
+from rclpy.validate_full_topic_name import validate_full_topic_name
+
+from excavation_common.params import ParameterError, validate
+from excavation_common.topics import topic_name_problem
+
+NAMES = [
+    "/a/b", "a", "cmd_vel", "~/x", "/a/{node}", "/_a", "/a/b_", "/overhead/image_raw",
+    "/a/b/", "/1abc", "/a/1b", "/a-b", "/a b", "a//b", "/a/~b", "~x", "{a", "/a/{b{c}}",
+    "/a/é", "", "/",
+]  # fmt: skip
+
+
+def rcl_accepts(name: str) -> bool:
+    """rcl's own verdict: the name expands (in namespace /ns of node n) to a valid one."""
+    try:
+        full = expand_topic_name(name, "n", "/ns")
+        validate_full_topic_name(full)
+    except Exception:  # noqa: BLE001 - any refusal of rcl's
+        return False
+    return True
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_check_agrees_with_rcl(name):
+    if "{" in name and rcl_accepts(name.replace("{node}", "n")):
+        return  # substitutions other than rcl's known ones are not ours to judge
+    assert (topic_name_problem(name) is None) == rcl_accepts(name), name
+
+
+def test_a_node_parameter_naming_no_topic_is_refused_with_its_field():
+    from drive_executor.params import ExecutorParams
+
+    with pytest.raises(ParameterError, match="pose_topic.*starts with a digit"):
+        validate(ExecutorParams, {"pose_topic": "/robot_0/1pose"}, "executor")
+    assert validate(ExecutorParams, {"pose_topic": "/robot_0/pose"}, "executor")
+
+
+def test_a_site_naming_no_topic_is_refused_by_the_check(tmp_path):
+    from pathlib import Path
+
+    from excavation_bringup import site as sitefile
+
+    config = Path(__file__).resolve().parents[1] / "ros2_ws/src/excavation_bringup/config"
+    text = (config / "site_sim.yaml").read_text()
+    bad = text.replace("scan_topic: /worksite/scan", "scan_topic: /worksite/2scan", 1)
+    assert bad != text
+    (tmp_path / "s.yaml").write_text(
+        bad.replace("../../../../genomes", str(config.parents[4] / "genomes"))
+    )
+    _, errors = sitefile.check_site(tmp_path / "s.yaml", sim=True)
+    assert any("laser.scan_topic" in str(e) and "starts with a digit" in str(e) for e in errors)
