@@ -11,7 +11,7 @@ import pytest
 from ant_controller.layout import BLADE_BELOW, BLADE_LEVEL
 from blueprint_server.blueprint import default_blueprint
 from excavation_sim.dynamics import Dynamics, DynamicsParams
-from excavation_sim.presets import capacity_rows, source_rows
+from excavation_sim.presets import capacity_rows, push_rows, source_rows
 from excavation_sim.soil import (
     PRESETS,
     SoilError,
@@ -185,7 +185,8 @@ def test_the_docs_tables_are_the_presets():
     from pathlib import Path
 
     text = (Path(__file__).parent.parent / "docs" / "world-model.md").read_text()
-    for tag, rows in (("capacities", capacity_rows()), ("sources", source_rows())):
+    tables = (("capacities", capacity_rows()), ("push", push_rows()), ("sources", source_rows()))
+    for tag, rows in tables:
         start = text.index(f"<!-- presets:{tag} -->\n") + len(f"<!-- presets:{tag} -->\n")
         end = text.index(f"<!-- /presets:{tag} -->")
         assert text[start:end].strip() == "\n".join(rows), (

@@ -3,7 +3,7 @@
 ``python -m excavation_sim.presets``: Markdown for docs/world-model.md ("Presets"): each
 preset's parameters with their sources (``soil_presets.yaml``) and the measured push it
 stalls at (:func:`excavation_sim.soil.stall_capacity`) beside the grid's capacities, on the
-blueprint scale each preset is meant for.
+blueprint scale each preset is meant for, and one robot of each cutting flat ground.
 """
 
 from __future__ import annotations
@@ -53,6 +53,50 @@ def capacity_rows() -> list[str]:
     return rows
 
 
+def push_rows(metres: float = 2.0, speed: float = 0.15) -> list[str]:
+    """One robot of each preset cuts flat ground with its blade set below (Markdown rows).
+
+    Throttle up, ``speed`` m/s, no slip or noise, until it has covered ``metres`` or 4,000
+    steps (200 s) have passed: how far it got, the steps its wheels could not give the push,
+    and the soil it moved (the volume that ended anywhere higher than it started, kg).
+    """
+    import numpy as np
+
+    from ant_controller.layout import BLADE_BELOW
+    from blueprint_server.blueprint import default_blueprint
+    from excavation_sim.dynamics import Dynamics, DynamicsParams
+    from excavation_sim.world import COL, HEADING, ROW, World
+
+    rows = [
+        "| preset | covered, m | time, s | steps stalled | soil moved, kg |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for name in PRESETS:
+        s = SCALES[name]
+        bp = default_blueprint(1)
+        world = World.scenario(bp.zones, bp.goal, 1, 0, 0)
+        world.robots[0, [ROW, COL, HEADING]] = (6, 1, 1)  # facing east over open ground
+        soil = SoilParams(soil=f"physical:{name}")
+        dyn = Dynamics(
+            world, DynamicsParams.exact(), s.cell, np.random.default_rng(0), soil, s.unit
+        )
+        dyn.set_blade(0, BLADE_BELOW)
+        dyn.throttle[0] = True
+        start, x0, steps = dyn.soil.fine.copy(), float(dyn.bodies[0, 0]), 0
+        while dyn.bodies[0, 0] - x0 < metres and steps < 4000:
+            dyn.command(0, speed, 0.0)
+            dyn.step()
+            steps += 1
+        f = dyn.soil
+        gained = float(np.clip(f.fine - start, 0, None).sum())
+        kg = gained / f.q * s.unit * f.sub * f.sub * f.params.density
+        rows.append(
+            f"| `physical:{name}` | {dyn.bodies[0, 0] - x0:.2f} | {steps * dyn.params.dt:.0f} | "
+            f"{dyn.counters.slips} | {kg:.1f} |"
+        )
+    return rows
+
+
 def source_rows() -> list[str]:
     """Every preset parameter with its value and source (Markdown rows)."""
     rows = ["| preset | parameter | value | source |", "|---|---|---|---|"]
@@ -65,6 +109,8 @@ def source_rows() -> list[str]:
 def main() -> int:
     """Print both tables."""
     print("\n".join(capacity_rows()))
+    print()
+    print("\n".join(push_rows()))
     print()
     print("\n".join(source_rows()))
     return 0
