@@ -29,6 +29,10 @@ SCALES = {
 }
 
 
+VARIANTS = ("physical:dome,blade_limit=0",)
+"""Readings beside the presets: the dome robot pushing with its wheels' force, no blade limit."""
+
+
 def capacity_rows() -> list[str]:
     """One Markdown row per preset: forces, mass, and the measured stall capacities."""
     rows = [
@@ -71,12 +75,12 @@ def push_rows(metres: float = 2.0, speed: float = 0.15) -> list[str]:
         "| preset | covered, m | time, s | steps stalled | soil moved, kg |",
         "|---|---:|---:|---:|---:|",
     ]
-    for name in PRESETS:
-        s = SCALES[name]
+    for spec in [*(f"physical:{name}" for name in PRESETS), *VARIANTS]:
+        s = SCALES[spec.split(":")[1].split(",")[0]]
         bp = default_blueprint(1)
         world = World.scenario(bp.zones, bp.goal, 1, 0, 0)
         world.robots[0, [ROW, COL, HEADING]] = (6, 1, 1)  # facing east over open ground
-        soil = SoilParams(soil=f"physical:{name}")
+        soil = SoilParams(soil=spec)
         dyn = Dynamics(
             world, DynamicsParams.exact(), s.cell, np.random.default_rng(0), soil, s.unit
         )
@@ -91,7 +95,7 @@ def push_rows(metres: float = 2.0, speed: float = 0.15) -> list[str]:
         gained = float(np.clip(f.fine - start, 0, None).sum())
         kg = gained / f.q * s.unit * f.sub * f.sub * f.params.density
         rows.append(
-            f"| `physical:{name}` | {dyn.bodies[0, 0] - x0:.2f} | {steps * dyn.params.dt:.0f} | "
+            f"| `{spec}` | {dyn.bodies[0, 0] - x0:.2f} | {steps * dyn.params.dt:.0f} | "
             f"{dyn.counters.slips} | {kg:.1f} |"
         )
     return rows
