@@ -46,11 +46,23 @@ blade with a published earth-moving model.
   ``min(motor force, wheel_friction m g)``. Where the resistance is larger, the wheels slip
   and the robot does not advance (:meth:`~excavation_sim.dynamics.Dynamics.step`): the
   executor sees no progress, as on a real robot.
-* **Calibration.** The motor forces are not free parameters: a level blade pushing a pile
-  of N units on flat ground stalls where the grid refuses the push, above 12 units
-  without throttle-up and above 24 with it (the world model's capacities,
-  :func:`calibrate`); the robot's mass is what lets its wheels give that force with
-  ``traction_margin`` to spare.
+* **Calibration.** The motor forces are not free parameters. ``calibration: grid`` (the
+  preset ``grid``, what ``physical`` alone means): a level blade pushing a pile of N units
+  on flat ground stalls where the grid refuses the push, above the world profile's
+  capacities (12 and 24 under ``v1``; :func:`calibrate`); the robot's mass is what lets
+  its wheels give that force with ``traction_margin`` to spare. ``calibration: robot``
+  (the presets ``dome`` and ``lunar``, :func:`robot_physics`): the forces come from the
+  robot's power, speed, mass and traction and its blade's limit, and the pile it stalls
+  at is measured (:func:`stall_capacity`).
+* **Traction.** ``coulomb``: ``wheel_friction m g``, all or nothing. ``terramechanics``
+  (:class:`Terrain`): Bekker's sinkage and rolling resistance, Janosi-Hanamoto's thrust
+  against slip; a heavier push slips more and advances less.
+* **Force control** (``force_control``, the dome robots' blade PID): over ``blade_limit``
+  the edge rises until the blade's force is within it (:meth:`Soil.relief`).
+* **Specs and presets.** ``soil`` is ``grid`` or ``physical[:PRESET][,KEY=VALUE...]``
+  (:func:`parse_soil`); the presets are ``soil_presets.yaml`` beside this module, each
+  value with its source. The switches ``fill``, ``epsilon``, ``refusals``, ``load``,
+  ``fitness_heights`` and ``repose`` turn each departure from the grid on or off.
 
 Pure module (numpy, numba); no ``rclpy``.
 """
