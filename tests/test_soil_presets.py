@@ -192,3 +192,22 @@ def test_the_docs_tables_are_the_presets():
         assert text[start:end].strip() == "\n".join(rows), (
             f"rerun python -m excavation_sim.presets ({tag})"
         )
+
+
+def test_wheels_that_spin_in_place_dig_the_robot_in():
+    """The dome robot without its blade limit stalls in a 5 cm cut; its slipping wheels carry
+    soil back from under its rear half, so the rear sinks and the nose rises; soil is
+    conserved. With coulomb wheels nothing is dug."""
+    for traction, digs in (("terramechanics", True), ("coulomb", False)):
+        soil = SoilParams(soil=f"physical:dome,blade_limit=0,traction={traction}")
+        dyn = Dynamics(dome_world(), DynamicsParams.exact(), CELL, np.random.default_rng(0), soil)
+        dyn.set_blade(0, BLADE_BELOW)
+        dyn.throttle[0] = True
+        x, y, yaw = dyn.bodies[0]
+        total, pitch = dyn.soil.volume(), dyn.soil.pitch(x, y, yaw)
+        for _ in range(400):
+            dyn.command(0, 0.15, 0.0)
+            dyn.step()
+        assert dyn.counters.slips == 400  # stuck in the cut the whole time
+        assert dyn.soil.volume() == total
+        assert (dyn.soil.pitch(x, y, yaw) > pitch + 1e-3) == digs

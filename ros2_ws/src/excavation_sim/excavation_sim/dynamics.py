@@ -166,6 +166,7 @@ class Dynamics:
         self.slipping = np.zeros(n, dtype=bool)  # the last step's push was too heavy
         self.ground = np.zeros(n, dtype=np.int64)  # physical soil: each blade's reference
         self.lift = np.zeros(n, dtype=np.int64)  # the edge above the ground, quanta
+        self.slipped = np.zeros(n)  # slipped distance the wheels have not yet dug, m
         for k in range(n):
             self._measure_ground(k)
         self.time = 0.0
@@ -290,6 +291,10 @@ class Dynamics:
                 blade = soil.resistance(x, y, yaw, self.edge(k))
         grade = physics.mass * physics.gravity * math.sin(soil.pitch(x, y, yaw))
         factor = physics.speed_factor(blade + grade, blade, bool(self.throttle[k]))
+        # the wheels turn at v; what they slip carries soil back from under them
+        self.slipped[k] = soil.dig_in(
+            x, y, yaw, self.slipped[k] + (1.0 - factor) * v * self.params.dt
+        )
         if factor == 0.0:
             self.slipping[k] = True
             self.counters.slips += 1

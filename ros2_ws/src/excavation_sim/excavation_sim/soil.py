@@ -689,6 +689,37 @@ def band_ground(fine, x, y, yaw, sub, near, far, half_width):
 
 
 @nb.njit(cache=True)
+def dig_wheels(fine, x, y, yaw, sub, length, half_width, take):
+    """Slipping wheels carry soil back: ``take`` quanta from each sub-cell under the rear half.
+
+    The sub-cells whose centres lie between ``length`` m behind ``(x, y)`` and ``(x, y)``
+    along ``yaw`` and within ``half_width`` to either side each give ``take`` quanta to the
+    sub-cell one body length plus one sub-cell behind them (off the field: they keep it).
+    Whole quanta move between two sub-cells, so the sum is unchanged. Returns the quanta
+    moved.
+    """
+    rows, cols = fine.shape
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    span = math.hypot(length, half_width) + sub
+    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
+    moved = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            u, v = _local(i, j, sub, x, y, cy, sy)
+            if abs(v) >= half_width or u >= 0.0 or u < -length:
+                continue
+            px = (j + 0.5) * sub - (u + length + sub) * cy
+            py = (i + 0.5) * sub - (u + length + sub) * sy
+            ti, tj = _index(px, py, sub, rows, cols)
+            if ti < 0 or (ti == i and tj == j):
+                continue
+            fine[i, j] -= take
+            fine[ti, tj] += take
+            moved += take
+    return moved
+
+
+@nb.njit(cache=True)
 def pile_load(fine, x, y, yaw, sub, front, half_width, reach, edge):
     """``(face, volume)`` of soil above ``edge`` (quanta) in front of a blade.
 
@@ -987,6 +1018,31 @@ class Soil:
             for n in range(lanes):
                 if column[m, n]:
                     self.fine[cells[m, n, 0], cells[m, n, 1]] += column[m, n]
+
+    def dig_in(self, x: float, y: float, yaw: float, metres: float) -> float:
+        """Slipping wheels carry a layer as thick as their sinkage back, ``metres`` of it.
+
+        The running gear's contact (two sides of ``contact_width``) shears the soil under
+        it by the slipped distance: that much soil, at the wheels' sinkage, goes from under
+        the rear half of the body to behind it, so a robot that spins in place digs itself
+        in (its rear sinks, its nose rises, the grade grows). Soil moves in whole quanta per
+        sub-cell: returns the part of ``metres`` not yet dug (the caller carries it on);
+        all of it without terramechanics traction.
+        """
+        wheels = self.physics.wheels
+        if wheels is None or metres <= 0.0:
+            return max(metres, 0.0)
+        band = int(round(self.site.cell / self.sub)) * int(round(2 * self.half_width / self.sub))
+        per_metre = (
+            (2 * self.params.contact_width * wheels.sinkage / (self.sub * self.sub * band))
+            / self.site.unit
+            * self.q
+        )  # quanta per sub-cell per metre slipped
+        take = int(metres * per_metre)
+        if take <= 0:
+            return metres
+        dig_wheels(self.fine, x, y, yaw, self.sub, self.site.cell, self.half_width, take)
+        return metres - take / per_metre
 
     def pitch(self, x: float, y: float, yaw: float) -> float:
         """The body's nose-up pitch (rad): its front row's mean ground against its rear's."""
