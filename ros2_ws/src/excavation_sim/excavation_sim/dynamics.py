@@ -291,11 +291,9 @@ class Dynamics:
                 blade = soil.resistance(x, y, yaw, self.edge(k))
         grade = physics.mass * physics.gravity * math.sin(soil.pitch(x, y, yaw))
         factor = physics.speed_factor(blade + grade, blade, bool(self.throttle[k]))
-        # the wheels turn at v; what they slip carries soil back from under them
-        self.slipped[k] = soil.dig_in(
-            x, y, yaw, self.slipped[k] + (1.0 - factor) * v * self.params.dt
-        )
         if factor == 0.0:
+            # the wheels spin in place: what they slip carries soil back from under them
+            self.slipped[k] = soil.dig_in(x, y, yaw, self.slipped[k] + v * self.params.dt)
             self.slipping[k] = True
             self.counters.slips += 1
             return 0.0
