@@ -211,3 +211,23 @@ def test_wheels_that_spin_in_place_dig_the_robot_in():
         assert dyn.counters.slips == 400  # stuck in the cut the whole time
         assert dyn.soil.volume() == total
         assert (dyn.soil.pitch(x, y, yaw) > pitch + 1e-3) == digs
+
+
+@pytest.mark.parametrize("spec", ["physical:dome", "physical:lunar", "physical:dome,blade_limit=0"])
+def test_every_preset_conserves_soil_to_the_quantum(spec):
+    """Random terrain, blades, throttle and commands on each preset (force control,
+    terramechanics slip and dig-in included): the total never changes by a quantum."""
+    rng = np.random.default_rng(11)
+    bp = default_blueprint(1)
+    world = World.scenario(bp.zones, bp.goal, 2, 3, 0)
+    world.heights[:] = rng.integers(-2, 3, world.heights.shape)
+    dyn = Dynamics(world, DynamicsParams(), CELL, np.random.default_rng(0), SoilParams(soil=spec))
+    total, blades = dyn.soil.volume(), [BLADE_BELOW, BLADE_LEVEL]
+    for step in range(300):
+        if step % 30 == 0:
+            for k in range(2):
+                dyn.set_blade(k, int(rng.choice(blades)))
+                dyn.throttle[k] = bool(rng.integers(0, 2))
+                dyn.command(k, float(rng.uniform(-0.1, 0.3)), float(rng.uniform(-1, 1)))
+        dyn.step()
+        assert dyn.soil.volume() == total, step
