@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.view_client import free_port
 
 from excavation_bringup.dome import sim_result
 from excavation_bringup.trial import run_trial
@@ -70,14 +71,6 @@ def divergence(a: list, b: list) -> str:
     """Where two runs' words first differ."""
     t = next((i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y), min(len(a), len(b)))
     return f"words first differ at tick {t}: {a[t : t + 1]} != {b[t : t + 1]}"
-
-
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def wait_for(condition, timeout):
@@ -224,7 +217,7 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag_which_replays(tmp_pa
     from excavation_bags.reader import open_bag
 
     bag = tmp_path / "bag"
-    port = _free_port()
+    port = free_port()
     proc = dome(
         tmp_path, domain, "--record", str(bag), "--view", "--view-port", str(port), ticks=300
     )

@@ -3,14 +3,12 @@ robot poses and the height map."""
 
 from __future__ import annotations
 
-import base64
 import json
-import struct
-import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.view_client import Client
 from rclpy.parameter import Parameter
 
 from excavation_bringup import view
@@ -20,71 +18,6 @@ LAYOUT = (
     Path(__file__).resolve().parents[1]
     / "ros2_ws/src/excavation_bringup/config/foxglove_layout.json"
 )
-
-
-def _decoder(channel: dict):
-    """A function bytes -> message for a protobuf channel (from its advertised schema)."""
-    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
-
-    assert channel["encoding"] == "protobuf" and channel["schemaEncoding"] == "protobuf"
-    files = descriptor_pb2.FileDescriptorSet.FromString(base64.b64decode(channel["schema"]))
-    pool = descriptor_pool.DescriptorPool()
-    for f in files.file:
-        pool.Add(f)
-    cls = message_factory.GetMessageClass(pool.FindMessageTypeByName(channel["schemaName"]))
-    return cls.FromString
-
-
-class Client(threading.Thread):
-    """Connects, subscribes to ``topics`` and keeps the last message of each, decoded."""
-
-    def __init__(self, port: int, topics: list[str]):
-        super().__init__(daemon=True)
-        self.port, self.topics = port, topics
-        self.last: dict[str, object] = {}
-        self.channels: dict[str, dict] = {}
-        self.error: Exception | None = None
-        self.stop = threading.Event()
-
-    def run(self):
-        from websockets.sync.client import connect
-
-        try:
-            with connect(f"ws://127.0.0.1:{self.port}", subprotocols=["foxglove.sdk.v1"]) as ws:
-                subscribed = {}
-                while not self.stop.is_set():
-                    try:
-                        frame = ws.recv(timeout=0.5)
-                    except TimeoutError:
-                        continue
-                    if isinstance(frame, str):
-                        msg = json.loads(frame)
-                        if msg.get("op") == "advertise":
-                            new = []
-                            for ch in msg["channels"]:
-                                self.channels[ch["topic"]] = ch
-                                if (
-                                    ch["topic"] in self.topics
-                                    and ch["topic"] not in subscribed.values()
-                                ):
-                                    sub_id = len(subscribed) + 1
-                                    subscribed[sub_id] = ch["topic"]
-                                    new.append({"id": sub_id, "channelId": ch["id"]})
-                            if new:
-                                ws.send(json.dumps({"op": "subscribe", "subscriptions": new}))
-                        continue
-                    opcode, sub_id, _ = struct.unpack_from("<BIQ", frame)
-                    if opcode == 1 and sub_id in subscribed:
-                        topic = subscribed[sub_id]
-                        payload = frame[13:]
-                        ch = self.channels[topic]
-                        self.last[topic] = (
-                            json.loads(payload)
-                            if ch["encoding"] == "json"
-                            else _decoder(ch)(payload)
-                        )
-        except Exception as exc:  # reported to the test
-            self.error = exc
 
 
 def test_client_decodes_robots_and_height_map_of_a_running_trial(ros):

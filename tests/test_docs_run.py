@@ -1,0 +1,61 @@
+"""The documented workflows run for real (docs as tests, tier two).
+
+tests/helpers/doc_runs.py holds the curated set: at least one documented command per
+workflow, run as the doc shows it at a reduced size in a scratch directory. The fast tests
+(make test) check that every curated command is still in its doc and every workflow has a
+run; the runs themselves are system tests (make test-system).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+from helpers.doc_runs import BUDGET_S, RUNS, Step, argv_of, documented, run_doc, scratch
+from helpers.view_client import free_port
+
+WORKFLOWS = (
+    "demo", "eval", "evolve", "trial", "bag record", "bag", "replay", "report", "diff",
+    "dome check", "up --sim", "rehearse", "plan", "operator", "view", "calibrate", "experiments",
+)  # fmt: skip
+"""What the docs teach, each of which must have a run (the issue's list of workflows)."""
+
+
+def test_every_workflow_has_a_run():
+    names = " ".join(run.workflow for run in RUNS) + " " + " ".join(
+        s.command for run in RUNS for s in run.steps
+    )
+    missing = [w for w in WORKFLOWS if w not in names]
+    assert not missing, f"no documented run for {missing}"
+
+
+@pytest.mark.parametrize("run", RUNS, ids=[r.workflow for r in RUNS])
+def test_every_curated_command_is_still_in_its_doc(run):
+    for step in run.steps:
+        argv, _ = argv_of(step, run.doc, {"domain": "1", "port": "1"})
+        assert Path(argv[0]).is_file(), f"{argv[0]}: not installed"
+
+
+def test_a_command_the_doc_no_longer_shows_or_a_stale_reduction_fails():
+    with pytest.raises(AssertionError, match="no longer shows"):
+        argv_of(Step("ant-eval --hand-coded --no-such-flag"), "README.md", {})
+    with pytest.raises(AssertionError, match="has no --ticks to make smaller"):
+        argv_of(Step("ant-bag info bags/sample", smaller={"--ticks": "3"}), "README.md", {})
+
+
+def test_a_backgrounded_command_is_seen_as_such():
+    shown = documented("docs/operator.md")
+    assert shown[
+        "ant-trial --genome genomes/best.json --robots 4 --steps 300 --supervisor external"
+    ]
+    assert not shown["ant-operator arm"]
+
+
+@pytest.mark.system
+@pytest.mark.parametrize("run", RUNS, ids=[r.workflow for r in RUNS])
+def test_documented_workflow_runs(run, tmp_path, domains):
+    start = time.monotonic()
+    outcomes = run_doc(run, scratch(run, tmp_path), domains(), free_port())
+    spent = time.monotonic() - start
+    print(f"{run.workflow}: {len(outcomes)} commands in {spent:.0f} s (all runs: {BUDGET_S} s)")
