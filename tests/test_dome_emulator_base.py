@@ -72,6 +72,17 @@ def test_zero_stamps_and_twists_count_from_their_arrival():
     assert all(f == Forward(0.1, 0.0) for a in actions for f in forwards(a))
 
 
+def test_the_start_up_zero_twist_lapsing_is_marked_as_no_command_yet():
+    core = DiffDriveCore(loose(), T0)
+    actions, _ = run(core, T0, 1.0)
+    braking = [x for a in actions for x in a if isinstance(x, Braking)]
+    assert len(braking) == 1 and not braking[0].received  # the node says so at INFO
+    core.receive(0.0, 0.0, T0 + S, T0 + S)  # a driver's last word: stop
+    actions, _ = run(core, T0 + S, 1.0)
+    braking = [x for a in actions for x in a if isinstance(x, Braking)]
+    assert len(braking) == 1 and braking[0].received and not braking[0].moving  # no WARN
+
+
 def test_a_command_that_ages_past_the_timeout_stops_the_wheels():
     core = DiffDriveCore(loose(), T0)
     core.receive(0.2, 0.5, T0, T0)
@@ -80,6 +91,7 @@ def test_a_command_that_ages_past_the_timeout_stops_the_wheels():
     assert not any(isinstance(x, Braking) for a in actions for x in a)
     late = core.update(now + S // 50)
     assert isinstance(late[0], Braking) and late[0].age == pytest.approx(0.52)
+    assert late[0].received and late[0].moving  # a lapse mid-motion: the node warns
     assert forwards(late) == [Forward(0.0, 0.0)]
     assert core.braking and core.timeouts == 1
     again = core.update(now + 2 * S // 50)  # reported once

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -222,3 +223,47 @@ def test_the_emulated_sensors_take_the_newest_truth_not_a_queue(ros):
         for sub in truth:
             assert sub.qos_profile.history == HistoryPolicy.KEEP_LAST
             assert sub.qos_profile.depth == 1, sub.topic_name
+
+
+CONFIG = Path(__file__).resolve().parents[1] / "ros2_ws/src/excavation_bringup/config"
+SITE, SIM_SITE = CONFIG / "site_rehearsal.yaml", CONFIG / "site_sim.yaml"
+
+
+def test_the_rehearsal_calibration_agrees_with_the_emulated_driver_camera_info(tmp_path):
+    """The emulated camera publishes its intrinsics (as a dome camera driver does); the
+    rehearsal's calibration is fitted under them (``calibrate --camera-info``), so the
+    localiser takes the driver's CameraInfo at start without a warning. The ``--sim``
+    calibration, whose intrinsics are fitted too, differs from them by more than the
+    tolerance: that is the start-up WARN a rehearsal used to log."""
+    from dome_emulator.camera import CameraCore, CameraEmulatorParams
+    from sensor_msgs.msg import CameraInfo
+
+    from blueprint_server.blueprint import resolve_blueprint
+    from excavation_bringup.deployment import Deployment
+    from excavation_bringup.graph import prepare
+    from excavation_bringup.site import load_site
+    from overhead_localizer.camera_info import choose_model
+    from overhead_localizer.camera_model import FROM_CAMERA_INFO, load_model
+
+    site = load_site(SITE, emulated=True)
+    blueprint = resolve_blueprint(site.worksite.blueprint)
+    dep = Deployment.from_site(site, "emulated")
+    files = prepare(dep, tmp_path / "run")
+    model = load_model(files.calibration)
+    assert model.intrinsics == FROM_CAMERA_INFO
+    rows, cols = blueprint.shape
+    camera = CameraCore(
+        CameraEmulatorParams(
+            robots=site.n_robots, rows=rows, cols=cols, cell_size=blueprint.cell_size
+        )
+    )
+    values = camera.camera_info()
+    msg = CameraInfo(
+        width=values.width, height=values.height, distortion_model=values.distortion_model,
+        d=list(values.d), k=list(values.k), r=list(values.r), p=list(values.p),
+    )  # fmt: skip
+    _, warning = choose_model(model, msg)
+    assert warning is None and model.rms_px < 1.0
+    sim = Deployment.from_site(load_site(SIM_SITE, sim=True), "sim")
+    fitted = load_model(prepare(sim, tmp_path / "sim").calibration)
+    assert choose_model(fitted, msg)[1] is not None

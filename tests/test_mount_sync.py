@@ -162,6 +162,21 @@ def test_a_mount_state_queued_while_the_mapper_was_held_up_is_used_not_dropped(r
     assert mapper.unbracketed == 0 and mapper.published == 1  # the whole sweep, fused
 
 
+def test_scans_from_before_the_mounts_first_state_are_dropped_quietly_at_start(ros):
+    """The laser came up first: its first scans predate every mount state. They are
+    dropped and counted as start-up, not reported as a sync fault (no WARN)."""
+    rig = MapperRig(ros, mount_wait=0.5)
+    scans = sweep_ranges(np.zeros((16, 16)))
+    for i in range(2):
+        rig.scan(i * PERIOD_NS, scans[i])  # before the mount's first state
+    for i in range(2, len(scans) + 1):
+        rig.mount(i * PERIOD_NS, tilt_at(i * PERIOD_NS))
+    for i in range(2, len(scans)):
+        rig.scan(i * PERIOD_NS, scans[i])
+    assert ros.spin_until(lambda: rig.mapper.early == 2 and rig.mapper.bracketed == len(scans) - 2)
+    assert rig.mapper.unbracketed == 0 and "mount_sync" not in rig.mapper.problems
+
+
 def test_a_scan_the_laser_has_gone_past_is_dropped_by_stamps_not_wall_time(ros):
     # The mount's stream stopped while the laser's went on: scans more than mount_wait of
     # stamps older than the newest scan are given up, however little wall time passed.

@@ -20,7 +20,9 @@ in ``diff_drive_controller/src/diff_drive_controller.cpp``:
 * **Stamps at each update** (``update_reference_from_subscribers``). The latest command
   whose age (now minus its stamp) exceeds ``cmd_vel_timeout`` is replaced by zero ("Velocity
   command timed out. Braking."); a command with a NaN or infinite component leaves the
-  reference at its previous value.
+  reference at its previous value. The emulator warns only when a command asking for
+  motion lapses: the start-up zero twist lapsing is said once at INFO, a zero twist (a
+  driver that stopped between goals) only at DEBUG.
 * **Limits** (``update_and_write_commands``). The reference then goes through one
   ``SpeedLimiter`` per axis, control_toolbox's ``RateLimiter`` (``rate_limiter.hpp``):
   first the jerk (not emulated here), then the acceleration with the previous command as
@@ -280,9 +282,17 @@ class PublishLimited:
 
 @dataclass(frozen=True)
 class Braking:
-    """The latest command timed out at this update (``age`` s): the reference is zero."""
+    """The latest command timed out at this update (``age`` s): the reference is zero.
+
+    ``received``: whether any ``cmd_vel`` came before (False: the zero twist the base
+    starts with lapsed, at start-up, before its driver's first command). ``moving``:
+    whether the lapsed command asked for motion (a stream that stopped after a zero twist,
+    as a driver stops between goals, is no fault; one that stopped mid-motion is).
+    """
 
     age: float
+    received: bool = True
+    moving: bool = True
 
 
 Action = Forward | PublishOdometry | PublishLimited | Braking
@@ -360,7 +370,8 @@ class DiffDriveCore:
             if not self.braking:
                 self.braking = True
                 self.timeouts += 1
-                out.append(Braking(age_ns * 1e-9))
+                moving = bool(linear or angular) or not math.isfinite(linear + angular)
+                out.append(Braking(age_ns * 1e-9, self.received > 0, moving))
         else:
             self.braking = False
             if math.isfinite(linear) and math.isfinite(angular):

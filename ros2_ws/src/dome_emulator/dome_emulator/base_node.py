@@ -132,6 +132,10 @@ class BaseNode(Node):
                     self.odom_pub.publish(self.odometry(action, stamp))
                 case PublishLimited(linear, angular):
                     self.limited_pub.publish(self.twist(linear, angular, stamp))
+                case Braking(received=False):
+                    self.get_logger().info("no velocity command yet: wheels held still")
+                case Braking(age, moving=False):
+                    self.get_logger().debug(f"zero twist {age:.3f} s old: wheels held still")
                 case Braking(age):
                     self.get_logger().warning(
                         f"velocity command timed out ({age:.3f} s old): braking"

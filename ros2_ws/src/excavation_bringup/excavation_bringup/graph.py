@@ -109,7 +109,10 @@ def _calibration(dep: Deployment, run_dir: Path) -> str:
     from overhead_localizer.camera_model import save_model
 
     path = run_dir / "camera.yaml"
-    save_model(simulated_calibration(resolve_blueprint(dep.blueprint), dep.seed), str(path))
+    # The emulated camera driver publishes its intrinsics: fit the pose under them.
+    camera_info = bool(site is not None and site.camera.camera_info_topic and dep.emulated)
+    model = simulated_calibration(resolve_blueprint(dep.blueprint), dep.seed, camera_info)
+    save_model(model, str(path))
     return str(path)
 
 

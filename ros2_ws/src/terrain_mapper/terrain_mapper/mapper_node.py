@@ -76,7 +76,7 @@ from terrain_mapper.mapper import (
     scan_ranges_check,
     scan_timing_check,
 )
-from terrain_mapper.mount_sync import MISS, WAIT, Lookup, MountSync
+from terrain_mapper.mount_sync import MISS, TOO_OLD, WAIT, Lookup, MountSync
 from terrain_mapper.params import MapperNodeParams
 
 SCAN_TOPIC = MapperNodeParams().scan_topic
@@ -148,6 +148,8 @@ class MapperNode(Node):
         self.mount_wait_ns = int(round(c.mount_wait * 1e9))
         self.unbracketed = 0
         self.unbracketed_seen = 0
+        self.bracketed = 0  # scans matched to mount states so far
+        self.early = 0  # scans dropped at start, older than the mount's first state
         self.poses: dict[int, tuple[tuple[int, int], tuple[float, float, float]]] = {}
         self.in_sweep = 0
         self.last_tilt: float | None = None
@@ -310,6 +312,14 @@ class MapperNode(Node):
                 reason = "the laser went on" if behind else "it waited mount_wait"
                 found = Lookup(MISS, reason=f"no mount state after it ({reason})")
             self.scans.pop(0)
+            if found.status == MISS and found.reason == TOO_OLD and not self.bracketed:
+                # Start-up: the laser came up before the mount's first state. Not a fault.
+                if not self.early:
+                    self.get_logger().info(
+                        "scans from before the mount's first state are dropped (start-up)"
+                    )
+                self.early += 1
+                continue
             if found.status == MISS:
                 self.unbracketed += 1
                 self.problem(
@@ -319,6 +329,7 @@ class MapperNode(Node):
                     f"(last: {found.reason})",
                 )
                 continue
+            self.bracketed += 1
             self.integrate(msg, found.pan, found.tilt, stamp)
 
     def integrate(

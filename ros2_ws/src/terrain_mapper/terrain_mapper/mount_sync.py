@@ -31,6 +31,8 @@ import numpy as np
 
 WAIT = "wait"
 MISS = "miss"
+TOO_OLD = "older than every mount state kept"
+"""A miss's reason when the scan predates the states kept (at start: the laser came up first)."""
 
 
 @dataclass(frozen=True)
@@ -83,7 +85,7 @@ class MountSync:
         if i == len(self.stamps):
             return Lookup(WAIT)
         if i == 0:
-            return Lookup(MISS, reason="older than every mount state kept")
+            return Lookup(MISS, reason=TOO_OLD)
         t0, t1 = self.stamps[i - 1], self.stamps[i]
         if t1 - t0 > self.max_gap:
             gap = (t1 - t0) * 1e-9
@@ -110,7 +112,7 @@ class MountSync:
         exact_next = (i < n) & (np.abs(s[nxt] - t) <= self.exact)
         exact = exact_prev | exact_next
         if ((i == 0) & ~exact).any():
-            return Lookup(MISS, reason="older than every mount state kept")
+            return Lookup(MISS, reason=TOO_OLD)
         gaps = np.where(exact | (i == n), 0, s[nxt] - s[prev])
         if (gaps > self.max_gap).any():
             gap = int(gaps.max()) * 1e-9
