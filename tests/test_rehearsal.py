@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -40,6 +41,26 @@ def rehearse(run: Path, domain: int, *extra: str) -> tuple[dict, subprocess.Comp
     return json.loads(lines[-1]), out
 
 
+def startup_warnings(logs: Path) -> list[str]:
+    """The WARN and ERROR lines every node logged while the team came up: up to the moment
+    the last blade driver saw the team armed (``team armed: blade follows the controller``)."""
+    lines = [ln for log in sorted(logs.glob("*.log")) for ln in log.read_text().splitlines()]
+    stamp = re.compile(r"^\[(\w+)\] \[(\d+\.\d+)\]")
+    armed = [
+        float(m.group(2))
+        for ln in lines
+        if "team armed: blade follows the controller" in ln and (m := stamp.match(ln))
+    ]
+    assert armed, "no blade driver saw the team armed"
+    return [
+        ln
+        for ln in lines
+        if (m := stamp.match(ln))
+        and m.group(1) in ("WARN", "ERROR")
+        and float(m.group(2)) <= max(armed)
+    ]
+
+
 def test_a_short_rehearsal_takes_every_tick_through_the_dome_table(tmp_path, domain):
     run, bag = tmp_path / "run", tmp_path / "bag"
     summary, _ = rehearse(run, domain, "--record", str(bag))
@@ -49,6 +70,7 @@ def test_a_short_rehearsal_takes_every_tick_through_the_dome_table(tmp_path, dom
     assert result["missed"] == {"0": 0, "1": 0}, result
     _, _, trace = offline_trace(str(GENOME), 2, TICKS, 0)
     assert summary["fitness"] >= 0.9 * trace[TICKS]
+    assert startup_warnings(run / "logs") == []  # a new user reads them as faults
 
     # the real table: the blade drivers on the serial backend, ports on the emulated boards
     params = (run / "params" / "blade_driver_0.yaml").read_text()

@@ -149,6 +149,7 @@ class MapperNode(Node):
         self.unbracketed = 0
         self.unbracketed_seen = 0
         self.bracketed = 0  # scans matched to mount states so far
+        self.sweeps = 0  # sweeps closed so far, full or short
         self.early = 0  # scans dropped at start, older than the mount's first state
         self.poses: dict[int, tuple[tuple[int, int], tuple[float, float, float]]] = {}
         self.in_sweep = 0
@@ -368,12 +369,19 @@ class MapperNode(Node):
         if self.in_sweep >= 2 and step * self.sweep_direction < 0:
             # the tilt turned back: a new sweep began before this one had all its scans
             # (one was lost); close the short sweep so the count is in step again
-            self.problem(
-                "sweep_size",
-                DiagnosticStatus.WARN,
-                f"a sweep ended after {self.in_sweep} of {self.sweep_scans} scans",
-            )
-            self.short_sweeps += 1
+            if self.sweeps == 0:  # start-up: the mapper came up mid-sweep
+                self.get_logger().info(
+                    f"the first sweep was joined mid-way ({self.in_sweep} of "
+                    f"{self.sweep_scans} scans)"
+                )
+            else:
+                self.problem(
+                    "sweep_size",
+                    DiagnosticStatus.WARN,
+                    f"a sweep ended after {self.in_sweep} of {self.sweep_scans} scans",
+                )
+                self.short_sweeps += 1
+            self.sweeps += 1
             self.in_sweep = 0
             self.pending = (self.sweep_stamp, time.monotonic())
             self.fuse()
@@ -401,6 +409,7 @@ class MapperNode(Node):
             self.problems.pop("scan", None)
         self.in_sweep += 1
         if self.in_sweep >= self.sweep_scans:
+            self.sweeps += 1
             self.problems.pop("sweep_size", None)
             if self.unbracketed == self.unbracketed_seen:  # a whole sweep without a miss
                 self.problems.pop("mount_sync", None)
