@@ -7,7 +7,7 @@ from rclpy.expand_topic_name import expand_topic_name
 from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from excavation_common.params import ParameterError, validate
-from excavation_common.topics import topic_name_problem
+from excavation_common.topics import frame_name_problem, topic_name_problem
 
 NAMES = [
     "/a/b", "a", "cmd_vel", "~/x", "/a/{node}", "/_a", "/a/b_", "/overhead/image_raw",
@@ -55,3 +55,23 @@ def test_a_site_naming_no_topic_is_refused_by_the_check(tmp_path):
     )
     _, errors = sitefile.check_site(tmp_path / "s.yaml", sim=True)
     assert any("laser.scan_topic" in str(e) and "starts with a digit" in str(e) for e in errors)
+
+
+@pytest.mark.parametrize(
+    "name, ok",
+    [
+        ("base_link", True), ("robot_0/base_link", True), ("overhead_camera", True),
+        ("laser-1.a", True), ("/base_link", False), ("", False), ("a b", False),
+        ("a//b", False), ("odom/", False), ("é", False),
+    ],
+)  # fmt: skip
+def test_frame_ids_follow_tf2(name, ok):
+    assert (frame_name_problem(name) is None) == ok, name
+
+
+def test_a_node_parameter_naming_no_frame_is_refused_with_its_field():
+    from dome_emulator.base import BaseParams
+
+    with pytest.raises(ParameterError, match="base_frame_id.*tf2 frame id.*starts with /"):
+        validate(BaseParams, {"base_frame_id": "/base_link"}, "base")
+    assert validate(BaseParams, {"base_frame_id": "base_link"}, "base")

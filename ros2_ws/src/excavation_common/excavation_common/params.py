@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from excavation_common.errors import FieldError
-from excavation_common.topics import topic_name_problem
+from excavation_common.topics import frame_name_problem, topic_name_problem
 
 
 class ParameterError(FieldError):
@@ -148,6 +148,10 @@ def validate(cls: type, values: dict[str, Any], node: str = "<node>") -> Any:
             problem = topic_name_problem(value)
             if problem:
                 raise ParameterError(node, name, value, f"is not a ROS topic name: {problem}")
+        if name.endswith(("frame", "frame_id")) and isinstance(value, str):
+            problem = frame_name_problem(value)
+            if problem:
+                raise ParameterError(node, name, value, f"is not a tf2 frame id: {problem}")
         out[name] = value
     result = cls(**out)
     check = getattr(result, "check", None)

@@ -66,3 +66,23 @@ def topic_name_problem(name: str) -> str | None:
         if token[:1].isdigit():
             return f"has a part that starts with a digit ({token!r})"
     return None
+
+
+def frame_name_problem(name: str) -> str | None:
+    """Why ``name`` is no usable tf2 frame id (``None``: it is one).
+
+    tf2 refuses a frame id with a leading ``/`` (``TF_SELF_TRANSFORM``-style errors at
+    every lookup) and tools split on whitespace; here a frame id is letters, digits, ``_``,
+    ``-``, ``.`` and ``/`` between parts (``robot_0/base_link``), not empty, with no
+    leading, trailing or double ``/``.
+    """
+    if not name:
+        return "is empty"
+    bad = sorted({c for c in name if not (c.isascii() and (c.isalnum() or c in "_-./"))})
+    if bad:
+        return f"has {''.join(bad)!r}: only letters, digits, _, -, . and / may appear"
+    if name.startswith("/"):
+        return "starts with / (tf2 frame ids do not)"
+    if name.endswith("/") or "//" in name:
+        return "has an empty part between slashes"
+    return None
