@@ -75,3 +75,33 @@ def test_a_node_parameter_naming_no_frame_is_refused_with_its_field():
     with pytest.raises(ParameterError, match="base_frame_id.*tf2 frame id.*starts with /"):
         validate(BaseParams, {"base_frame_id": "/base_link"}, "base")
     assert validate(BaseParams, {"base_frame_id": "base_link"}, "base")
+
+
+def test_ant_dome_check_runs_the_nodes_start_up_checks_on_the_graph(tmp_path):
+    """The graph ``ant-dome up`` would start passes the nodes' own checks for every shipped
+    site in its mode; a node spec with a value its node would refuse is named, as is a
+    remapping onto no topic name."""
+    import dataclasses
+    from pathlib import Path
+
+    from excavation_bringup import site as sitefile
+    from excavation_bringup.dome import dome_graph, start_problems
+
+    config = Path(__file__).resolve().parents[1] / "ros2_ws/src/excavation_bringup/config"
+    for name, hardware in (("site_sim", "sim"), ("site_rehearsal", "emulated")):
+        site, errors = sitefile.check_site(
+            config / f"{name}.yaml", sim=hardware == "sim", emulated=hardware == "emulated"
+        )
+        assert not errors
+        graph = dome_graph(site, tmp_path / name, hardware)
+        assert start_problems(graph, name) == []
+    base = next(i for i, n in enumerate(graph.nodes) if n.kind == "emulated_base")
+    bad = dataclasses.replace(
+        graph.nodes[base],
+        params=graph.nodes[base].params | {"base_frame_id": "/base_link"},
+        remaps=(*graph.nodes[base].remaps, "/x:=/2x"),
+    )
+    graph.nodes[base] = bad
+    problems = start_problems(graph, "site.yaml")
+    assert any(f"node {bad.name} would refuse" in p and "base_frame_id" in p for p in problems)
+    assert any("remapping /x to '/2x'" in p for p in problems)

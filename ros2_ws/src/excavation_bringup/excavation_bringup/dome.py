@@ -119,9 +119,46 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return 0
 
 
+def start_problems(graph: Graph, where: str) -> list[str]:
+    """What the nodes of ``graph`` would refuse at start, one line each.
+
+    Every node's parameters go through its parameter classes' own checks (as the node
+    runs them when it starts: types, ranges, choices, topic names, frame ids, rules across
+    fields) and every remapping's target must be a topic name; ``where`` (the site file)
+    begins each line.
+    """
+    from excavation_bringup.kinds import kind
+    from excavation_common.params import ParameterError, specs, validate
+    from excavation_common.topics import topic_name_problem
+
+    out = []
+    for spec in graph.nodes:
+        for cls in kind(spec.kind).param_classes():
+            own = {n: v for n, v in spec.params.items() if n in specs(cls)}
+            try:
+                validate(cls, own, spec.name)
+            except ParameterError as exc:
+                out.append(f"{where}: node {spec.name} would refuse to start: {exc}")
+        for remap in spec.remaps:
+            source, _, target = remap.partition(":=")
+            problem = topic_name_problem(target)
+            if problem:
+                out.append(
+                    f"{where}: node {spec.name}: remapping {source} to {target!r}: {problem}"
+                )
+    return out
+
+
 def cmd_check(args: argparse.Namespace) -> int:
-    """``ant-dome check``."""
+    """``ant-dome check``: the site's own checks, then the nodes' start-up checks on the
+    graph it would start (in the mode asked for)."""
+    import tempfile
+
     site, errors = sitefile.check_site(args.site, sim=args.sim, emulated=args.rehearse)
+    if not errors:
+        hardware = "sim" if args.sim else "emulated" if args.rehearse else "dome"
+        with tempfile.TemporaryDirectory(prefix="ant-dome-check-") as tmp:
+            errors = start_problems(dome_graph(site, Path(tmp), hardware), str(args.site))
     for e in errors:
         print(str(e))
     if errors:
