@@ -23,8 +23,10 @@ WORKFLOWS = (
 
 
 def test_every_workflow_has_a_run():
-    names = " ".join(run.workflow for run in RUNS) + " " + " ".join(
-        s.command for run in RUNS for s in run.steps
+    names = (
+        " ".join(run.workflow for run in RUNS)
+        + " "
+        + " ".join(s.command for run in RUNS for s in run.steps)
     )
     missing = [w for w in WORKFLOWS if w not in names]
     assert not missing, f"no documented run for {missing}"

@@ -150,8 +150,10 @@ def start_problems(graph: Graph, where: str) -> list[str]:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    """``ant-dome check``: the site's own checks, then the nodes' start-up checks on the
-    graph it would start (in the mode asked for)."""
+    """``ant-dome check``: the site's checks, then the nodes' start-up checks.
+
+    The start-up checks run on the graph the site would start in the mode asked for.
+    """
     import tempfile
 
     site, errors = sitefile.check_site(args.site, sim=args.sim, emulated=args.rehearse)
