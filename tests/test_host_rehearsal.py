@@ -18,12 +18,14 @@ import sys
 from pathlib import Path
 
 import pytest
+from helpers.view_client import Client, free_port
 
 pytestmark = [pytest.mark.serial, pytest.mark.system]
 
 ROOT = Path(__file__).resolve().parents[1]
 SITE = ROOT / "ros2_ws/src/excavation_bringup/config/site_rehearsal_hosts.yaml"
 TICKS = 2
+VIEW = ("/view/robots", "/view/height_map", "/view/blueprint", "/view/fitness", "/tf")
 
 
 def _namespaces() -> set[str]:
@@ -69,7 +71,19 @@ def test_a_robot_host_whose_clock_runs_a_second_ahead_stands_still_and_says_why(
     """``--clock-offset robot0:1.0``: robot0's processes (libfaketime) see every pose 1 s
     old, past the executor's ``pose_timeout``: the robot never moves, its executor names
     the clock on /diagnostics, and the team's ticks complete without it."""
-    run = _rehearse(tmp_path, domain, "--clock-offset", "robot0:1.0")
+    # The live view runs on the dome PC, in its namespace: its port is forwarded to this
+    # machine's loopback, where a Foxglove client reads the view's channels.
+    port = free_port()
+    client = Client(port, list(VIEW), connect_within=600)
+    client.start()
+    try:
+        run = _rehearse(
+            tmp_path, domain, "--clock-offset", "robot0:1.0", "--view", "--view-port", str(port)
+        )
+    finally:
+        client.stop.set()
+        client.join(10)
+    assert client.error is None and set(VIEW) <= set(client.last), (client.error, client.last)
     assert json.loads((run / "result.json").read_text())["missed"] == {"0": 0, "1": 0}
     drill = json.loads((run / "drill.json").read_text())
     robot = drill["robot_0"]

@@ -94,7 +94,7 @@ class Client(threading.Thread):
         while True:
             try:
                 return connect(f"ws://127.0.0.1:{self.port}", subprotocols=["foxglove.sdk.v1"])
-            except OSError:
+            except Exception:  # noqa: BLE001 - refused, reset or cut mid-handshake: again
                 if time.monotonic() > deadline or self.stop.is_set():
                     raise
                 time.sleep(0.5)

@@ -5,7 +5,9 @@ The rehearsal makes one network namespace per host of the site
 again inside the dome PC's namespace (``--netns TAG``), which starts the whole graph as
 usual, each robot host's share through ``ip netns exec`` into that host's namespace: the
 processes of different hosts reach each other only across the virtual links, by unicast to
-the site's static peers. When the inner run ends (or Ctrl-C), the namespaces go.
+the site's static peers. When the inner run ends (or Ctrl-C), the namespaces go. With
+``--view`` the view's port on the dome PC's loopback is forwarded to this machine's
+(:mod:`excavation_bringup.port_forward`), so Foxglove connects as in any other mode.
 
 A drill (``--drop-link HOST:AFTER:FOR``) takes robot host ``HOST``'s link down ``AFTER``
 seconds after the team is armed, for ``FOR`` seconds, then up again, and re-arms the team
@@ -34,6 +36,7 @@ import time
 from pathlib import Path
 
 from excavation_bringup import site as sitefile
+from excavation_bringup.port_forward import NamespaceForward
 from excavation_bringup.virtual_hosts import VirtualHosts, VirtualHostsError
 
 REARM_AFTER = 3.0
@@ -406,6 +409,16 @@ def rehearse_hosts(args, site: sitefile.Site, argv: list[str]) -> int:
         "hosts: "
         + ", ".join(f"{h.name} {h.address} (namespace {h.namespace})" for h in hosts.hosts)
     )
+    forward = None
+    if args.view:  # the view binds the dome PC's loopback: bring its port to this one's
+        try:
+            forward = NamespaceForward(hosts.prefix(site.dome_host), args.view_port)
+        except OSError as exc:
+            hosts.remove()
+            print(f"ant-dome: error: --view-port {args.view_port}: {exc}", file=sys.stderr)
+            return 2
+        forward.start()
+        echo(f"live view: ws://127.0.0.1:{args.view_port} (forwarded from host dome)")
     proc = subprocess.Popen(inner, start_new_session=True)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda s, _f: proc.send_signal(s))
@@ -423,5 +436,7 @@ def rehearse_hosts(args, site: sitefile.Site, argv: list[str]) -> int:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+        if forward is not None:
+            forward.stop()
         hosts.remove()
     return code
