@@ -25,6 +25,7 @@ block is not checked here.
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
 import importlib.metadata
 import re
@@ -159,6 +160,7 @@ def _strip(words: list[str]) -> list[str]:
     return words
 
 
+@functools.cache
 def entry_points() -> dict[str, str]:
     """Console scripts of the project's packages: name -> ``module:function``."""
     eps = importlib.metadata.entry_points(group="console_scripts")

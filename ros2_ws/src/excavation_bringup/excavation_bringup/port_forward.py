@@ -12,6 +12,7 @@ its standard input and output. Loopback to loopback: nothing leaves the machine.
 from __future__ import annotations
 
 import contextlib
+import functools
 import socket
 import subprocess
 import sys
@@ -68,26 +69,37 @@ class NamespaceForward:
             command = [*self.prefix, sys.executable, "-m", __name__, str(self.inner)]
             proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE)
             self._procs.append(proc)
-            threading.Thread(target=_pump_socket_to, args=(conn, proc.stdin), daemon=True).start()
-            threading.Thread(target=_pump_to_socket, args=(proc.stdout, conn), daemon=True).start()
+            to_proc = (conn.recv, _writer(proc.stdin), proc.stdin.close)
+            to_conn = (proc.stdout.read1, conn.sendall, functools.partial(_close, conn))
+            threading.Thread(target=_pump, args=to_proc, daemon=True).start()
+            threading.Thread(target=_pump, args=to_conn, daemon=True).start()
 
 
-def _pump_socket_to(conn: socket.socket, out) -> None:
+def _pump(read, write, done=None) -> None:
+    """Copy chunks from ``read`` to ``write`` until the end (or an error); then ``done``."""
     with contextlib.suppress(OSError, ValueError):
-        while data := conn.recv(CHUNK):
-            out.write(data)
-            out.flush()
-    with contextlib.suppress(OSError, ValueError):
-        out.close()
+        while data := read(CHUNK):
+            write(data)
+    if done is not None:
+        with contextlib.suppress(OSError, ValueError):
+            done()
 
 
-def _pump_to_socket(src, conn: socket.socket) -> None:
-    with contextlib.suppress(OSError, ValueError):
-        while data := src.read1(CHUNK):
-            conn.sendall(data)
+def _close(conn: socket.socket) -> None:
+    """Shut a relayed connection both ways and close it."""
     with contextlib.suppress(OSError):
         conn.shutdown(socket.SHUT_RDWR)
     conn.close()
+
+
+def _writer(out):
+    """A write-and-flush of a binary stream."""
+
+    def write(data: bytes) -> None:
+        out.write(data)
+        out.flush()
+
+    return write
 
 
 def relay(port: int, within: float = CONNECT_WITHIN) -> int:
@@ -107,24 +119,12 @@ def relay(port: int, within: float = CONNECT_WITHIN) -> int:
             time.sleep(0.2)
     sock.settimeout(None)
     # The client's bytes go on in a thread; the relay ends when the server's side closes.
-    threading.Thread(target=_pump_stdin_to, args=(sys.stdin.buffer, sock), daemon=True).start()
-    _pump_to_stdout(sock, sys.stdout.buffer)
+    done = functools.partial(sock.shutdown, socket.SHUT_WR)  # the client is done
+    threading.Thread(
+        target=_pump, args=(sys.stdin.buffer.read1, sock.sendall, done), daemon=True
+    ).start()
+    _pump(sock.recv, _writer(sys.stdout.buffer))
     return 0
-
-
-def _pump_stdin_to(src, sock: socket.socket) -> None:
-    with contextlib.suppress(OSError, ValueError):
-        while data := src.read1(CHUNK):
-            sock.sendall(data)
-    with contextlib.suppress(OSError):
-        sock.shutdown(socket.SHUT_WR)
-
-
-def _pump_to_stdout(sock: socket.socket, out) -> None:
-    with contextlib.suppress(OSError, ValueError):
-        while data := sock.recv(CHUNK):
-            out.write(data)
-            out.flush()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -217,6 +217,15 @@ def load_rows(out: Path) -> list[dict]:
     return [json.loads(p.read_text()) for p in sorted((out / "trials").glob("*.json"))]
 
 
+def _cell(rows: list[dict], switch: str, controller: str, robots: int) -> list[dict]:
+    """The trials of one cell of the table: a switch, a controller, a team size."""
+    return [
+        r
+        for r in rows
+        if r["switch"] == switch and r["controller"] == controller and r["robots"] == robots
+    ]
+
+
 def table(rows: list[dict], robots: tuple[int, ...]) -> str:
     """The attribution table and the first-difference counts (Markdown)."""
     head = "| switch | " + " | ".join(
@@ -235,12 +244,7 @@ def table(rows: list[dict], robots: tuple[int, ...]) -> str:
         for n in robots:
             for c in CONTROLLERS:
                 vals = [
-                    r["progress"]
-                    for r in rows
-                    if r["switch"] == s.key
-                    and r["controller"] == c
-                    and r["robots"] == n
-                    and r["progress"] is not None
+                    r["progress"] for r in _cell(rows, s.key, c, n) if r["progress"] is not None
                 ]
                 mean, half = interval(vals)
                 cells.append(
@@ -264,11 +268,7 @@ def table(rows: list[dict], robots: tuple[int, ...]) -> str:
         cells = []
         for n in robots:
             for c in CONTROLLERS:
-                cell = [
-                    r
-                    for r in rows
-                    if r["switch"] == s.key and r["controller"] == c and r["robots"] == n
-                ]
+                cell = _cell(rows, s.key, c, n)
                 cells.append(
                     "-"
                     if not cell

@@ -436,11 +436,19 @@ class Physics:
     blade_limit: float = 0.0
     wheels: Terrain | None = None
 
+    def traction(self) -> float:
+        """The most push the wheels give, N.
+
+        Terramechanics: the thrust at full slip less the rolling resistance; Coulomb: the
+        friction of the robot's weight.
+        """
+        if self.wheels is not None:
+            return self.wheels.thrust(1.0) - self.wheels.rolling
+        return self.wheel_friction * self.mass * self.gravity
+
     def available(self, throttle: bool) -> float:
         """Push the robot gives: its motor force, at most what its wheels' traction gives."""
-        if self.wheels is not None:
-            return min(self.motor[int(throttle)], self.wheels.thrust(1.0) - self.wheels.rolling)
-        return min(self.motor[int(throttle)], self.wheel_friction * self.mass * self.gravity)
+        return min(self.motor[int(throttle)], self.traction())
 
     def load_scale(self) -> float:
         """The force L1 reads as a full blade, N."""
@@ -1124,10 +1132,7 @@ def robot_physics(params: SoilParams, draft: Physics) -> Physics:
     """
     mass = params.robot_mass
     wheels = Terrain.of(params, mass) if params.traction == "terramechanics" else None
-    if wheels is not None:
-        traction = wheels.thrust(1.0) - wheels.rolling
-    else:
-        traction = params.wheel_friction * mass * params.gravity
+    traction = replace(draft, mass=mass, wheels=wheels).traction()
     if traction <= 0:
         raise SoilError(
             f"robot_mass = {mass}: the wheels' thrust does not overcome their rolling "
