@@ -102,7 +102,10 @@ def test_fixed_points_occur_and_the_kernel_stops_there():
     assert min(shares) < 0.5  # some tissues come to rest early
     busy = phase_times(Controller.hand_coded(), batch, repeats=1)
     assert busy["steps run"] == 1.0  # the hand-coded rules never rest
-    assert all(busy[k] > 0 for k in ("sensing", "decision", "world step"))
+    # Timed phases, not asserted against any time: measured directly (positive), and the
+    # world step as the difference of two timings (clamped at 0; on a loaded machine the
+    # copies alone can take longer than copies plus step, as it did once in make test).
+    assert busy["sensing"] > 0 and busy["decision"] > 0 and busy["world step"] >= 0
 
 
 def test_decision_cache_answers_as_the_tissue():
