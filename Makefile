@@ -18,13 +18,22 @@ NETNS := $(shell unshare -n true 2>/dev/null && echo "unshare -n")
 .PHONY: setup lint test test-system test-pending demo bench soak params clean
 
 $(STAMP): requirements.txt $(addsuffix /setup.py,$(filter ros2_ws/%,$(PACKAGES))) evolution/pyproject.toml
+	$(PYTHON) tools/build_interfaces.py --check
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements.txt 2>&1 | $(QUIET_PIP)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps $(addprefix -e ,$(PACKAGES)) 2>&1 | $(QUIET_PIP)
 	$(BIN)/python -c "import rclpy, numba, excavation_common, ant_controller, blueprint_server, excavation_sim, blade_driver, team_supervisor, drive_executor, ant_evolution, overhead_localizer, terrain_mapper, excavation_bags, team_tick, excavation_bringup, excavation_field, dome_emulator"
 	touch $(STAMP)
 
-setup: $(STAMP)
+# The workspace's interface packages (ament_cmake: .msg files), generated and compiled into
+# the venv after every install (tools/build_interfaces.py says why and how).
+INTERFACES := $(VENV)/.interfaces
+INTERFACE_FILES := $(shell grep -l '<build_type>ament_cmake</build_type>' ros2_ws/src/*/package.xml | xargs -r -n1 dirname | xargs -r -I{} find {} -type f)
+$(INTERFACES): $(STAMP) tools/build_interfaces.py $(INTERFACE_FILES)
+	$(BIN)/python tools/build_interfaces.py
+	touch $(INTERFACES)
+
+setup: $(STAMP) $(INTERFACES)
 
 lint: setup
 	$(BIN)/ruff check .

@@ -14,6 +14,7 @@ import pytest
 pytestmark = pytest.mark.xdist_group("colcon")
 
 ROOT = Path(__file__).resolve().parents[1]
+INTERFACE_PACKAGES = ["tf2_msgs"]
 PACKAGES = {
     "excavation_common": [],
     "ant_controller": ["genome_info", "controller"],
@@ -48,6 +49,10 @@ def install(tmp_path_factory):
             str(base / "build"),
             "--install-base",
             str(base / "install"),
+            # The interface packages (ament_cmake) are built into the venv by make setup
+            # (tools/build_interfaces.py, tests/test_interfaces.py); this is the Python side.
+            "--packages-skip",
+            *INTERFACE_PACKAGES,
         ],
         cwd=base,
         env=env,
