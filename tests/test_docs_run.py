@@ -8,11 +8,12 @@ run; the runs themselves are system tests (make test-system).
 
 from __future__ import annotations
 
+import subprocess
 import time
 from pathlib import Path
 
 import pytest
-from helpers.doc_runs import BUDGET_S, RUNS, Step, argv_of, documented, run_doc, scratch
+from helpers.doc_runs import BUDGET_S, ROOT, RUNS, Step, argv_of, documented, run_doc, scratch
 from helpers.view_client import free_port
 
 WORKFLOWS = (
@@ -61,3 +62,14 @@ def test_documented_workflow_runs(run, tmp_path, domains):
     outcomes = run_doc(run, scratch(run, tmp_path), domains(), free_port())
     spent = time.monotonic() - start
     print(f"{run.workflow}: {len(outcomes)} commands in {spent:.0f} s (all runs: {BUDGET_S} s)")
+
+
+def test_what_the_documented_runs_write_is_ignored_by_git():
+    """A new user who follows the docs finds no new files in ``git status`` (campaign/ is the
+    project's own results: an experiment's --out there is meant to be committed)."""
+    paths = [p for run in RUNS for p in run.outputs if not p.startswith("campaign/")]
+    result = subprocess.run(
+        ["git", "check-ignore", "--no-index", *paths], cwd=ROOT, capture_output=True, text=True
+    )
+    ignored = set(result.stdout.split())
+    assert set(paths) <= ignored, f"not ignored by git: {sorted(set(paths) - ignored)}"
