@@ -8,6 +8,7 @@ run; the runs themselves are system tests (make test-system).
 
 from __future__ import annotations
 
+import os
 import subprocess
 import time
 from pathlib import Path
@@ -73,3 +74,30 @@ def test_what_the_documented_runs_write_is_ignored_by_git():
     )
     ignored = set(result.stdout.split())
     assert set(paths) <= ignored, f"not ignored by git: {sorted(set(paths) - ignored)}"
+
+
+@pytest.mark.system
+def test_a_failed_step_leaves_no_background_process_running(tmp_path, domains):
+    """The supervisor the operator block starts in the background is killed when a later
+    step fails (a trial left running would load the machine for the rest of the suite)."""
+    from helpers.doc_runs import DocRun
+
+    failing = DocRun(
+        "operator, failing",
+        "docs/operator.md",
+        (
+            Step("ros2 run team_supervisor supervisor --ros-args -p robots:=4", stop=True),
+            Step("ant-operator status", returncodes=(7,)),  # no exit code of its: fails
+        ),
+    )
+    with pytest.raises(AssertionError, match="ant-operator status` exited"):
+        run_doc(failing, scratch(failing, tmp_path), domains(), free_port())
+    here = str(tmp_path.resolve())
+    alive = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and os.readlink(proc / "cwd") == here:
+                alive.append(proc.name)
+        except OSError:
+            continue
+    assert not alive, f"still running in the scratch directory: {alive}"

@@ -345,51 +345,74 @@ def run_doc(run: DocRun, where: Path, domain: int, port: int) -> list[Outcome]:
     values = {"domain": str(domain), "port": str(port)}
     behind: list[tuple[Step, list[str], subprocess.Popen, float, Path]] = []
     done: list[Outcome] = []
-    for i, step in enumerate(run.steps):
-        argv, background = argv_of(step, run.doc, values)
-        log = where / f".step{i}.log"
-        start = time.monotonic()
-        with log.open("w") as out:
-            proc = subprocess.Popen(argv, cwd=where, env=env, stdout=out, stderr=subprocess.STDOUT)
-        if background:
-            behind.append((step, argv, proc, start, log))
-            if step.ready:
-                probe = subprocess.run(
-                    [str(BIN / step.ready[0]), *step.ready[1:]],
-                    cwd=where, env=env, capture_output=True, text=True, timeout=STEP_LIMIT_S,
+    started: list[subprocess.Popen] = []
+    try:
+        for i, step in enumerate(run.steps):
+            argv, background = argv_of(step, run.doc, values)
+            log = where / f".step{i}.log"
+            start = time.monotonic()
+            with log.open("w") as out:
+                proc = subprocess.Popen(
+                    argv, cwd=where, env=env, stdout=out, stderr=subprocess.STDOUT,
+                    start_new_session=True,
                 )  # fmt: skip
-                assert probe.returncode == 0, f"{' '.join(argv)} never came up: {probe.stderr}"
-            continue
-        client = None
-        if run.view and "--view" in argv:
-            client = Client(port, list(run.view), connect_within=STEP_LIMIT_S)
-            client.start()
-        try:
-            done.append(_finish(step, argv, proc, start, log))
-        finally:
-            if client is not None:
-                client.stop.set()
-                client.join(10)
-        if client is not None:
-            got = set(client.last)
-            assert client.error is None and set(run.view) <= got, (
-                f"`{' '.join(argv)}`: the view sent {sorted(got)}, not {sorted(run.view)} "
-                f"({client.error})"
-            )
-    for step, argv, proc, start, log in reversed(behind):  # last started, first stopped
-        if step.stop and proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-        done.append(_finish(step, argv, proc, start, log, stopped=step.stop))
+            started.append(proc)
+            if background:
+                behind.append((step, argv, proc, start, log))
+                if step.ready:
+                    probe = subprocess.run(
+                        [str(BIN / step.ready[0]), *step.ready[1:]],
+                        cwd=where, env=env, capture_output=True, text=True,
+                        timeout=STEP_LIMIT_S,
+                    )  # fmt: skip
+                    assert probe.returncode == 0, f"{' '.join(argv)} never came up: {probe.stderr}"
+                continue
+            done.append(_watched(run, step, argv, proc, start, log, port))
+        for step, argv, proc, start, log in reversed(behind):  # last started, first stopped
+            if step.stop and proc.poll() is None:
+                _signal(proc, signal.SIGINT)  # as Ctrl-C: the whole process group
+            done.append(_finish(step, argv, proc, start, log, stopped=step.stop))
+    finally:  # a failed step leaves nothing running (a background trial would run on)
+        for proc in started:
+            if proc.poll() is None:
+                _signal(proc, signal.SIGKILL)
+                proc.wait()
     missing = [p for p in run.outputs if not (where / p).exists()]
     assert not missing, f"{run.workflow}: the run left no {missing}"
     return done
+
+
+def _watched(run, step, argv, proc, start, log, port) -> Outcome:
+    """Finish a foreground step; with ``--view``, a Foxglove client reads the view meanwhile."""
+    if not (run.view and "--view" in argv):
+        return _finish(step, argv, proc, start, log)
+    client = Client(port, list(run.view), connect_within=STEP_LIMIT_S)
+    client.start()
+    try:
+        outcome = _finish(step, argv, proc, start, log)
+    finally:
+        client.stop.set()
+        client.join(10)
+    got = set(client.last)
+    assert client.error is None and set(run.view) <= got, (
+        f"`{' '.join(argv)}`: the view sent {sorted(got)}, not {sorted(run.view)} ({client.error})"
+    )
+    return outcome
+
+
+def _signal(proc: subprocess.Popen, sig: int) -> None:
+    """Send ``sig`` to ``proc``'s process group (it was started in a session of its own)."""
+    try:
+        os.killpg(proc.pid, sig)
+    except ProcessLookupError:
+        pass
 
 
 def _finish(step, argv, proc, start, log, stopped=False) -> Outcome:
     try:
         proc.wait(timeout=STEP_LIMIT_S)
     except subprocess.TimeoutExpired:
-        proc.kill()
+        _signal(proc, signal.SIGKILL)
         proc.wait()
         raise AssertionError(
             f"`{' '.join(argv)}` still running after {STEP_LIMIT_S} s:\n{_tail(log)}"
