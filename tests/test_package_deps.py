@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "ros2_ws" / "src"
-PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / "package.xml").is_file())
+# The Python packages (ament_python); the message packages (ament_cmake) import nothing.
+PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / "setup.py").is_file())
 
 # Python import name -> (rosdep key for package.xml, pip name for install_requires).
 THIRD_PARTY = {
