@@ -72,3 +72,4 @@ def test_a_first_sweep_joined_mid_way_is_start_up_not_a_fault(ros):
         rig.send(300 + i, ranges, tilt)
     assert ros.spin_until(lambda: rig.maps and rig.maps[-1].header.stamp.sec == 300)
     assert rig.mapper.short_sweeps == 0 and "sweep_size" not in rig.mapper.problems
+    assert "sweep" not in rig.mapper.problems  # it measured nothing: said at INFO

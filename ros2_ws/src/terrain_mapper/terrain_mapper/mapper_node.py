@@ -381,10 +381,11 @@ class MapperNode(Node):
                     f"a sweep ended after {self.in_sweep} of {self.sweep_scans} scans",
                 )
                 self.short_sweeps += 1
+            first = self.sweeps == 0
             self.sweeps += 1
             self.in_sweep = 0
             self.pending = (self.sweep_stamp, time.monotonic())
-            self.fuse()
+            self.fuse(start_up=first)
         if self.in_sweep == 1:
             self.sweep_direction = 1.0 if step >= 0 else -1.0
         self.last_tilt = tilt
@@ -441,13 +442,19 @@ class MapperNode(Node):
                 self.problems.pop("poses", None)
             self.fuse()
 
-    def fuse(self) -> None:
-        """Fuse the pending sweep and publish the map (unless it measured nothing)."""
+    def fuse(self, start_up: bool = False) -> None:
+        """Fuse the pending sweep and publish the map (unless it measured nothing).
+
+        ``start_up``: the first sweep, joined mid-way; measuring nothing is no fault then.
+        """
         stamp, _ = self.pending
         self.pending = None
         robots = [self.poses[k][1] for k in range(self.n) if k in self.poses]
         stats = self.core.finish_sweep(robots)
         self.last_stats = stats
+        if stats.measured == 0 and start_up:
+            self.get_logger().info("the first sweep measured no cell (joined mid-way)")
+            return
         if stats.measured == 0:
             self.problem(
                 "sweep", DiagnosticStatus.WARN, "sweep measured no cell: height map not updated"
