@@ -16,8 +16,10 @@ from excavation_sim.soil import (
     Soil,
     SoilError,
     SoilParams,
+    blade_force,
     calibrate,
     level_pile_force,
+    mckyes_force,
     n_factors,
 )
 from excavation_sim.world import BLADE, World
@@ -45,6 +47,39 @@ def test_a_smooth_vertical_blade_meets_rankine_passive_pressure(phi):
     assert n_gamma == pytest.approx(kp / 2, rel=2e-3)
     assert n_q == pytest.approx(kp, rel=2e-3)
     assert math.degrees(beta) == pytest.approx(45 - phi / 2, abs=0.2)
+
+
+def test_the_blade_cuts_firm_ground_and_drags_loose_soil():
+    """The force's three parts on a level field of firm ground: a blade set into it cuts
+    McKyes's depth; a pile heaped on the ground (loose) against a level blade is dragged,
+    its weight times tan(phi); the same pile against a blade set into the ground lies on
+    the failure wedge as its surcharge."""
+    site = Site(24, 24, CELL, UNIT)
+    physics = calibrate(PHYSICAL, CELL, UNIT)
+    x, y = 3 * CELL, 6 * CELL
+    soil = Soil(np.full((24, 24), 4, dtype=np.int64), site, PHYSICAL, physics)
+    ground = soil.ground(x, y, 0.0)
+    below = ground - soil.q  # one unit (5 cm) into the firm ground
+    cut = soil.load(x, y, 0.0, below)
+    assert cut.depth == pytest.approx(UNIT) and cut.over == 0 and cut.beyond == 0
+    assert soil.resistance(x, y, 0.0, below) == pytest.approx(
+        mckyes_force(UNIT, 0.0, 2 * CELL, 1.0, physics)
+    )
+    assert soil.resistance(x, y, 0.0, ground) == 0.0  # a level blade on bare ground
+    soil.heap(x, y, 0.0, 6.0)
+    assert (soil.loose >= 0).all() and soil.loose.sum() == 6 * soil.q * soil.s * soil.s
+    drag = soil.load(x, y, 0.0, ground)
+    assert drag.depth == 0 and drag.over == 0 and drag.beyond > 0
+    weight = physics.gamma * drag.beyond
+    assert soil.resistance(x, y, 0.0, ground) == pytest.approx(
+        weight * math.tan(math.radians(PHYSICAL.friction_angle))
+    )
+    loaded = soil.load(x, y, 0.0, below)
+    assert loaded.depth == pytest.approx(UNIT) and loaded.over > 0
+    assert soil.resistance(x, y, 0.0, below) == pytest.approx(
+        blade_force(loaded, 2 * CELL, physics)
+    )
+    assert soil.resistance(x, y, 0.0, below) > mckyes_force(UNIT, 0.0, 2 * CELL, 1.0, physics)
 
 
 def test_conservation_over_random_pushes():

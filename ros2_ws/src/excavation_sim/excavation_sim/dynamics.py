@@ -384,11 +384,12 @@ class Dynamics:
         self.tilted(0)
         if self.soil is not None:
             soil = self.soil
-            fine = soil.fine.copy()
+            fine, loose = soil.fine.copy(), soil.loose.copy()
             x, y, yaw = self.bodies[0]
             soil.cut(x, y, yaw, self.edge(0))
             soil.settle(self.bodies, w.active)
             soil.fine[...] = fine
+            soil.loose[...] = loose
             self.fitness()
 
     # --- outputs ----------------------------------------------------------------------------

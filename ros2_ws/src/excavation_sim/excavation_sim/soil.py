@@ -38,14 +38,21 @@ blade with a published earth-moving model.
 * **Resistance.** McKyes's universal earth-moving equation (McKyes 1985, *Soil Cutting and
   Tillage*, ch. 4; used for lunar regolith by Wilkinson & DeGennaro 2007, J.
   Terramechanics 44): ``F = w (gamma d^2 N_gamma + c d N_c + q d N_q)`` with ``d`` the
-  depth of soil against the blade face, ``w`` the blade width, ``gamma`` the soil's unit
-  weight, ``c`` its cohesion and ``q`` the surcharge of the pile beyond the failure wedge.
-  The N factors follow from the rake angle, the soil's friction angle and the soil-blade
-  friction angle, with the failure plane angle that minimises ``N_gamma`` (:func:`n_factors`).
-  A push is resisted by that force plus the grade (``m g sin(pitch)``); the robot gives
-  ``min(motor force, wheel_friction m g)``. Where the resistance is larger, the wheels slip
-  and the robot does not advance (:meth:`~excavation_sim.dynamics.Dynamics.step`): the
-  executor sees no progress, as on a real robot.
+  cutting depth, ``w`` the blade width, ``gamma`` the soil's unit weight, ``c`` its
+  cohesion and ``q`` the surcharge on the failure wedge, plus the drag of the prism of loose
+  soil beyond the wedge (its weight times ``tan(friction_angle)``; :func:`blade_force`).
+  ``loose`` (same shape as ``fine``) counts the quanta of each sub-cell that a blade, a
+  slope or a wheel has moved, lying over the firm ground the site started with: every
+  move takes from the top, loose first, and what arrives is loose (:func:`_move`). ``d``
+  is the firm ground above the edge just ahead of it; the loose soil above the edge on the
+  wedge is the surcharge, beyond it the drag prism (:func:`blade_load`). The N factors
+  follow from the rake angle, the soil's friction angle and the soil-blade friction angle,
+  with the failure plane angle that minimises ``N_gamma`` (:func:`n_factors`). Validated
+  against measured soil-bin forces (:mod:`excavation_sim.soil_bin`). A push is resisted by
+  that force plus the grade (``m g sin(pitch)``); the robot gives ``min(motor force,
+  wheel_friction m g)``. Where the resistance is larger, the wheels slip and the robot
+  does not advance (:meth:`~excavation_sim.dynamics.Dynamics.step`): the executor sees no
+  progress, as on a real robot.
 * **Calibration.** The motor forces are not free parameters. ``calibration: grid`` (the
   preset ``grid``, what ``physical`` alone means): a level blade pushing a pile of N units
   on flat ground stalls where the grid refuses the push, above the world profile's
@@ -418,6 +425,7 @@ class Physics:
         gamma: Soil unit weight, N/m^3.
         n_gamma, n_c, n_q: McKyes's factors.
         wedge: Failure wedge length per metre of soil depth (``cot alpha + cot beta``).
+        drag: The drag prism's friction on the ground (``tan(friction_angle)``).
         motor: Motor force without and with throttle-up, N (calibrated).
         mass: Robot mass, kg (from the traction margin).
     """
@@ -428,6 +436,7 @@ class Physics:
     n_c: float
     n_q: float
     wedge: float
+    drag: float
     wheel_friction: float
     gravity: float
     motor: tuple[float, float]
@@ -531,20 +540,48 @@ class Terrain:
 
 
 def mckyes_force(
-    depth: float, surcharge_volume: float, width: float, reach: float, physics: Physics
+    depth: float, surcharge_volume: float, width: float, length: float, physics: Physics
 ) -> float:
-    """McKyes's blade force (N) for ``depth`` m of soil against a ``width`` m blade.
+    """McKyes's blade force (N) for a ``depth`` m cut by a ``width`` m blade.
 
-    ``surcharge_volume`` (m^3): soil in front of the blade above the failure wedge's top,
-    spread over ``width`` x ``reach`` as the surcharge ``q``.
+    ``surcharge_volume`` (m^3): soil lying on the failure wedge, spread over ``width`` x
+    ``length`` (the wedge's length on the surface) as the surcharge ``q``.
     """
-    if depth <= 0.0 and surcharge_volume <= 0.0:
+    if depth <= 0.0:
         return 0.0
-    q = physics.gamma * max(surcharge_volume, 0.0) / (width * reach)
+    q = physics.gamma * max(surcharge_volume, 0.0) / (width * length) if length > 0 else 0.0
     p = physics
     return width * (
         p.gamma * depth * depth * p.n_gamma + p.cohesion * depth * p.n_c + q * depth * p.n_q
     )
+
+
+@dataclass(frozen=True)
+class BladeLoad:
+    """What a blade meets (:meth:`Soil.load`), SI units.
+
+    Attributes:
+        depth: Firm ground above the edge just ahead of it, m (McKyes's cutting depth).
+        over: Loose soil on the failure wedge, m^3 (the surcharge).
+        beyond: Loose soil past the wedge within ``pile_reach``, m^3 (the drag prism).
+    """
+
+    depth: float
+    over: float
+    beyond: float
+
+
+def blade_force(load: BladeLoad, width: float, physics: Physics) -> float:
+    """The blade's horizontal force (N): cutting plus dragging the prism.
+
+    The cut: McKyes's equation, depth the firm ground cut, surcharge the loose soil on its
+    failure wedge (``depth * wedge`` long). The drag: the loose soil beyond the wedge slides
+    over the ground on its own internal friction (its weight times ``tan(friction_angle)``:
+    the drag prism's resistance of the dozing literature, e.g. Zelenin, Balovnev and Kerov,
+    *Machines for Moving the Earth*, 1985).
+    """
+    cutting = mckyes_force(load.depth, load.over, width, load.depth * physics.wedge, physics)
+    return cutting + physics.drag * physics.gamma * load.beyond
 
 
 # --- kernels -------------------------------------------------------------------------------
@@ -623,14 +660,28 @@ def body_mask(mask, bodies, active, sub, half_length, half_width, wings=None, wi
                     mask[i, j] = True
 
 
+@nb.njit(cache=True, inline="always")
+def _move(fine, loose, i, j, ti, tj, amount):
+    """Move ``amount`` quanta from the top of sub-cell ``(i, j)`` onto ``(ti, tj)``.
+
+    The top of a sub-cell is its loose soil first (``loose`` counts the quanta of each
+    sub-cell a blade, a slope or a wheel has moved, lying over the firm ground the site
+    started with); what arrives is loose. ``0 <= loose <= fine`` holds where it held.
+    """
+    fine[i, j] -= amount
+    fine[ti, tj] += amount
+    loose[i, j] -= amount if amount < loose[i, j] else loose[i, j]
+    loose[ti, tj] += amount
+
+
 @nb.njit(cache=True)
-def relax(fine, blocked, max_diff, passes):
+def relax(fine, loose, blocked, max_diff, passes):
     """Settle slopes steeper than ``max_diff`` quanta per sub-cell; returns the quanta moved.
 
     Each pass sweeps the field (forwards, then backwards on the next pass) and, for each
     pair of 4-neighbours neither of which is ``blocked``, moves half the excess over
-    ``max_diff`` (rounded up) from the higher to the lower. Whole quanta move between two
-    sub-cells, so the sum is unchanged.
+    ``max_diff`` (rounded up) from the higher to the lower (:func:`_move`: it arrives
+    loose). Whole quanta move between two sub-cells, so the sum is unchanged.
     """
     rows, cols = fine.shape
     moved = 0
@@ -653,13 +704,11 @@ def relax(fine, blocked, max_diff, passes):
                     diff = fine[i, j] - fine[ni, nj]
                     if diff > max_diff:
                         t = (diff - max_diff + 1) // 2
-                        fine[i, j] -= t
-                        fine[ni, nj] += t
+                        _move(fine, loose, i, j, ni, nj, t)
                         moved += t
                     elif -diff > max_diff:
                         t = (-diff - max_diff + 1) // 2
-                        fine[i, j] += t
-                        fine[ni, nj] -= t
+                        _move(fine, loose, ni, nj, i, j, t)
                         moved += t
     return moved
 
@@ -697,7 +746,7 @@ def band_ground(fine, x, y, yaw, sub, near, far, half_width):
 
 
 @nb.njit(cache=True)
-def dig_wheels(fine, x, y, yaw, sub, length, half_width, take):
+def dig_wheels(fine, loose, x, y, yaw, sub, length, half_width, take):
     """Slipping wheels carry soil back: ``take`` quanta from each sub-cell under the rear half.
 
     The sub-cells whose centres lie between ``length`` m behind ``(x, y)`` and ``(x, y)``
@@ -721,26 +770,22 @@ def dig_wheels(fine, x, y, yaw, sub, length, half_width, take):
             ti, tj = _index(px, py, sub, rows, cols)
             if ti < 0 or (ti == i and tj == j):
                 continue
-            fine[i, j] -= take
-            fine[ti, tj] += take
+            _move(fine, loose, i, j, ti, tj, take)
             moved += take
     return moved
 
 
 @nb.njit(cache=True)
-def pile_load(fine, x, y, yaw, sub, front, half_width, reach, edge):
-    """``(face, volume)`` of soil above ``edge`` (quanta) in front of a blade.
+def volume_above(fine, x, y, yaw, sub, front, half_width, reach, edge):
+    """Soil above ``edge`` (quanta, summed over sub-cells) up to ``reach`` m ahead of a blade.
 
-    ``face``: the mean height above the edge of the sub-cells within one sub-cell ahead of
-    it (the soil against the blade face); ``volume``: the sum above the edge of every
-    sub-cell up to ``reach`` m ahead, within the blade's width.
+    The sub-cells whose centres lie between the blade's edge (``front`` m ahead of ``(x,
+    y)`` along ``yaw``) and ``reach`` m beyond it, within ``half_width`` to either side.
     """
     rows, cols = fine.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
     span = math.hypot(front + reach, half_width) + sub
     i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
-    face_total = 0
-    face_n = 0
     volume = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
@@ -748,20 +793,63 @@ def pile_load(fine, x, y, yaw, sub, front, half_width, reach, edge):
             if abs(v) >= half_width or u < front or u >= front + reach:
                 continue
             above = fine[i, j] - edge
-            if above <= 0:
-                if u < front + sub:
-                    face_n += 1
-                continue
-            volume += above
-            if u < front + sub:
-                face_total += above
-                face_n += 1
-    face = face_total / face_n if face_n else 0.0
-    return face, volume
+            if above > 0:
+                volume += above
+    return volume
 
 
 @nb.njit(cache=True)
-def cut(fine, blocked, x, y, yaw, sub, front, half_width, edge, top, fill=True):
+def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedge):
+    """``(cut, over, beyond)``: what a blade at ``(x, y, yaw)``, edge at ``edge``, meets.
+
+    ``cut``: the mean depth (quanta) of firm ground (``fine - loose``) above the edge in
+    the sub-cells within one sub-cell ahead of it, the layer the blade cuts next.
+    ``over``: loose soil above the edge (quanta, summed) on McKyes's failure wedge, the
+    ``cut * wedge`` quanta-lengths ahead of the edge (``wedge``: the wedge's length per
+    quantum of depth, m); ``beyond``: loose soil above the edge past the wedge and up to
+    ``reach`` m ahead, the drag prism the blade pushes along the ground.
+    """
+    rows, cols = fine.shape
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    span = math.hypot(front + sub, half_width) + sub
+    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
+    cut_total = 0
+    cut_n = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            u, v = _local(i, j, sub, x, y, cy, sy)
+            if abs(v) >= half_width or u < front or u >= front + sub:
+                continue
+            firm = fine[i, j] - loose[i, j] - edge
+            if firm > 0:
+                cut_total += firm
+            cut_n += 1
+    depth = cut_total / cut_n if cut_n else 0.0
+    length = depth * wedge
+    far = length if length > reach else reach
+    span = math.hypot(front + far, half_width) + sub
+    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
+    over = 0
+    beyond = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            u, v = _local(i, j, sub, x, y, cy, sy)
+            if abs(v) >= half_width or u < front or u >= front + far:
+                continue
+            pile = fine[i, j] - edge
+            if pile <= 0:
+                continue
+            if pile > loose[i, j]:
+                pile = loose[i, j]
+            if u < front + length:
+                over += pile
+            else:
+                beyond += pile
+    return depth, over, beyond
+
+
+@nb.njit(cache=True)
+def cut(fine, loose, blocked, x, y, yaw, sub, front, half_width, edge, top, fill=True):
     """The blade at ``(x, y, yaw)`` levels the sub-cells just behind its edge to ``edge``.
 
     Soil above the edge goes to the sub-cell one sub-cell ahead (the pile); a sub-cell
@@ -789,22 +877,19 @@ def cut(fine, blocked, x, y, yaw, sub, front, half_width, edge, top, fill=True):
                     continue
                 excess = fine[i, j] - edge
                 if excess > 0:
-                    fine[i, j] -= excess
-                    fine[ti, tj] += excess
+                    _move(fine, loose, i, j, ti, tj, excess)
                     total += excess
                 elif excess < 0 and fill:
                     spare = fine[ti, tj] - edge
                     if spare > 0:
                         take = -excess if -excess < spare else spare
-                        fine[i, j] += take
-                        fine[ti, tj] -= take
+                        _move(fine, loose, ti, tj, i, j, take)
             elif front <= u < front + sub:
                 over = fine[i, j] - edge - top
                 if over > 0:
                     bi, bj = _index(px - 1.5 * sub * cy, py - 1.5 * sub * sy, sub, rows, cols)
                     if bi >= 0 and not (bi == i and bj == j):
-                        fine[i, j] -= over
-                        fine[bi, bj] += over
+                        _move(fine, loose, i, j, bi, bj, over)
     return total
 
 
@@ -848,6 +933,7 @@ class Soil:
         heights = np.asarray(heights, dtype=np.int64)
         self.fine = np.repeat(np.repeat(heights * self.q, s, axis=0), s, axis=1)
         self.fine = np.ascontiguousarray(self.fine, dtype=np.int64)
+        self.loose = np.zeros_like(self.fine)
         self.blocked = np.zeros(self.fine.shape, dtype=np.bool_)
         self.sums = np.zeros((site.rows, site.cols), dtype=np.int64)
         self.max_diff = int(
@@ -902,12 +988,32 @@ class Soil:
         return total // n if n else 0
 
     def resistance(self, x: float, y: float, yaw: float, edge: int) -> float:
-        """McKyes's force (N) on the blade of a robot at ``(x, y, yaw)``, edge at ``edge``."""
-        reach = self.params.pile_reach * self.site.cell
-        face, volume = pile_load(
-            self.fine, x, y, yaw, self.sub, self.front, self.half_width, reach, edge
+        """The force (N) on the blade of a robot at ``(x, y, yaw)``, edge at ``edge``.
+
+        McKyes's equation with the firm ground the blade cuts as its depth and the loose
+        soil on the failure wedge as its surcharge, plus the drag of the loose soil beyond
+        the wedge (:func:`blade_force`).
+        """
+        return blade_force(self.load(x, y, yaw, edge), 2 * self.half_width, self.physics)
+
+    def load(self, x: float, y: float, yaw: float, edge: int) -> BladeLoad:
+        """What the blade of a robot at ``(x, y, yaw)``, edge at ``edge``, cuts and pushes."""
+        unit = self.site.unit / self.q
+        depth, over, beyond = blade_load(
+            self.fine,
+            self.loose,
+            x,
+            y,
+            yaw,
+            self.sub,
+            self.front,
+            self.half_width,
+            self.params.pile_reach * self.site.cell,
+            edge,
+            unit * self.physics.wedge,
         )
-        return self.force_of(face, volume)
+        volume = unit * self.sub * self.sub
+        return BladeLoad(depth * unit, over * volume, beyond * volume)
 
     def held(self, x: float, y: float, yaw: float, edge: int) -> int:
         """Soil above ``edge`` ahead of a blade at ``(x, y, yaw)`` (quanta, over sub-cells).
@@ -916,7 +1022,7 @@ class Soil:
         """
         reach = self.params.pile_reach * self.site.cell
         return int(
-            pile_load(self.fine, x, y, yaw, self.sub, self.front, self.half_width, reach, edge)[1]
+            volume_above(self.fine, x, y, yaw, self.sub, self.front, self.half_width, reach, edge)
         )
 
     def relief(self, x: float, y: float, yaw: float, edge: int, limit: float) -> int:
@@ -936,21 +1042,12 @@ class Soil:
                 low = mid
         return high
 
-    def force_of(self, face_quanta: float, volume_quanta: float) -> float:
-        """The force of ``face`` quanta against the blade and ``volume`` quanta ahead of it."""
-        unit = self.site.unit / self.q
-        depth = face_quanta * unit
-        width = 2 * self.half_width
-        volume = volume_quanta * unit * self.sub * self.sub
-        wedge = 0.5 * width * depth * depth * self.physics.wedge
-        reach = self.params.pile_reach * self.site.cell
-        return mckyes_force(depth, volume - wedge, width, reach, self.physics)
-
     def cut(self, x: float, y: float, yaw: float, edge: int) -> int:
         """Level the sub-cells the blade just passed to ``edge``; returns the quanta cut."""
         return int(
             cut(
                 self.fine,
+                self.loose,
                 self.blocked,
                 x,
                 y,
@@ -981,7 +1078,9 @@ class Soil:
         )
         if not self.params.repose:
             return 0
-        return int(relax(self.fine, self.blocked, self.max_diff, self.params.relax_passes))
+        return int(
+            relax(self.fine, self.loose, self.blocked, self.max_diff, self.params.relax_passes)
+        )
 
     def heap(self, x: float, y: float, yaw: float, units: float) -> None:
         """Put ``units`` of soil against a blade at ``(x, y, yaw)``: the pile it holds.
@@ -1026,6 +1125,7 @@ class Soil:
             for n in range(lanes):
                 if column[m, n]:
                     self.fine[cells[m, n, 0], cells[m, n, 1]] += column[m, n]
+                    self.loose[cells[m, n, 0], cells[m, n, 1]] += column[m, n]
 
     def dig_in(self, x: float, y: float, yaw: float, metres: float) -> float:
         """Slipping wheels carry a layer as thick as their sinkage back, ``metres`` of it.
@@ -1049,7 +1149,9 @@ class Soil:
         take = int(metres * per_metre)
         if take <= 0:
             return metres
-        dig_wheels(self.fine, x, y, yaw, self.sub, self.site.cell, self.half_width, take)
+        dig_wheels(
+            self.fine, self.loose, x, y, yaw, self.sub, self.site.cell, self.half_width, take
+        )
         return metres - take / per_metre
 
     def pitch(self, x: float, y: float, yaw: float) -> float:
@@ -1099,6 +1201,7 @@ def calibrate(
         n_c,
         n_q,
         cot,
+        math.tan(math.radians(params.friction_angle)),
         params.wheel_friction,
         params.gravity,
         (0.0, 0.0),

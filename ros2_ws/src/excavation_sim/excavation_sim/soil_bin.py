@@ -2,19 +2,18 @@
 
 ``python -m excavation_sim.soil_bin`` prints, for every measured point of
 ``blade_forces.yaml`` (a flat blade cutting a level bed of dry sand at a fixed depth, the
-horizontal force averaged over a stretch of travel), three readings of this project's
-model beside the measurement:
+horizontal force averaged over a stretch of travel), two readings of this project's model
+beside the measurement:
 
 * **the physical soil** as ``dynamics`` runs it: the blade's edge held at the cutting
   depth in a level bed of the measured sand, moved forward half a sub-cell at a time; each
   step cuts (:meth:`Soil.cut`), relaxes the field to the angle of repose
-  (:meth:`Soil.settle`) and reads the force (:meth:`Soil.resistance`), which takes the
-  whole face of soil against the blade (the cut and the heap above it) as McKyes's depth;
+  (:meth:`Soil.settle`) and reads the force (:meth:`Soil.resistance`): McKyes's equation
+  with the firm bed cut as its depth and the loose soil heaped on the failure wedge as its
+  surcharge, plus the drag of any loose soil beyond the wedge;
 * **McKyes, cut only**: the earth-moving equation with the cutting depth as its depth and
-  no surcharge (the two-dimensional textbook value, McKyes 1985, chapter 4);
-* **McKyes, heap as surcharge**: the cutting depth as its depth and the soil heaped above
-  the undisturbed surface within the blade's reach as the surcharge ``q`` (McKyes's own
-  reading of ``d`` and ``q``), on the same field as the first.
+  no surcharge (the two-dimensional textbook value, McKyes 1985, chapter 4), for scale:
+  what the heap in front of the blade adds.
 
 The test (tests/test_soil_bin.py) holds the tolerance the data file fixes (25 %). The
 bin's scale follows the model's geometry: the blade spans two cells (cell = width / 2),
@@ -33,7 +32,7 @@ import numpy as np
 import yaml
 
 from excavation_common.params import validate
-from excavation_sim.soil import Site, Soil, SoilParams, calibrate, mckyes_force, pile_load
+from excavation_sim.soil import Site, Soil, SoilParams, calibrate, mckyes_force
 
 UNIT = 0.01
 """Soil unit of the bin, m."""
@@ -109,7 +108,7 @@ def load(text: str | None = None) -> tuple[float, list[DataSet]]:
     return tolerance, sets
 
 
-def bin_params(data: DataSet, width: float) -> SoilParams:
+def bin_params(data: DataSet) -> SoilParams:
     """The physical soil's parameters for the measured sand and blade (module docstring)."""
     soil = data.soil
     return validate(
@@ -130,17 +129,16 @@ def bin_params(data: DataSet, width: float) -> SoilParams:
 
 @dataclass(frozen=True)
 class Reading:
-    """The model's horizontal force (N) for one point, three ways (module docstring)."""
+    """The model's horizontal force (N) for one point, two ways (module docstring)."""
 
     point: Point
     physical: float
     cut_only: float
-    heap_surcharge: float
 
 
 def soil_bin(data: DataSet, point: Point) -> Reading:
     """Drive a blade through a level bed at ``point``'s depth; the forces over the window."""
-    params = bin_params(data, point.width)
+    params = bin_params(data)
     cell = point.width / 2  # the model's blade spans two cells (Soil.half_width = cell)
     start, end = data.averaged_over
     rows, cols = 12, int(math.ceil((end + 1.0) / cell)) + 4
@@ -149,27 +147,19 @@ def soil_bin(data: DataSet, point: Point) -> Reading:
     physics = calibrate(params, cell, UNIT)
     soil = Soil(np.full((rows, cols), bed, dtype=np.int64), site, params, physics)
     edge = int(round((BED - point.depth) / UNIT * soil.q))
-    surface = bed * soil.q
     y, x = rows * cell / 2, 2 * cell
     blade0 = x + soil.front
-    reach = params.pile_reach * cell
     bodies, active, down = np.zeros((1, 3)), np.array([True]), np.array([True])
-    physical, surcharged = [], []
+    physical = []
     while x + soil.front - blade0 < end:
         x += soil.sub / 2
         soil.cut(x, y, 0.0, edge)
         bodies[0] = (x, y, 0.0)
         soil.settle(bodies, active, down)
-        if x + soil.front - blade0 < start:
-            continue
-        physical.append(soil.resistance(x, y, 0.0, edge))
-        _, heap = pile_load(
-            soil.fine, x, y, 0.0, soil.sub, soil.front, soil.half_width, reach, surface
-        )
-        volume = heap * (UNIT / soil.q) * soil.sub * soil.sub
-        surcharged.append(mckyes_force(point.depth, volume, point.width, reach, physics))
-    cut_only = mckyes_force(point.depth, 0.0, point.width, reach, physics)
-    return Reading(point, float(np.mean(physical)), cut_only, float(np.mean(surcharged)))
+        if x + soil.front - blade0 >= start:
+            physical.append(soil.resistance(x, y, 0.0, edge))
+    cut_only = mckyes_force(point.depth, 0.0, point.width, 1.0, physics)
+    return Reading(point, float(np.mean(physical)), cut_only)
 
 
 def readings() -> tuple[float, list[tuple[DataSet, list[Reading]]]]:
@@ -184,12 +174,12 @@ def error(model: float, measured: float) -> float:
 
 
 def table_rows() -> list[str]:
-    """Markdown rows: each point, the measurement and the three readings with their errors."""
+    """Markdown rows: each point, the measurement and the two readings with their errors."""
     tolerance, results = readings()
     rows = [
-        "| blade width, m | cutting depth, m | measured, N | physical soil, N | McKyes, cut "
-        "only, N | McKyes, heap as surcharge, N |",
-        "|---:|---:|---:|---:|---:|---:|",
+        "| blade width, m | cutting depth, m | measured, N | physical soil, N "
+        "| McKyes, cut only, N |",
+        "|---:|---:|---:|---:|---:|",
     ]
 
     def cell(value: float, measured: float) -> str:
@@ -202,7 +192,7 @@ def table_rows() -> list[str]:
             p = r.point
             rows.append(
                 f"| {p.width:.2f} | {p.depth:.2f} | {p.force:.0f} | {cell(r.physical, p.force)} "
-                f"| {cell(r.cut_only, p.force)} | {cell(r.heap_surcharge, p.force)} |"
+                f"| {cell(r.cut_only, p.force)} |"
             )
     return rows
 
