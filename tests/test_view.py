@@ -56,8 +56,7 @@ def test_client_decodes_robots_and_height_map_of_a_running_trial(ros):
                     ],
                 )
             )
-        frames = {"overhead_laser": (np.array([2.0, 2.0, 4.0]), np.array([0.0, 0.0, 0.0, 1.0]))}
-        v = view.ViewNode(2, frames, 0.05, period=0.2, context=ros.context)
+        v = view.ViewNode(2, 0.05, period=0.2, context=ros.context)
         ros.add(v.node)
         topics = ["/view/robots", "/view/height_map", "/view/blueprint", "/view/fitness", "/tf"]
         client = Client(server.port, topics)
@@ -96,9 +95,19 @@ def _view_differs(last: dict, sim) -> list[str]:
         heights = np.frombuffer(g.data, dtype="<f4").reshape(-1, g.column_count)
         if not np.array_equal(heights, (sim.world.heights * 0.05).astype(np.float32)):
             wrong.append("height map differs")
-    tf = {t.child_frame_id for t in last["/tf"].transforms}
-    if not {"overhead_laser", "robot_0/base_link", "robot_1/base_link"} <= tf:
-        wrong.append(f"tf frames {sorted(tf)}")
+    # the view forwards the simulator's /tf: map -> robot_k/base_link and (no blade drivers
+    # here) robot_k/base_link -> robot_k/blade, at the robots' cells
+    tf = {t.child_frame_id: t for t in last["/tf"].transforms}
+    for k in range(2):
+        t = tf.get(f"robot_{k}/base_link")
+        r = sim.world.robots[k]
+        if t is None or (t.translation.x, t.translation.y) != pytest.approx(
+            robot_center(int(r[ROW]), int(r[COL]), 0.25)
+        ):
+            wrong.append(f"tf robot_{k}/base_link: {t}")
+        blade = tf.get(f"robot_{k}/blade")
+        if blade is None or blade.parent_frame_id != f"robot_{k}/base_link":
+            wrong.append(f"tf robot_{k}/blade: {blade}")
     fitness = last["/view/fitness"]
     if fitness["fitness"] != pytest.approx(sim.world.fitness()):
         wrong.append(f"fitness {fitness['fitness']}")
@@ -121,21 +130,6 @@ def test_layout_names_the_view_channels():
         assert topic in text, topic
 
 
-def test_quaternion_of_a_rotation():
-    from terrain_mapper.geometry import mount_rotation
-
-    rot = mount_rotation(0.3, -0.2, (0.01, 0.02, 0.03))
-    x, y, z, w = view.quaternion(rot)
-    back = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-    assert np.allclose(back, rot, atol=1e-9)
-
-
 def test_the_view_checks_its_site_for_what_runs_it():
     """A rehearsal's site keeps the dome's compressed camera: the view started for a
     rehearsal (``--hardware emulated``, as ``ant-dome rehearse --view`` starts it) takes
@@ -145,20 +139,19 @@ def test_the_view_checks_its_site_for_what_runs_it():
 
     config = Path(__file__).resolve().parents[1] / "ros2_ws/src/excavation_bringup/config"
     rehearsal = str(config / "site_rehearsal.yaml")
-    assert view_site(rehearsal, "emulated", "calibration.yaml").n_robots >= 1
+    assert view_site(rehearsal, "emulated").n_robots >= 1
     with pytest.raises(SiteError, match="with --sim the synthetic camera"):
-        view_site(rehearsal, "sim", "calibration.yaml")
-    assert view_site(str(config / "site_sim.yaml"), None, None).n_robots >= 1
+        view_site(rehearsal, "sim")
+    assert view_site(str(config / "site_sim.yaml"), None).n_robots >= 1
 
 
-def test_ant_dome_starts_the_view_with_its_hardware(tmp_path):
+def test_ant_dome_starts_the_view_with_its_hardware():
     from excavation_bringup.deployment import Deployment
-    from excavation_bringup.nodes import RunFiles
     from excavation_bringup.nodes import view as view_spec
     from excavation_bringup.site import load_site
 
     config = Path(__file__).resolve().parents[1] / "ros2_ws/src/excavation_bringup/config"
     site = load_site(config / "site_rehearsal.yaml", emulated=True)
     dep = Deployment("", site.n_robots, 4, 0, hardware="emulated", site=site, drive="continuous")
-    spec = view_spec(dep, RunFiles(tmp_path), 8765)
+    spec = view_spec(dep, 8765)
     assert spec.args[spec.args.index("--hardware") + 1] == "emulated"

@@ -36,7 +36,12 @@ PACKAGES = {
 @pytest.fixture(scope="module")
 def install(tmp_path_factory):
     base = tmp_path_factory.mktemp("colcon")
-    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}")
+    venv = Path(sys.executable).parent.parent
+    env = dict(
+        os.environ,
+        PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}",
+        AMENT_PREFIX_PATH=str(venv),
+    )
     result = subprocess.run(
         [
             str(Path(sys.executable).parent / "colcon"),
@@ -50,8 +55,9 @@ def install(tmp_path_factory):
             "--install-base",
             str(base / "install"),
             # The interface packages (ament_cmake) are built into the venv by make setup
-            # (tools/build_interfaces.py, tests/test_interfaces.py); this is the Python side.
-            "--packages-skip",
+            # (tools/build_interfaces.py, tests/test_interfaces.py); this is the Python side,
+            # which finds them there as installed dependencies.
+            "--packages-ignore",
             *INTERFACE_PACKAGES,
         ],
         cwd=base,

@@ -18,7 +18,8 @@ opens again; the operator's override does not beat a closed gate.
 Subscribes ``behaviour`` (std_msgs/UInt16, the controller's word) and ``blade/commands``
 (std_msgs/Float64MultiArray, one value per joint in ``joints``: the ros2_control
 forward-command convention, for an operator override); publishes ``blade/joint_states``
-(position = measured blade position, effort = measured push force) and ``/diagnostics``.
+(position = measured blade position, effort = measured push force), the blade's frame
+``robot_k/base_link`` -> ``robot_k/blade`` on ``/tf`` with each, and ``/diagnostics``.
 The logic is :class:`blade_driver.core.BladeDriverCore`; this node moves messages.
 
 Backends (parameter ``backend``):
@@ -75,6 +76,7 @@ from std_msgs.msg import Bool, Float64MultiArray, Header, UInt16
 from blade_driver.core import BLADE_NAMES, AfterDrive, BladeDriverCore
 from blade_driver.errors import BoardError, DriverConfigError, PortError
 from blade_driver.params import JOINT, DriverNodeParams
+from excavation_common.constants import BladeGeometry
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
 from excavation_common.safety import (
     ARMED_TOPIC,
@@ -84,6 +86,7 @@ from excavation_common.safety import (
     HELD,
     MotionGate,
 )
+from excavation_common.tf import TfBroadcaster, blade_transform, robot_name
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
 DRIVE_ENDED = (GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_ABORTED, GoalStatus.STATUS_CANCELED)
@@ -186,6 +189,7 @@ class BladeDriverNode(LifecycleNode):
         if p.backend != "sim":
             self._io.append(sub(Header, TEAM_TICK_TOPIC, self.on_team_tick, 10))
         self.last_joint: JointState | None = None
+        self.tf = TfBroadcaster(self)
         self.joint_pub = self.create_publisher(
             JointState,
             "blade/joint_states",
@@ -397,8 +401,15 @@ class BladeDriverNode(LifecycleNode):
             self.restart(msg.header.stamp)
         self.tick_stamp = msg.header.stamp
         self.last_joint = joint_state(self.position, self.force, msg.header.stamp)
-        self.joint_pub.publish(self.last_joint)
+        self.publish_joint(self.last_joint)
         self.send_sim_setpoint()
+
+    def publish_joint(self, msg: JointState) -> None:
+        """The blade's joint state, and its frame in the robot's body on ``/tf``."""
+        self.joint_pub.publish(msg)
+        robot = robot_name(self.get_namespace())
+        reach = BladeGeometry().reach
+        self.tf.send([blade_transform(robot, msg.position[0], reach, msg.header.stamp)])
 
     def on_joint_reader(self, info) -> None:
         """Sim backend: a new reader of the joint states gets the current tick's too.
@@ -517,7 +528,7 @@ class BladeDriverNode(LifecycleNode):
             if self.board_timeout == "pending":
                 self.arm_board_timeout()
             self.position, self.force = self.board.read()
-            self.joint_pub.publish(
+            self.publish_joint(
                 joint_state(self.position, self.force, self.get_clock().now().to_msg())
             )
             setpoint = self.core.update(now, self.force, self.gate.reason(now), self._tick_time())

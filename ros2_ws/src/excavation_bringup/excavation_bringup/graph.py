@@ -195,7 +195,7 @@ def continuous(
         add(nodes.controller(dep, k, geometry))
     add(nodes.team_tick(dep, profile, graph.files))
     if view:
-        add(nodes.view(dep, graph.files, view_port))
+        add(nodes.view(dep, view_port))
     return graph
 
 

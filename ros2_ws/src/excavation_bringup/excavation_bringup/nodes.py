@@ -654,7 +654,7 @@ def team_tick(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeS
     )
 
 
-def view(dep: Deployment, files: RunFiles, port: int) -> NodeSpec:
+def view(dep: Deployment, port: int) -> NodeSpec:
     """The live view (``ant-view``) of a site's run."""
     return NodeSpec(
         "view",
@@ -664,8 +664,6 @@ def view(dep: Deployment, files: RunFiles, port: int) -> NodeSpec:
         args=(
             "--site",
             str(Path(dep.site.path).resolve()),
-            "--calibration",
-            str(files.calibration),
             "--port",
             str(port),
             "--hardware",

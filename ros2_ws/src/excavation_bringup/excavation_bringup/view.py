@@ -18,18 +18,19 @@ channel                     schema                           from
                                                              and the fitness of the mapped
                                                              heights against the blueprint
 ``/view/diagnostics``       foxglove.Log                     ``/diagnostics`` (changes only)
-``/tf``                     foxglove.FrameTransforms         ``map`` -> ``overhead_camera``,
-                                                             ``overhead_laser``,
-                                                             ``robot_k/base_link``
+``/tf``                     foxglove.FrameTransforms         ``/tf`` and ``/tf_static``
+                                                             (tf2_msgs/TFMessage): the
+                                                             suite's frame tree as the nodes
+                                                             publish it (:mod:`excavation_
+                                                             common.tf`)
 ==========================  ===============================  =================================
 
 The latest robots, grids and transforms are sent again every ``--period`` seconds, so a
-client that connects late sees the site at once. The camera's and the laser's frames come
-from the site file (``--site``; ``--calibration`` for a calibration file elsewhere, e.g.
-the one ``ant-dome up --sim`` writes into its run directory). The server binds 127.0.0.1
-unless ``--host`` says otherwise. ``ant-dome up --view`` starts it.
+client that connects late sees the site at once. ``--site`` gives the robots and the soil
+unit. The server binds 127.0.0.1 unless ``--host`` says otherwise. ``ant-dome up --view``
+starts it.
 
-The message builders (:func:`robot_entities`, :func:`grid`, :func:`frame_transforms`,
+The message builders (:func:`robot_entities`, :func:`grid`, :func:`frame_transform`,
 :func:`mapped_fitness`) are pure; :class:`ViewNode` is the ROS plumbing.
 """
 
@@ -146,54 +147,18 @@ def grid(values: np.ndarray, cell_size: float, field: str, stamp=(0, 0)):
     )
 
 
-def frame_transforms(frames: dict[str, tuple[np.ndarray, np.ndarray]], stamp=(0, 0)):
-    """``FrameTransforms`` from ``map``: ``{child: (translation, quaternion xyzw)}``."""
-    from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Vector3
+def frame_transform(t):
+    """A foxglove ``FrameTransform`` of a ``geometry_msgs/TransformStamped``."""
+    from foxglove.messages import FrameTransform, Quaternion, Vector3
 
-    out = []
-    for child, (t, q) in frames.items():
-        out.append(
-            FrameTransform(
-                timestamp=_stamp(*stamp),
-                parent_frame_id="map",
-                child_frame_id=child,
-                translation=Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
-                rotation=Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])),
-            )
-        )
-    return FrameTransforms(transforms=out)
-
-
-def quaternion(rotation: np.ndarray) -> np.ndarray:
-    """``(x, y, z, w)`` of a rotation matrix."""
-    m = np.asarray(rotation, dtype=np.float64)
-    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2
-    x = math.copysign(math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2, m[2, 1] - m[1, 2])
-    y = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2, m[0, 2] - m[2, 0])
-    z = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2, m[1, 0] - m[0, 1])
-    return np.array([x, y, z, w])
-
-
-def site_frames(site, calibration: str | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """The fixed frames of a site: ``overhead_camera`` (its calibration) and ``overhead_laser``.
-
-    The camera frame is the optical one (x right, y down, z along the view); the laser frame
-    is the mount's at pan = tilt = 0 (:mod:`terrain_mapper.geometry`), with its offsets.
-    """
-    from terrain_mapper.geometry import mount_rotation
-
-    frames = {}
-    path = calibration or (site.camera.calibration if site is not None else "")
-    if path and path != "simulated":
-        from overhead_localizer.camera_model import load_model
-
-        model = load_model(path)
-        frames["overhead_camera"] = (model.centre, quaternion(model.rotation.T))
-    if site is not None:
-        las = site.laser
-        rot = mount_rotation(0.0, 0.0, (las.pan_offset, las.tilt_offset, las.roll_offset))
-        frames["overhead_laser"] = (np.asarray(las.mount), quaternion(rot))
-    return frames
+    v, r = t.transform.translation, t.transform.rotation
+    return FrameTransform(
+        timestamp=_stamp(t.header.stamp.sec, t.header.stamp.nanosec),
+        parent_frame_id=t.header.frame_id,
+        child_frame_id=t.child_frame_id,
+        translation=Vector3(x=float(v.x), y=float(v.y), z=float(v.z)),
+        rotation=Quaternion(x=float(r.x), y=float(r.y), z=float(r.z), w=float(r.w)),
+    )
 
 
 def mapped_fitness(heights_m: np.ndarray, goal_m: np.ndarray, height_unit: float) -> float | None:
@@ -212,9 +177,7 @@ def mapped_fitness(heights_m: np.ndarray, goal_m: np.ndarray, height_unit: float
 class ViewNode:
     """The ROS side of ``ant-view``: subscriptions in, foxglove channels out."""
 
-    def __init__(
-        self, robots: int, frames: dict, height_unit: float, period: float = 0.5, **kwargs
-    ) -> None:
+    def __init__(self, robots: int, height_unit: float, period: float = 0.5, **kwargs) -> None:
         """Create the node (``kwargs`` go to ``rclpy.node.Node``) and the channels."""
         import foxglove.channels as ch
         from diagnostic_msgs.msg import DiagnosticArray
@@ -224,12 +187,14 @@ class ViewNode:
         from rclpy.node import Node
         from sensor_msgs.msg import CompressedImage, Image
         from std_msgs.msg import Float32
+        from tf2_msgs.msg import TFMessage
 
         from excavation_common.ros import LATCHED, LATEST_FRAME
+        from excavation_common.tf import TF_QOS, TF_STATIC_QOS
 
         self.node = node = Node("ant_view", **kwargs)
         self.n = robots
-        self.frames = frames
+        self.transforms: dict = {}  # child frame -> the newest foxglove FrameTransform
         self.height_unit = height_unit
         self.cell_size = 0.25
         self.poses: dict[int, tuple[float, float, float, int, int]] = {}
@@ -258,6 +223,8 @@ class ViewNode:
             CompressedImage, "/overhead/image_annotated", self.on_camera, LATEST_FRAME
         )
         node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 50)
+        node.create_subscription(TFMessage, "/tf", self.on_tf, TF_QOS)
+        node.create_subscription(TFMessage, "/tf_static", self.on_tf, TF_STATIC_QOS)
         self.diag_pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         node.create_timer(period, self.republish)
         node.create_timer(1.0, self.publish_diagnostics)
@@ -271,6 +238,12 @@ class ViewNode:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         self.poses[k] = (p.x, p.y, yaw_of(q), msg.header.stamp.sec, msg.header.stamp.nanosec)
         self.publish_robots()
+
+    def on_tf(self, msg) -> None:
+        """Transforms from ``/tf`` or ``/tf_static``: the newest of each frame, forwarded."""
+        for t in msg.transforms:
+            self.transforms[t.child_frame_id] = frame_transform(t)
+        self.publish_frames()
 
     def on_info(self, msg) -> None:
         """The cell size."""
@@ -335,16 +308,16 @@ class ViewNode:
     # --- outputs ----------------------------------------------------------------------------
 
     def publish_robots(self) -> None:
-        """Robots and every frame."""
+        """The robots' scene."""
         self.robots_ch.log(robot_entities(self.poses, self.cell_size))
-        frames = dict(self.frames)
-        for k, (x, y, yaw, _, _) in self.poses.items():
-            frames[f"robot_{k}/base_link"] = (
-                np.array([x, y, 0.0]),
-                np.array([0, 0, math.sin(yaw / 2), math.cos(yaw / 2)]),
-            )
-        self.tf_ch.log(frame_transforms(frames))
         self.sent += 1
+
+    def publish_frames(self) -> None:
+        """Every frame the view has heard of (the newest transform of each)."""
+        from foxglove.messages import FrameTransforms
+
+        if self.transforms:
+            self.tf_ch.log(FrameTransforms(transforms=list(self.transforms.values())))
 
     def publish_grids(self) -> None:
         """Height map, blueprint, their difference; the mapped fitness."""
@@ -374,6 +347,7 @@ class ViewNode:
     def republish(self) -> None:
         """The latest state again, for clients that joined since."""
         self.publish_robots()
+        self.publish_frames()
         self.publish_grids()
 
     def publish_diagnostics(self) -> None:
@@ -409,8 +383,7 @@ def main(argv: list[str] | None = None) -> int:
 
     argv = sys.argv[1:] if argv is None else argv
     p = argparse.ArgumentParser(prog="ant-view", description=__doc__.split("\n\n")[0])
-    p.add_argument("--site", metavar="SITE", help="site file: robots, camera and laser frames")
-    p.add_argument("--calibration", metavar="FILE", help="camera calibration (default: the site's)")
+    p.add_argument("--site", metavar="SITE", help="site file: robots and soil unit")
     p.add_argument("--robots", type=int, default=None, help="default: the site's, else 4")
     p.add_argument("--host", default="127.0.0.1", help="address to serve on (default loopback)")
     p.add_argument("--port", type=int, default=8765)
@@ -420,15 +393,13 @@ def main(argv: list[str] | None = None) -> int:
         choices=("sim", "dome", "emulated"),
         default=None,
         help="what runs the site: ant-dome up --sim (sim), the dome (dome) or a rehearsal's "
-        "emulated drivers (emulated); default: sim when the site's camera is the simulator's "
-        "or --calibration is given",
+        "emulated drivers (emulated); default: sim when the site's camera is the simulator's",
     )
     args = p.parse_args(remove_ros_args(["ant-view", *argv])[1:])
     site = None
     try:
         if args.site:
-            site = view_site(args.site, args.hardware, args.calibration)
-        frames = site_frames(site, args.calibration)
+            site = view_site(args.site, args.hardware)
     except FieldError as exc:
         print(f"ant-view: error: {exc}", file=sys.stderr)
         return 2
@@ -441,7 +412,7 @@ def main(argv: list[str] | None = None) -> int:
     from excavation_common.ros import init_rclpy
 
     init_rclpy(args=["ant-view", *argv])
-    view = ViewNode(robots, frames, unit, args.period)
+    view = ViewNode(robots, unit, args.period)
     try:
         rclpy.spin(view.node)
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -453,7 +424,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def view_site(path: str, hardware: str | None, calibration: str | None):
+def view_site(path: str, hardware: str | None):
     """The site the view shows, checked for what runs it (``hardware``, else guessed).
 
     A rehearsal (``emulated``) keeps the dome's camera (a compressed stream, say), which a
@@ -465,7 +436,7 @@ def view_site(path: str, hardware: str | None, calibration: str | None):
     from excavation_bringup.site import load_site
 
     if hardware is None:
-        hardware = "sim" if calibration is not None or _simulated(path) else "dome"
+        hardware = "sim" if _simulated(path) else "dome"
     return load_site(path, sim=hardware == "sim", emulated=hardware == "emulated")
 
 

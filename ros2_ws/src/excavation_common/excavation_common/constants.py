@@ -43,11 +43,14 @@ class BladeGeometry:
         home: Blade edge height when retracted, metres.
         max_force: Push force (N) that corresponds to ``MAX_LOAD`` soil units (paper: the
             dome robots push at most 10 N).
+        reach: The blade's edge ahead of the robot's centre, metres (the front of the
+            2 x 2-cell body at 0.25 m cells; the ``robot_k/blade`` frame's offset).
     """
 
     depth: float = 0.02
     home: float = 0.10
     max_force: float = 10.0
+    reach: float = 0.25
 
     def position(self, blade: int) -> float:
         """Joint position of a blade code."""

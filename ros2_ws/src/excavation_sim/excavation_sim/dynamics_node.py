@@ -32,9 +32,10 @@ sends it again while it has no acknowledgement) is only acknowledged again, so t
 acknowledgement never renders a second frame and sweep of the tick.
 
 Publishes: ``/clock``; ``{pose_prefix}/robot_k/pose`` every step (PoseWithCovarianceStamped,
-with ``pose_noise``); every ``imu_period`` ``/robot_k/imu`` (sensor_msgs/Imu: yaw, and the
-pitch :data:`~excavation_sim.sim_node.TILT_PITCH` while the robot stands tilted nose down
-by the world model's R1 rule) and ``/robot_k/blade/plant_state`` (JointState: the
+with ``pose_noise``) and, without ``pose_prefix``, the same as ``map`` ->
+``robot_k/base_link`` on ``/tf``; every ``imu_period`` ``/robot_k/imu`` (sensor_msgs/Imu:
+yaw, and the pitch :data:`~excavation_sim.sim_node.TILT_PITCH` while the robot stands
+tilted nose down by the world model's R1 rule) and ``/robot_k/blade/plant_state`` (JointState: the
 simulated servo's position and push force); on each snapshot request every robot's IMU,
 then ``{snapshot_prefix}/worksite/height_map`` (latched, 32FC1 metres), the poses again under
 ``snapshot_prefix`` when it differs from ``pose_prefix`` (the ``sensors`` node renders
@@ -84,6 +85,7 @@ from excavation_common.files import write_text_atomic
 from excavation_common.messages import blade_joint, grid_to_image, imu_message
 from excavation_common.params import param
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
+from excavation_common.tf import TfBroadcaster, base_frame, pose_transform
 from excavation_sim.dynamics import Dynamics, DynamicsParams
 from excavation_sim.sim_node import TILT_PITCH, scenario_world
 from excavation_sim.soil import SoilParams
@@ -206,6 +208,7 @@ class DynamicsNode(Node):
 
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.pose_pubs, self.snap_pose_pubs, self.imu_pubs, self.plant_pubs = [], [], [], []
+        self.tf = TfBroadcaster(self)
         self.inputs = []
         separate = p.snapshot_prefix.rstrip("/") != p.pose_prefix.rstrip("/")
         for k in range(self.n):
@@ -408,11 +411,17 @@ class DynamicsNode(Node):
         imu_due = self.now_ns >= self.next_imu_ns
         if imu_due:
             self.next_imu_ns = self.now_ns + int(round(self.params.imu_period * 1e9))
+        frames = []
         for k in range(self.n):
-            self.pose_pubs[k].publish(self.pose(k, stamp))
+            pose = self.pose(k, stamp)
+            self.pose_pubs[k].publish(pose)
+            if not self.params.pose_prefix.rstrip("/"):
+                frames.append(pose_transform(pose, base_frame(k)))
             if imu_due:
                 self.imu_pubs[k].publish(self.imu(k, stamp))
                 self.plant_pubs[k].publish(self.plant_state(k, stamp))
+        if frames:
+            self.tf.send(frames)
         if self.snapshot_due is not None and self.now_ns >= self.snapshot_due:
             self.publish_snapshot()
         elif self.params.snapshot_period > 0 and self.now_ns >= self.next_snapshot_ns:

@@ -5,8 +5,9 @@ The node owns a :class:`excavation_sim.world.World` (scenario 0 of ``seed``, the
 
 1. publish the state of tick t, stamped with sim time ``t * dt`` (``/clock`` too): every
    robot's ``/robot_k/pose``, ``/robot_k/blade/joint_states``, ``/robot_k/stuck`` and
-   ``/robot_k/imu``, then ``/worksite/height_map`` (latched), ``/worksite/fitness`` and
-   ``/worksite/markers``;
+   ``/robot_k/imu``, the frames ``map`` -> ``robot_k/base_link`` (without ``truth_prefix``)
+   and ``robot_k/base_link`` -> ``robot_k/blade`` (without blade drivers) on ``/tf``, then
+   ``/worksite/height_map`` (latched), ``/worksite/fitness`` and ``/worksite/markers``;
 2. wait for one ``/robot_k/behaviour`` command from every robot (``command_timeout``; a
    robot that does not answer idles this tick, which is reported on ``/diagnostics``);
 3. apply the commands in robot order (the offline rule) and go on with tick t + 1.
@@ -96,6 +97,7 @@ from excavation_common.safety import (
     HELD,
     MotionGate,
 )
+from excavation_common.tf import TfBroadcaster, base_frame, blade_transform, pose_transform
 from excavation_sim.lockstep import Action, SimParams, TickClock, TickInputs
 from excavation_sim.rules import V1_RULES, WORLD_PROFILES, WorldRules
 from excavation_sim.world import (
@@ -152,6 +154,7 @@ class SimNode(Node):
         self.applied: list[list[int]] = []
 
         self.pose_pubs, self.joint_pubs, self.stuck_pubs, self.imu_pubs = [], [], [], []
+        self.tf = TfBroadcaster(self)
         self.inputs = []  # command subscriptions: behaviour (and blade set-point) per robot
         for k in range(self.n):
             ns = f"/robot_{k}"
@@ -241,6 +244,7 @@ class SimNode(Node):
             (w.heights * self.blueprint.height_unit).astype(np.float32), "32FC1", stamp=stamp
         )
         self.heights_pub.publish(heights)
+        frames = []
         for k in range(self.n):
             r = w.robots[k]
             row, col, h, blade = int(r[ROW]), int(r[COL]), int(r[HEADING]), int(r[BLADE])
@@ -254,9 +258,15 @@ class SimNode(Node):
             imu.orientation.y = math.sin(pitch / 2)
             imu.orientation.w = math.cos(pitch / 2)
             self.imu_pubs[k].publish(imu)
-            self.pose_pubs[k].publish(
-                pose_message(row, col, h, cell, (0.05 * cell) ** 2, 0.01, stamp)
-            )
+            pose = pose_message(row, col, h, cell, (0.05 * cell) ** 2, 0.01, stamp)
+            self.pose_pubs[k].publish(pose)
+            if not self.truth_prefix:
+                frames.append(pose_transform(pose, base_frame(k)))
+            if not self.blade_driver:
+                position = self.geometry.position(blade)
+                frames.append(blade_transform(f"robot_{k}", position, self.geometry.reach, stamp))
+        if frames:
+            self.tf.send(frames)
         self.fitness_pub.publish(Float32(data=float(w.fitness())))
         self.markers_pub.publish(self.markers(stamp))
         self.clock.published(self._seconds())

@@ -11,7 +11,9 @@ file's are used and the camera's status is WARN saying why), and, with
 ``use_height_map``, ``/worksite/height_map`` + ``/worksite/map_info`` (the soil height under
 a robot sets the plane of its LEDs). Publishes for every robot k < ``robots`` it is sure of
 ``/robot_k/pose`` (PoseWithCovarianceStamped in ``map``, stamped with the frame's stamp,
-covariance from the detection); with ``annotated_period`` > 0,
+covariance from the detection) and the same as ``map`` -> ``robot_k/base_link`` on ``/tf``;
+``map`` -> ``overhead_camera`` (the calibration's camera pose, optical axes) on
+``/tf_static``; with ``annotated_period`` > 0,
 ``/overhead/image_annotated`` (CompressedImage jpeg: detected LEDs and poses drawn); and,
 every ``diagnostics_period``, ``/diagnostics``: the camera's status, named after the node
 (``/localizer``; ERROR on a frame of the wrong encoding or size, or colourless mono8
@@ -53,6 +55,15 @@ from excavation_common.errors import FieldError
 from excavation_common.messages import MessageError, image_to_grid
 from excavation_common.params import ParameterError
 from excavation_common.ros import LATCHED, LATEST_FRAME, declare_params, diagnostics, spin_node
+from excavation_common.tf import (
+    CAMERA,
+    MAP,
+    TfBroadcaster,
+    base_frame,
+    pose_transform,
+    quaternion,
+    transform,
+)
 from overhead_localizer.annotate import annotate
 from overhead_localizer.beacons import CONFIG_DIR, load_beacons
 from overhead_localizer.camera_info import choose_model
@@ -154,6 +165,9 @@ class LocalizerNode(Node):
             self.create_publisher(PoseWithCovarianceStamped, f"/robot_{k}/pose", 10)
             for k in range(self.n)
         ]
+        self.tf = TfBroadcaster(self)
+        model = self.file_model
+        self.tf.send_static([transform(MAP, CAMERA, model.centre, quaternion(model.rotation.T))])
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.annotated_pub = (
             self.create_publisher(CompressedImage, ANNOTATED_TOPIC, 1)
@@ -238,9 +252,14 @@ class LocalizerNode(Node):
         self.frames += 1
         if self.retake(msg.header.stamp, tracked):
             return
+        frames = []
         for k, estimate in enumerate(self.estimates):
             if estimate.reportable:
-                self.pose_pubs[k].publish(pose_with_covariance(estimate, msg.header.stamp))
+                pose = pose_with_covariance(estimate, msg.header.stamp)
+                self.pose_pubs[k].publish(pose)
+                frames.append(pose_transform(pose, base_frame(k)))
+        if frames:
+            self.tf.send(frames)
         if self.annotated_pub is not None:
             now = self.get_clock().now().nanoseconds * 1e-9
             if now - self.last_annotated >= self.config.annotated_period:

@@ -178,6 +178,29 @@ def beam_rays(
     return origins, dirs
 
 
+def laser_pose(
+    pan: float,
+    tilt: float,
+    mount,
+    offsets: tuple[float, float, float] = NO_OFFSETS,
+    lever: tuple[float, float, float] = NO_LEVER,
+    flip: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(origin, rotation)`` of the laser frame in ``map`` (the ``overhead_laser`` frame).
+
+    ``origin``: the optical centre (``mount`` plus the lever arm turned by the joints);
+    ``rotation``: columns are the laser frame's axes in ``map`` (x the beam at ``a = 0``, y
+    the beam at ``a = +pi/2`` in the scanner's own angles, so turned over with ``flip``).
+    """
+    rot = mount_rotation(pan, tilt, offsets)
+    if flip:
+        rot = rot @ np.diag([1.0, -1.0, -1.0])
+    origin = np.asarray(mount, dtype=np.float64) + tilting_rotation(
+        pan, tilt, offsets
+    ) @ np.asarray(lever, dtype=np.float64)
+    return origin, rot
+
+
 def yaw_of(q) -> float:
     """Yaw (radians, about z) of a ``geometry_msgs/Quaternion``-like ``q`` (x, y, z, w)."""
     return float(np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))

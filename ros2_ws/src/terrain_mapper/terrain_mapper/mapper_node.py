@@ -27,7 +27,10 @@ scanner (``scanner_flip``) are applied to every beam.
 Every ``sweep_scans`` scans it bins and fuses the sweep
 (:class:`terrain_mapper.mapper.TerrainMapper`) and publishes ``/worksite/height_map``
 (sensor_msgs/Image 32FC1, one pixel per cell, metres, NaN unknown, latched QoS) stamped
-with the sweep's first scan (its stamp plus ``scan_stamp_offset``). ``/worksite/map_info``
+with the sweep's first scan (its stamp plus ``scan_stamp_offset``), and with every mount
+state the laser's frame, ``map`` -> ``overhead_laser`` on ``/tf`` (the optical centre and
+the scanner's axes at that pan and tilt: :func:`terrain_mapper.geometry.laser_pose`).
+``/worksite/map_info``
 is the blueprint server's: the mapper publishes it only with ``publish_map_info`` (off by
 default; for a mapper run alone).
 
@@ -68,8 +71,9 @@ from excavation_common.messages import grid_to_image, map_info
 from excavation_common.params import ParameterError
 from excavation_common.ros import LATCHED, SENSOR_DATA, declare_params, diagnostics, spin_node
 from excavation_common.safety import ENABLED_TOPIC
+from excavation_common.tf import LASER, MAP, TfBroadcaster, quaternion, transform
 from terrain_mapper.errors import MapperError
-from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, yaw_of
+from terrain_mapper.geometry import PAN_JOINT, TILT_JOINT, laser_pose, yaw_of
 from terrain_mapper.mapper import (
     MapperParams,
     TerrainMapper,
@@ -163,6 +167,7 @@ class MapperNode(Node):
         self.last_stats = None
 
         self.map_pub = self.create_publisher(Image, "/worksite/height_map", LATCHED)
+        self.tf = TfBroadcaster(self)
         self.info_pub = (
             self.create_publisher(MapMetaData, "/worksite/map_info", LATCHED)
             if c.publish_map_info
@@ -215,6 +220,9 @@ class MapperNode(Node):
             return
         self.problems.pop("mount", None)
         self.sync.add(_ns(msg.header.stamp), pan, tilt)
+        p = self.params
+        origin, rot = laser_pose(pan, tilt, self.core.mount, p.offsets, p.lever, p.scanner_flip)
+        self.tf.send([transform(MAP, LASER, origin, quaternion(rot), msg.header.stamp)])
 
     def on_scan(self, msg: LaserScan) -> None:
         """A scan, kept until the mount states around its stamp have arrived."""
