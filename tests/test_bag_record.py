@@ -51,6 +51,29 @@ def test_trial_records_every_tick(tmp_path, domain):
         topic = f"/robot_{k}/behaviour"
         recorded = [bag.decode(topic, raw).data for _, _, raw in bag.messages([topic])]
         assert recorded[:steps] == [tick[k] for tick in result.commands]
+    # /tf is recorded with its definition: a foreign reader (mcap_ros2, no package of
+    # ours) finds each robot's base_link at its pose of the same stamp, and its blade
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    poses = {
+        (m.header.stamp.sec, m.header.stamp.nanosec): m.pose.pose.position
+        for m in (bag.decode("/robot_0/pose", raw) for _, _, raw in bag.messages(["/robot_0/pose"]))
+    }
+    (mcap_file,) = bag_dir.glob("*.mcap")
+    frames: dict[str, int] = {}
+    with open(mcap_file, "rb") as f:
+        for _, _, _, m in make_reader(
+            f, decoder_factories=[DecoderFactory()]
+        ).iter_decoded_messages(topics=["/tf"]):
+            for t in m.transforms:
+                frames[t.child_frame_id] = frames.get(t.child_frame_id, 0) + 1
+                if t.child_frame_id == "robot_0/base_link":
+                    p = poses[(t.header.stamp.sec, t.header.stamp.nanosec)]
+                    assert (t.transform.translation.x, t.transform.translation.y) == (p.x, p.y)
+    for k in range(robots):
+        assert frames[f"robot_{k}/base_link"] == steps + 1
+        assert frames[f"robot_{k}/blade"] >= steps
 
 
 def _recorder(out, domain, *extra):

@@ -46,6 +46,8 @@ SUITE_TOPICS: tuple[str, ...] = (
     "/team/*",
     "/tick/*",
     "/diagnostics",
+    "/tf",
+    "/tf_static",
 )
 """The node suite's topics (docs/interfaces.md); ``*`` matches a robot index
 (``/team/*``: e-stop, heartbeat, tick, snapshot requests and their acknowledgements;

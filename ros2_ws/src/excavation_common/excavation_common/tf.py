@@ -149,24 +149,31 @@ class FrameTree:
 
 
 class TfBroadcaster:
-    """``/tf`` and ``/tf_static`` writers of one node (as tf2_ros's two broadcasters)."""
+    """``/tf`` (and, with ``static``, ``/tf_static``) writers of one node.
 
-    def __init__(self, node) -> None:
-        self.node = node
-        self._dynamic = None
-        self._static = None
+    As tf2_ros's two broadcasters; created at once, so a recorder or listener matches them
+    before the first transform.
+    """
+
+    def __init__(self, node, static: bool = False) -> None:
+        self.publisher = node.create_publisher(TFMessage, "/tf", TF_QOS)
+        self.static_publisher = (
+            node.create_publisher(TFMessage, "/tf_static", TF_STATIC_QOS) if static else None
+        )
         self._statics: dict[str, TransformStamped] = {}
 
     def send(self, transforms: list[TransformStamped]) -> None:
         """Publish ``transforms`` on ``/tf``."""
-        if self._dynamic is None:
-            self._dynamic = self.node.create_publisher(TFMessage, "/tf", TF_QOS)
-        self._dynamic.publish(TFMessage(transforms=list(transforms)))
+        self.publisher.publish(TFMessage(transforms=list(transforms)))
 
     def send_static(self, transforms: list[TransformStamped]) -> None:
-        """Publish ``transforms`` on ``/tf_static`` with every static sent before (latched)."""
-        if self._static is None:
-            self._static = self.node.create_publisher(TFMessage, "/tf_static", TF_STATIC_QOS)
+        """Publish ``transforms`` on ``/tf_static`` with every static sent before (latched).
+
+        Raises:
+            RuntimeError: The broadcaster was made without ``static``.
+        """
+        if self.static_publisher is None:
+            raise RuntimeError("TfBroadcaster(static=False) sends no static transforms")
         for t in transforms:
             self._statics[t.child_frame_id] = t
-        self._static.publish(TFMessage(transforms=list(self._statics.values())))
+        self.static_publisher.publish(TFMessage(transforms=list(self._statics.values())))

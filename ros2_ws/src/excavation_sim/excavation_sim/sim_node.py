@@ -322,6 +322,7 @@ class SimNode(Node):
                 and reaches(self, self.stuck_pubs[k], controllers[k])
                 and reaches(self, self.joint_pubs[k], joint_readers)
                 and reaches(self, self.imu_pubs[k])
+                and reaches(self, self.tf.publisher)
                 and self.count_subscribers(f"{self.truth_prefix}/robot_{k}/pose") > 0
             ):
                 return False

@@ -165,7 +165,7 @@ class LocalizerNode(Node):
             self.create_publisher(PoseWithCovarianceStamped, f"/robot_{k}/pose", 10)
             for k in range(self.n)
         ]
-        self.tf = TfBroadcaster(self)
+        self.tf = TfBroadcaster(self, static=True)
         model = self.file_model
         self.tf.send_static([transform(MAP, CAMERA, model.centre, quaternion(model.rotation.T))])
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
