@@ -11,6 +11,13 @@ import pytest
 from ant_controller.layout import N_BEHAVIOURS, SENSOR_SCALE, SENSOR_STATES
 from ant_controller.tissue import activation
 from ant_evolution.backends import Evaluator
+from ant_evolution.baseline_runs import (
+    load_program,
+    program_from_dict,
+    program_to_dict,
+    run_fixed,
+    run_neat,
+)
 from ant_evolution.baselines.fixed import (
     FixedTopology,
     compile_fixed,
@@ -37,13 +44,6 @@ from ant_evolution.baselines.network import (
     program_decide_into,
     program_scratch,
     union_rows,
-)
-from ant_evolution.baselines.runs import (
-    load_program,
-    program_from_dict,
-    program_to_dict,
-    run_fixed,
-    run_neat,
 )
 from ant_evolution.evaluate import ScenarioSet
 from ant_evolution.evolve import EvolveConfig

@@ -239,7 +239,7 @@ def test_cli_blueprint_file_and_bad_blueprint(tmp_path, capsys):
 @pytest.mark.parametrize("method", ["ant", "fixed", "neat"])
 def test_every_method_resumes_bit_identically(tmp_path, method):
     """The one loop: stop after 2 generations, resume on 2 workers, equal a straight run."""
-    from ant_evolution.baselines.runs import run_fixed, run_neat
+    from ant_evolution.baseline_runs import run_fixed, run_neat
 
     runner = {"ant": run_evolution, "fixed": run_fixed, "neat": run_neat}[method]
     cfg = dataclasses.replace(TINY, generations=5, checkpoint_every=2, seed=4)

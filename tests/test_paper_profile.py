@@ -575,7 +575,7 @@ def test_load_and_climb_switches_each_act():
 
 
 def test_neat_strategy_writes_the_profiles_neat_config(tmp_path):
-    from ant_evolution.baselines.runs import NeatStrategy
+    from ant_evolution.baseline_runs import NeatStrategy
 
     NeatStrategy(EvolveConfig().with_profile("paper"), tmp_path)
     text = (tmp_path / "neat.ini").read_text()

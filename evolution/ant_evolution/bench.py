@@ -145,7 +145,7 @@ def generation_costs(
     0 is reported apart (NEAT's and the fixed network's initial populations differ most
     from later ones); ``eval`` and ``tell`` are medians over generations 1 onward.
     """
-    from ant_evolution.baselines.runs import FixedStrategy, NeatStrategy
+    from ant_evolution.baseline_runs import FixedStrategy, NeatStrategy
     from ant_evolution.evolve import AntStrategy, EvolveConfig, blueprints_of, scenario_sets
     from ant_evolution.loop import cyclic_gc_paused
 

@@ -39,8 +39,8 @@ def compile_kind(kind: str) -> float:
     import numpy as np
 
     from ant_controller.controller import Controller
+    from ant_evolution.baseline_runs import FixedStrategy, NeatStrategy
     from ant_evolution.baselines.network import program_decide
-    from ant_evolution.baselines.runs import FixedStrategy, NeatStrategy
     from ant_evolution.breakdown import phase_times
     from ant_evolution.evaluate import advance, program_fitness
     from ant_evolution.evolve import AntStrategy, EvolveConfig, blueprints_of, scenario_sets

@@ -21,8 +21,8 @@ import numpy as np
 
 from ant_controller.controller import Controller
 from ant_controller.genome_io import load_genome
+from ant_evolution.baseline_runs import load_program, run_fixed, run_neat
 from ant_evolution.baselines.network import NetworkProgram
-from ant_evolution.baselines.runs import load_program, run_fixed, run_neat
 from ant_evolution.evaluate import ScenarioSet
 from ant_evolution.evolve import EvolveConfig, run_evolution
 from ant_evolution.profiles import profile_switches, world_rules_of
@@ -546,3 +546,24 @@ def pyplot():
 def scale_dict(scale: Scale) -> dict:
     """The scale as a mapping (for ``scale.json`` beside the results)."""
     return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(scale).items()}
+
+
+@dataclass(frozen=True)
+class EveryRunGroup:
+    """One key's runs in the grid of every run's controller.
+
+    Attributes:
+        key: The key.
+        runs: How many runs' controllers.
+        mean: Mean over the runs' controllers, per robot count.
+        std: Their standard deviation, per robot count.
+        peaks: The robot count at which each run's controller peaks.
+        median_peak: The median of ``peaks``.
+    """
+
+    key: object
+    runs: int
+    mean: np.ndarray
+    std: np.ndarray
+    peaks: list[int]
+    median_peak: float

@@ -10,12 +10,8 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-from ant_evolution.experiments.core import pyplot
-
-if TYPE_CHECKING:
-    from ant_evolution.experiments.grids import EveryRunGroup
+from ant_evolution.experiments.core import EveryRunGroup, pyplot
 
 
 @contextmanager

@@ -12,7 +12,6 @@ for the experiments' run steps.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +21,7 @@ from ant_controller.genome_io import load_genome
 from ant_evolution.experiments import figures, sections
 from ant_evolution.experiments.core import (
     Context,
+    EveryRunGroup,
     compare_robots,
     finished_runs,
     four_robot_genome,
@@ -129,27 +129,6 @@ def every_run_grid(
 def every_run_wanted(groups: Sequence[tuple[object, Sequence]]) -> bool:
     """Whether a group has two runs or more (with fewer the part says nothing new)."""
     return max((len(runs) for _, runs in groups), default=0) >= 2
-
-
-@dataclass(frozen=True)
-class EveryRunGroup:
-    """One key's runs in the grid of every run's controller.
-
-    Attributes:
-        key: The key.
-        runs: How many runs' controllers.
-        mean: Mean over the runs' controllers, per robot count.
-        std: Their standard deviation, per robot count.
-        peaks: The robot count at which each run's controller peaks.
-        median_peak: The median of ``peaks``.
-    """
-
-    key: object
-    runs: int
-    mean: np.ndarray
-    std: np.ndarray
-    peaks: list[int]
-    median_peak: float
 
 
 def every_run_summary(

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-from ant_evolution.experiments.core import METHOD_LABELS, Context, setting_label
-
-if TYPE_CHECKING:
-    from ant_evolution.experiments.grids import EveryRunGroup
+from ant_evolution.experiments.core import (
+    METHOD_LABELS,
+    Context,
+    EveryRunGroup,
+    setting_label,
+)
 
 
 def fmt(x: float) -> str:
