@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers.figures import assert_figure
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.serialization import serialize_message
@@ -139,6 +140,7 @@ def test_report_and_trial_data_decode_compressed_frames(tmp_path):
         assert np.array_equal(image, images[i])
     report = make_report(open_bag(tmp_path / "cam"), tmp_path / "r", gif=False)
     assert "camera.png" in report.files
+    assert_figure(tmp_path / "r" / "camera.png", min_width=100, min_height=100)
     assert report.numbers["camera"]["frames"] == 9
     assert report.numbers["camera"]["frames_per_s"] == pytest.approx(1.0)
     summary = (tmp_path / "r" / "summary.md").read_text()

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.figures import assert_figure
 
 from ant_controller.controller import Controller
 from blueprint_server.blueprint import default_blueprint
@@ -165,6 +166,7 @@ def test_missing_blueprint_keeps_the_fitness_plot(tmp_path):
         copy_bag(tmp_path / "b", drop=("/blueprint/zones",)), tmp_path / "r"
     )
     assert "fitness.png" in report.files
+    assert_figure(tmp_path / "r" / "fitness.png")
     assert "no /blueprint/zones" in report.skipped["snapshots"]
     assert "inputs" in report.skipped["detectors"]
     assert report.numbers["fitness"]["recomputed_final"] is None
@@ -196,6 +198,7 @@ def test_truncated_bag_gets_a_report_of_what_is_left(tmp_path):
     assert "truncated bag" in summary
     assert 0 < report.numbers["fitness"]["frames"] < STEPS + 1
     assert "detectors.png" in report.files
+    assert_figure(tmp_path / "r" / "detectors.png")
 
 
 def test_bag_with_an_unknown_type_topic(tmp_path):

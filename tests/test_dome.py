@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.figures import assert_figure
 from helpers.view_client import free_port
 
 from excavation_bringup.dome import sim_result
@@ -255,6 +256,7 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag_which_replays(tmp_pa
 
     report = make_report(recorded, tmp_path / "report", gif=False)
     assert "tracks.png" in report.files, report.skipped
+    assert_figure(tmp_path / "report" / "tracks.png")
     field = report.numbers["field"]
     assert sorted(field["robots"]) == ["0", "1"] and field["ticks"]["count"] >= 2
     for robot in field["robots"].values():  # the camera's frames, each with its pose or not

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.figures import assert_figure
 
 from ant_controller.genome import random_genome
 from ant_controller.genome_io import load_genome
@@ -52,6 +53,7 @@ def straight(tmp_path_factory):
 def test_run_writes_its_outputs(straight):
     names = {p.name for p in straight.iterdir()}
     assert {"config.yaml", "history.csv", "best.json", "fitness.png", "checkpoint.json"} <= names
+    assert_figure(straight / "fitness.png")
     assert load_config(straight / "config.yaml") == TINY
     lines = (straight / "history.csv").read_text().splitlines()
     assert len(lines) == 11 and lines[0].startswith("generation,evaluations,best,mean")

@@ -6,6 +6,7 @@ import csv
 import dataclasses
 
 import pytest
+from helpers.figures import assert_figure
 
 from ant_controller.controller import Controller
 from ant_evolution.errors import ConfigError
@@ -70,7 +71,10 @@ def done(tmp_path_factory):
 def test_experiment_writes_csv_figures_and_section(done, name):
     d = done.out / name
     for f in FILES[name]:
-        assert (d / f).stat().st_size > 0, f
+        if f.endswith(".png"):
+            assert_figure(d / f)
+        else:
+            assert (d / f).stat().st_size > 0, f
     section = (d / "section.md").read_text()
     assert section.startswith("### ") and "figures/" in section
     csv_name = next(f for f in FILES[name] if f.endswith(".csv"))
@@ -171,7 +175,7 @@ def test_method_and_run_select_part_of_a_campaign(tmp_path, capsys, monkeypatch)
             (r[key], r["robots"], r["mean"]) for r in main_rows
         ]
         assert "peak of each run's controller" in (d / "section.md").read_text()
-        assert (d / f"{name}_runs.png").stat().st_size > 0
+        assert_figure(d / f"{name}_runs.png")
     assert (tmp_path / "compare" / "summary.json").exists()
     assert (run_dir(ctx, "fixed", 2, 1) / "history.csv").read_text() == part
     whole = tmp_path / "whole"
@@ -263,7 +267,7 @@ def test_finished_summarises_a_campaign_in_part(tmp_path, capsys, monkeypatch):
         (r["robots"], r["mean"]) for r in best_rows if r["controller"] == "fixed network n2"
     ]  # fmt: skip
     assert "| fixed network n2 | 2 |" in (d / "section.md").read_text()
-    assert (d / "scaleup_runs.png").stat().st_size > 0
+    assert_figure(d / "scaleup_runs.png")
     assert {p.name: (p / "history.csv").read_text() for p in runs_dir.iterdir()} == before
     capsys.readouterr()
     assert cli.main(["evolve-robots", *base, "--finished"]) == 2

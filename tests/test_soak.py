@@ -19,7 +19,15 @@ def samples(per_tick: float, ticks: int = 1000, every: int = 50) -> list[dict]:
 
 
 def test_rss_of_this_process_and_of_a_gone_one():
-    assert 1.0 < rss_mb(os.getpid()) < 100_000
+    """Touching 200 MB raises this process's reading by about that much; a gone pid reads
+    None."""
+    import numpy as np
+
+    before = rss_mb(os.getpid())
+    block = np.ones(200 * 2**20, dtype=np.uint8)  # written, so resident
+    after = rss_mb(os.getpid())
+    assert 190.0 < after - before < 260.0
+    del block
     assert rss_mb(2**22 + 12345) is None
 
 
