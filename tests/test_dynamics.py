@@ -172,3 +172,21 @@ def test_warming_the_kernels_changes_nothing():
     after = (world.heights, world.robots, world.active, world.rng)
     assert all(np.array_equal(a, b) for a, b in zip(before, after, strict=True))
     assert sim.counters == type(sim.counters)() and sim.time == 0.0
+
+
+def test_the_world_result_goes_through_json_and_back():
+    """``dynamics``' ``world.json``: the record comes back; physical soil's fields only with
+    physical soil; a missing field is named."""
+    import json
+
+    from excavation_sim.dynamics import WorldResult
+
+    grid = WorldResult(0.5, [[0, 1]], {"tick 0": 0.25}, 3.0, 60, 0)
+    assert "volume" not in grid.to_json()
+    assert WorldResult.from_json(json.loads(json.dumps(grid.to_json()))) == grid
+    soil = WorldResult(0.5, [[0, 1]], {"tick 0": 0.25}, 3.0, 60, 1, [[0.0, 1.25]], 0, 7)
+    assert WorldResult.from_json(json.loads(json.dumps(soil.to_json()))) == soil
+    data = grid.to_json()
+    del data["snapshots"]
+    with pytest.raises(ValueError, match="w.json: no field 'snapshots'"):
+        WorldResult.from_json(data, "w.json")

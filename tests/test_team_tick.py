@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import typing
 
 import numpy as np
+import pytest
 from team_tick.core import (
     Finished,
     Phase,
@@ -17,6 +19,7 @@ from team_tick.core import (
     TeamTick,
     TeamTickParams,
     TickAction,
+    TickSummary,
     draw_turns,
     schedule,
 )
@@ -347,6 +350,31 @@ def test_finishes_after_the_last_tick_s_snapshot():
     feed_snapshot(tt, 0.6, [(2, 2, 0)])
     assert tt.step(0.6, 0.3) == [Finished()]
     assert tt.phase is Phase.FINISHED and len(tt.records) == 1
+
+
+def test_the_summary_is_a_record_that_goes_through_json_and_back():
+    """The trial's result crosses a process as JSON (``result.json``): the same record comes
+    back; a missing or malformed field is named."""
+    tt = make(robots=1, steps=1)
+    tt.start(0.0)
+    feed_snapshot(tt, 0.2, [(2, 2, 0)])
+    tt.step(0.3, 0.0)
+    tt.on_word(0, 5)
+    tt.step(0.3, 0.1)
+    tt.on_status(0, 0, terminal=True, aborted=False, now=0.4)
+    tt.step(0.4, 0.2)
+    feed_snapshot(tt, 0.6, [(2, 2, 0)])
+    tt.step(0.6, 0.3)
+    summary = tt.summary()
+    assert summary.ticks == 1 and summary.commands == [[5]] and summary.missed == {0: 0}
+    text = json.dumps(summary.to_json() | {"reports": []})
+    assert TickSummary.from_json(json.loads(text)) == summary
+    data = summary.to_json()
+    del data["stuck_events"]
+    with pytest.raises(ValueError, match="run/result.json: no field 'stuck_events'"):
+        TickSummary.from_json(data, "run/result.json")
+    with pytest.raises(ValueError, match="malformed"):
+        TickSummary.from_json(summary.to_json() | {"commands": "words"})
 
 
 ACTIONS = typing.get_args(TickAction)

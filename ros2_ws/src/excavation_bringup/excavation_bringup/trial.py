@@ -39,6 +39,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from team_tick.core import TickSummary
 
 from excavation_bringup.deployment import Deployment
 from excavation_bringup.graph import Graph, build
@@ -49,6 +50,7 @@ from excavation_bringup.launch import (
     compose,
 )
 from excavation_common.limits import MAX_ROBOTS, int_in
+from excavation_sim.dynamics import WorldResult
 from excavation_sim.soil import soil_arg
 
 
@@ -81,7 +83,7 @@ class TrialResult:
 
 
 def continuous_result(
-    ticks: dict, world: dict, primitives_aborted: int, seconds: float, steps: int
+    ticks: TickSummary, world: WorldResult, primitives_aborted: int, seconds: float, steps: int
 ) -> TrialResult:
     """A continuous trial's result from the team tick's summary and the ``dynamics`` world.
 
@@ -93,20 +95,20 @@ def continuous_result(
         steps: Ticks run (the fitness trace has one more entry).
     """
     return TrialResult(
-        world["fitness"],
-        [world["snapshots"].get(f"tick {t}", float("nan")) for t in range(steps + 1)],
-        np.array(world["heights"], dtype=np.int64),
-        {int(k): n for k, n in ticks["missed"].items()},
+        world.fitness,
+        [world.snapshots.get(f"tick {t}", float("nan")) for t in range(steps + 1)],
+        np.array(world.heights, dtype=np.int64),
+        dict(ticks.missed),
         seconds,
-        ticks["commands"],
-        holds=ticks.get("holds", 0),
-        tick_wall=ticks["tick_wall"],
+        ticks.commands,
+        holds=ticks.holds,
+        tick_wall=ticks.tick_wall,
         primitives_aborted=primitives_aborted,
-        stuck_events=ticks["stuck_events"],
-        sim_seconds=world["sim_seconds"],
-        robots_late=ticks["robots_late"],
-        soil_volume=world.get("volume"),
-        slips=world.get("slips", 0),
+        stuck_events=ticks.stuck_events,
+        sim_seconds=world.sim_seconds,
+        robots_late=ticks.robots_late,
+        soil_volume=world.volume,
+        slips=world.slips,
     )
 
 
@@ -410,8 +412,10 @@ def _run_processes(graph: Graph) -> TrialResult:
                     f"executors of robots {silent} did not report on /diagnostics "
                     f"within {wait:.0f} s of the last tick"
                 )
-            world = json.loads(graph.files.world.read_text())
-            if f"tick {dep.steps}" not in world["snapshots"]:
+            world = WorldResult.from_json(
+                json.loads(graph.files.world.read_text()), str(graph.files.world)
+            )
+            if f"tick {dep.steps}" not in world.snapshots:
                 raise RuntimeError(f"dynamics wrote no snapshot of tick {dep.steps}")
             seconds = time.monotonic() - started
     finally:
@@ -419,7 +423,13 @@ def _run_processes(graph: Graph) -> TrialResult:
         node.destroy_node()
         executor.shutdown()
         rclpy.try_shutdown(context=context)
-    return continuous_result(ticks, world, sum(counters.aborted.values()), seconds, dep.steps)
+    return continuous_result(
+        TickSummary.from_json(ticks, str(graph.files.result)),
+        world,
+        sum(counters.aborted.values()),
+        seconds,
+        dep.steps,
+    )
 
 
 MAX_TRIAL_STEPS = 100_000

@@ -114,6 +114,72 @@ class Counters:
     slips: int = 0  # robot-steps whose push the wheels could not give (soil: physical)
 
 
+@dataclass(frozen=True)
+class WorldResult:
+    """A continuous-motion world at the end of a trial (``dynamics``' ``world.json``).
+
+    Attributes:
+        fitness: The paper's fitness now.
+        heights: The cells' heights, whole units.
+        snapshots: The fitness of every snapshot, by its label (``"tick 3"``).
+        sim_seconds: Simulated time.
+        steps: Simulator steps taken.
+        late_steps: Steps a robot's command came late.
+        mean_heights: Physical soil: the cells' sub-cell means, units (else ``None``).
+        volume: Physical soil: the fine field's total, quanta (else ``None``).
+        slips: Physical soil: robot-steps too heavy to push.
+    """
+
+    fitness: float
+    heights: list[list[int]]
+    snapshots: dict[str, float]
+    sim_seconds: float
+    steps: int
+    late_steps: int
+    mean_heights: list[list[float]] | None = None
+    volume: int | None = None
+    slips: int = 0
+
+    def to_json(self) -> dict:
+        """JSON-ready values (the soil's fields only with physical soil)."""
+        out = {
+            "fitness": self.fitness,
+            "heights": self.heights,
+            "snapshots": self.snapshots,
+            "sim_seconds": self.sim_seconds,
+            "steps": self.steps,
+            "late_steps": self.late_steps,
+        }
+        if self.volume is not None:
+            out |= {"mean_heights": self.mean_heights, "volume": self.volume, "slips": self.slips}
+        return out
+
+    @classmethod
+    def from_json(cls, data: dict, where: str = "world.json") -> WorldResult:
+        """The result :meth:`to_json` wrote.
+
+        Raises:
+            ValueError: Naming ``where`` and the field that is missing or malformed.
+        """
+        try:
+            volume = data.get("volume")
+            return cls(
+                fitness=float(data["fitness"]),
+                heights=[[int(h) for h in row] for row in data["heights"]],
+                snapshots={str(k): float(v) for k, v in data["snapshots"].items()},
+                sim_seconds=float(data["sim_seconds"]),
+                steps=int(data["steps"]),
+                late_steps=int(data["late_steps"]),
+                mean_heights=data.get("mean_heights"),
+                volume=None if volume is None else int(volume),
+                slips=int(data.get("slips", 0)),
+            )
+        except KeyError as exc:
+            raise ValueError(f"{where}: no field {exc.args[0]!r} in the world's result") from None
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise ValueError(f"{where}: a malformed world result ({exc})") from None
+
+
 class Dynamics:
     """Continuous diff-drive robots over a :class:`World` (pure, no ``rclpy``).
 

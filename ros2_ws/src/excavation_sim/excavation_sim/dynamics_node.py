@@ -86,7 +86,7 @@ from excavation_common.messages import blade_joint, grid_to_image, imu_message
 from excavation_common.params import param
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
 from excavation_common.tf import TfBroadcaster, base_frame, pose_transform
-from excavation_sim.dynamics import Dynamics, DynamicsParams
+from excavation_sim.dynamics import Dynamics, DynamicsParams, WorldResult
 from excavation_sim.sim_node import TILT_PITCH, scenario_world
 from excavation_sim.soil import SoilParams
 from excavation_sim.world import BLADE
@@ -474,7 +474,7 @@ class DynamicsNode(Node):
         self.fitness_pub.publish(Float32(data=float(fitness)))
         self.markers_pub.publish(self.markers(stamp))
         if self.params.result_file:
-            write_text_atomic(self.params.result_file, json.dumps(self.result()))
+            write_text_atomic(self.params.result_file, json.dumps(self.result().to_json()))
         if self.ack is not None:
             self.ack_pub.publish(self.ack)
 
@@ -487,25 +487,20 @@ class DynamicsNode(Node):
             return soil.fine_metres().astype(np.float32)
         return (soil.cell_means() * unit).astype(np.float32)
 
-    def result(self) -> dict:
-        """The world now: fitness, heights, the fitness of every snapshot, sim time, steps.
-
-        Physical soil adds ``mean_heights`` (the cells' sub-cell means, units), ``volume``
-        (the fine field's total, quanta) and ``slips`` (robot-steps too heavy to push).
-        """
-        out = {
-            "fitness": float(self.sim.fitness()),
-            "heights": self.sim.world.heights.tolist(),
-            "snapshots": dict(self.snapshots),
-            "sim_seconds": self.now_ns * 1e-9,
-            "steps": self.steps,
-            "late_steps": self.late,
-        }
-        if self.sim.soil is not None:
-            out["mean_heights"] = self.sim.soil.cell_means().round(6).tolist()
-            out["volume"] = self.sim.soil.volume()
-            out["slips"] = self.sim.counters.slips
-        return out
+    def result(self) -> WorldResult:
+        """The world now (:class:`~excavation_sim.dynamics.WorldResult`)."""
+        soil = self.sim.soil
+        return WorldResult(
+            fitness=float(self.sim.fitness()),
+            heights=self.sim.world.heights.tolist(),
+            snapshots=dict(self.snapshots),
+            sim_seconds=self.now_ns * 1e-9,
+            steps=self.steps,
+            late_steps=self.late,
+            mean_heights=None if soil is None else soil.cell_means().round(6).tolist(),
+            volume=None if soil is None else soil.volume(),
+            slips=0 if soil is None else self.sim.counters.slips,
+        )
 
     def markers(self, stamp: TimeMsg) -> MarkerArray:
         """One cube per robot at its true pose (for RViz or Foxglove)."""

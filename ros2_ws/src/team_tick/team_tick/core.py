@@ -148,6 +148,67 @@ TickAction = RequestSnapshot | PublishTick | SendGoal | Report | Finished
 
 
 @dataclass(frozen=True)
+class TickSummary:
+    """What a team tick's trial did: its result, in memory and as JSON (``result.json``).
+
+    Attributes:
+        ticks: Ticks run.
+        commands: Every tick's words, robot by robot.
+        tick_wall: Wall seconds of every tick (from its snapshot to the next tick's, the
+            last to the end of its motion).
+        stuck_events: Robot-ticks with U1 set.
+        missed: Per robot, ticks it idled for want of a word.
+        robots_late: Robot-ticks left out for not finishing.
+        holds: Times the team was held (paused, e-stopped, disarmed or its heartbeat lost)
+            while the ticks ran.
+    """
+
+    ticks: int
+    commands: list[list[int]]
+    tick_wall: list[float]
+    stuck_events: int
+    missed: dict[int, int]
+    robots_late: int
+    holds: int
+
+    def to_json(self) -> dict:
+        """JSON-ready values (``missed`` keyed by the robot's index as a string)."""
+        return {
+            "ticks": self.ticks,
+            "commands": self.commands,
+            "tick_wall": self.tick_wall,
+            "stuck_events": self.stuck_events,
+            "missed": {str(k): n for k, n in self.missed.items()},
+            "robots_late": self.robots_late,
+            "holds": self.holds,
+        }
+
+    @classmethod
+    def from_json(cls, data: dict, where: str = "result.json") -> TickSummary:
+        """The summary :meth:`to_json` wrote (extra keys, such as ``reports``, ignored).
+
+        Raises:
+            ValueError: Naming ``where`` and the field that is missing or malformed.
+        """
+        try:
+            return cls(
+                ticks=int(data["ticks"]),
+                commands=[[int(w) for w in tick] for tick in data["commands"]],
+                tick_wall=[float(t) for t in data["tick_wall"]],
+                stuck_events=int(data["stuck_events"]),
+                missed={int(k): int(n) for k, n in data["missed"].items()},
+                robots_late=int(data["robots_late"]),
+                holds=int(data["holds"]),
+            )
+        except KeyError as exc:
+            raise ValueError(
+                f"{where}: no field {exc.args[0]!r} in the team tick's summary"
+            ) from None
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise ValueError(f"{where}: a malformed team tick summary ({exc})") from None
+
+
+@dataclass(frozen=True)
 class TeamTickParams:
     """Parameters of the team tick (the node's ROS parameters of the same names)."""
 
@@ -406,29 +467,21 @@ class TeamTick:
             )
         ]
 
-    def summary(self) -> dict:
-        """What the ticks so far did, as JSON-ready values (the trial's result).
-
-        ``commands``: every tick's words; ``tick_wall``: wall seconds of every tick (from
-        its snapshot to the next tick's, the last to the end of its motion);
-        ``stuck_events``: robot-ticks with U1 set; ``missed``: per robot, ticks it idled
-        for want of a word; ``robots_late``: robot-ticks left out for not finishing;
-        ``holds``: times the team was held (paused, e-stopped, disarmed or its heartbeat
-        lost) while the ticks ran.
-        """
+    def summary(self) -> TickSummary:
+        """What the ticks so far did (the trial's result; :class:`TickSummary`)."""
         records = self.records
-        return {
-            "ticks": len(records),
-            "commands": [list(r.words) for r in records],
-            "tick_wall": [
+        return TickSummary(
+            ticks=len(records),
+            commands=[list(r.words) for r in records],
+            tick_wall=[
                 (later.started_wall if later else r.ended_wall) - r.started_wall
                 for r, later in zip(records, [*records[1:], None], strict=True)
             ],
-            "stuck_events": sum(sum(r.stuck) for r in records),
-            "missed": {str(k): n for k, n in enumerate(self.missed)},
-            "robots_late": sum(self.late),
-            "holds": self.holds,
-        }
+            stuck_events=sum(sum(r.stuck) for r in records),
+            missed=dict(enumerate(self.missed)),
+            robots_late=sum(self.late),
+            holds=self.holds,
+        )
 
     def start(self, now: float, wall: float = 0.0) -> list[TickAction]:
         """The team is present: ask for the snapshot of tick 0."""

@@ -349,7 +349,7 @@ class TeamTickNode(Node):
                     self.publish_diagnostics(message)
                 case Finished():
                     if self.topics.result_file:
-                        summary = self.core.summary() | {"reports": self.reports}
+                        summary = self.core.summary().to_json() | {"reports": self.reports}
                         write_text_atomic(self.topics.result_file, json.dumps(summary))
                     self.publish_diagnostics(f"finished {self.core.tick} ticks")
                 case _:
