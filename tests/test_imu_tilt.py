@@ -171,7 +171,7 @@ def test_imu_r1_equals_height_map_r1_on_a_ramp_and_flat_ground_in_a_dynamics_run
         x, y = robot_center(row, col, sim.sim.cell)
         sim.sim.bodies[k] = (x, y, heading_to_yaw(heading))
     team = ros.add(Team(ros.context, 4, turn_rate=0.6))
-    assert ros.spin_until(lambda: sim.started, timeout=20.0)
+    assert ros.spin_until(lambda: sim.clock.started, timeout=20.0)
     team.snapshot.publish(Header(frame_id="ramp"))
     assert ros.spin_until(lambda: sim.sim.counters.turns >= 4, timeout=60.0)
     assert ros.spin_until(lambda: team.heights is not None)

@@ -8,7 +8,9 @@ seconds of sim time and publishes ``/clock`` and every robot's pose. It waits fo
 ``command_timeout`` wall seconds, whichever comes first, so a trial runs as fast as the
 executors answer: faster than real time, and every node runs on ``use_sim_time``. A robot
 that missed that deadline is not waited for again until it sends a ``cmd_vel`` (a dead
-executor costs one ``command_timeout``, not one per step until its wheels stop). While
+executor costs one ``command_timeout``, not one per step until its wheels stop); the
+barrier, the time factors' schedule and the lagging robots are the pure
+:class:`excavation_sim.step_clock.StepClock`. While
 every command is zero (the team waits for its controllers or a camera frame) the clock
 runs at most ``idle_time_factor`` times real time, so that waiting costs neither CPU nor
 a race of sim time; ``max_time_factor`` caps it while robots move (nodes in separate
@@ -89,13 +91,10 @@ from excavation_common.tf import TfBroadcaster, base_frame, pose_transform
 from excavation_sim.dynamics import Dynamics, DynamicsParams, WorldResult
 from excavation_sim.sim_node import TILT_PITCH, scenario_world
 from excavation_sim.soil import SoilParams
+from excavation_sim.step_clock import Next, StepClock
 from excavation_sim.world import BLADE
 
 TERMINAL = (GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_ABORTED, GoalStatus.STATUS_CANCELED)
-SCHEDULE_SLACK = 0.05
-"""Wall seconds a ``time_factor`` step may fall behind its schedule before the schedule
-starts over from it (:meth:`DynamicsNode.on_schedule`): small, so that catching up never
-bursts more than a step or two of sim time past nodes that judge heartbeats on it."""
 
 
 @dataclass(frozen=True)
@@ -184,20 +183,19 @@ class DynamicsNode(Node):
         self.sim.warm()  # before any topic: the team waits for it, not its first move
         self.geometry = BladeGeometry(max_force=p.max_force)
         self.dt_ns = int(round(self.physics.dt * 1e9))
-        self.now_ns = 0
-        self.started = False
-        self.ready_since: float | None = None
-        self.answered: set[int] = set()
-        self.wait_started = 0.0
-        self.schedule: tuple[float, int] | None = None  # (wall, sim ns): time_factor's origin
-        self.late = 0
-        self.steps = 0
+        self.clock = StepClock(
+            self.n,
+            self.dt_ns,
+            p.command_timeout,
+            p.cmd_vel_timeout,
+            p.startup_period,
+            p.time_factor,
+            p.max_time_factor,
+            p.idle_time_factor,
+        )
         self.next_imu_ns = 0
         self.next_snapshot_ns = 0
         self.pending: list[tuple[int, int] | None] = [None] * self.n
-        self.command_ns: list[int | None] = [None] * self.n  # sim time of each last cmd_vel
-        self.timed_out: set[int] = set()
-        self.lagging: set[int] = set()  # missed a step's command_timeout: not waited for
         self.done_tick: list[int] = [-1] * self.n
         self.snapshot_request: str | None = None
         self.snapshot_due: int | None = None
@@ -249,15 +247,13 @@ class DynamicsNode(Node):
     def on_cmd_vel(self, k: int, msg: TwistStamped) -> None:
         """Robot k's command; one stamped with the current step counts as its answer."""
         self.sim.command(k, float(msg.twist.linear.x), float(msg.twist.angular.z))
-        self.command_ns[k] = self.now_ns
-        self.lagging.discard(k)
-        if k in self.timed_out:
-            self.timed_out.discard(k)
+        again, step = self.clock.on_command(
+            k, _key(msg.header.stamp), time.monotonic(), bool(self.sim.commands.any())
+        )
+        if again:
             self.get_logger().info(f"robot {k}: cmd_vel again")
-        if self.started and _key(msg.header.stamp) >= self.now_ns:
-            self.answered.add(k)
-            if self.all_answered() and self.due(time.monotonic()):
-                self.advance()
+        if step:
+            self.advance()
 
     def on_throttle(self, k: int, msg: Bool) -> None:
         """Robot k's power mode (Throttle Up)."""
@@ -302,7 +298,7 @@ class DynamicsNode(Node):
             return
         self.snapshot_request = msg.frame_id
         self.snapshot_due = _key(msg.stamp)
-        if self.started and self.now_ns >= self.snapshot_due:
+        if self.clock.started and self.clock.now_ns >= self.snapshot_due:
             self.publish_snapshot()
 
     # --- stepping ---------------------------------------------------------------------------
@@ -314,68 +310,17 @@ class DynamicsNode(Node):
         )
 
     def poll(self) -> None:
-        """Start once the team is present; step when a robot is late."""
-        wall = time.monotonic()
-        if not self.started:
-            if not self.team_present():
-                self.ready_since = None
-                return
-            if self.ready_since is None:
-                self.ready_since = wall
-            if wall - self.ready_since >= self.params.startup_period:
-                self.started = True
-                self.wall_started = wall
+        """Start once the team is present; step when due or when a robot is late."""
+        clock = self.clock
+        present = clock.started or self.team_present()
+        match clock.poll(time.monotonic(), present, bool(self.sim.commands.any())):
+            case Next.START:
+                self.wall_started = time.monotonic()
                 self.publish_state()
-            return
-        if self.all_answered() and self.due(wall):
-            self.advance()
-        elif wall - self.wait_started > self.params.command_timeout:
-            self.late += 1
-            self.lagging |= set(range(self.n)) - self.answered - self.timed_out
-            self.advance()
-
-    def due(self, wall: float) -> bool:
-        """False while a time factor holds the clock back.
-
-        ``time_factor`` always; ``max_time_factor`` while robots move, ``idle_time_factor``
-        while all stand still.
-        """
-        p = self.params
-        moving = self.sim.commands.any()
-        factors = [p.time_factor, p.max_time_factor if moving else p.idle_time_factor]
-        factors = [f for f in factors if f > 0]
-        if not factors:
-            return True
-        factor = min(factors)
-        if factor == p.time_factor:
-            return self.on_schedule(wall, factor)
-        self.schedule = None
-        return wall - self.wait_started >= self.physics.dt / factor
-
-    def on_schedule(self, wall: float, factor: float) -> bool:
-        """``time_factor`` governs: the next step is due on a fixed schedule of wall time.
-
-        Step ``i`` after the schedule's origin is due ``i * dt / factor`` wall seconds after
-        it, so the time a step takes does not add up (counted from each step's end, a
-        rehearsal's world ran at 0.95 of real time). A step more than
-        :data:`SCHEDULE_SLACK` late (a stalled machine) starts a new origin instead of a
-        burst of steps to catch up.
-        """
-        origin = self.schedule
-        if origin is None:
-            self.schedule = origin = (self.wait_started, self.now_ns)
-        due = origin[0] + (self.now_ns + self.dt_ns - origin[1]) * 1e-9 / factor
-        if wall - due > SCHEDULE_SLACK:
-            self.schedule = (wall, self.now_ns + self.dt_ns)
-        return wall >= due
-
-    def all_answered(self) -> bool:
-        """Every robot answered this step, except those not waited for.
-
-        Not waited for: robots stopped for silence, and lagging ones (silent past a step's
-        ``command_timeout`` and not heard since).
-        """
-        return len(self.answered | self.timed_out | self.lagging) >= self.n
+            case Next.STEP:
+                self.advance()
+            case Next.WAIT:
+                pass
 
     def stop_silent_robots(self) -> None:
         """Zero the wheels of a robot whose last cmd_vel is older than ``cmd_vel_timeout``.
@@ -384,11 +329,7 @@ class DynamicsNode(Node):
         executor died mid-motion must not drive on with its last command. Until it sends a
         cmd_vel again the steps no longer wait for it (``command_timeout`` each).
         """
-        limit = int(round(self.params.cmd_vel_timeout * 1e9))
-        for k, at in enumerate(self.command_ns):
-            if at is None or k in self.timed_out or self.now_ns - at <= limit:
-                continue
-            self.timed_out.add(k)
+        for k in self.clock.silent():
             self.sim.command(k, 0.0, 0.0)
             self.get_logger().warning(
                 f"robot {k}: no cmd_vel for {self.params.cmd_vel_timeout} s: wheels stopped"
@@ -398,19 +339,17 @@ class DynamicsNode(Node):
         """Integrate one step and publish its state."""
         self.stop_silent_robots()
         self.sim.step()
-        self.now_ns += self.dt_ns
-        self.steps += 1
+        self.clock.stepped()
         self.publish_state()
 
     def publish_state(self) -> None:
         """``/clock`` and every pose of the current step (IMU when due)."""
-        stamp = _stamp(self.now_ns)
-        self.answered.clear()
-        self.wait_started = time.monotonic()
+        stamp = _stamp(self.clock.now_ns)
+        self.clock.published(time.monotonic())
         self.clock_pub.publish(Clock(clock=stamp))
-        imu_due = self.now_ns >= self.next_imu_ns
+        imu_due = self.clock.now_ns >= self.next_imu_ns
         if imu_due:
-            self.next_imu_ns = self.now_ns + int(round(self.params.imu_period * 1e9))
+            self.next_imu_ns = self.clock.now_ns + int(round(self.params.imu_period * 1e9))
         frames = []
         for k in range(self.n):
             pose = self.pose(k, stamp)
@@ -422,10 +361,11 @@ class DynamicsNode(Node):
                 self.plant_pubs[k].publish(self.plant_state(k, stamp))
         if frames:
             self.tf.send(frames)
-        if self.snapshot_due is not None and self.now_ns >= self.snapshot_due:
+        if self.snapshot_due is not None and self.clock.now_ns >= self.snapshot_due:
             self.publish_snapshot()
-        elif self.params.snapshot_period > 0 and self.now_ns >= self.next_snapshot_ns:
-            self.next_snapshot_ns = self.now_ns + int(round(self.params.snapshot_period * 1e9))
+        elif self.params.snapshot_period > 0 and self.clock.now_ns >= self.next_snapshot_ns:
+            period_ns = int(round(self.params.snapshot_period * 1e9))
+            self.next_snapshot_ns = self.clock.now_ns + period_ns
             self.publish_snapshot()
 
     def pose(self, k: int, stamp: TimeMsg) -> PoseWithCovarianceStamped:
@@ -457,7 +397,7 @@ class DynamicsNode(Node):
 
     def publish_snapshot(self) -> None:
         """IMU, height map, snapshot poses, blade plant states, fitness, markers, stamped now."""
-        stamp = _stamp(self.now_ns)
+        stamp = _stamp(self.clock.now_ns)
         for k in range(self.n):  # the tilt at the snapshot's instant, before its height map
             self.imu_pubs[k].publish(self.imu(k, stamp))
         self.heights_pub.publish(grid_to_image(self.height_map(), "32FC1", stamp=stamp))
@@ -494,9 +434,9 @@ class DynamicsNode(Node):
             fitness=float(self.sim.fitness()),
             heights=self.sim.world.heights.tolist(),
             snapshots=dict(self.snapshots),
-            sim_seconds=self.now_ns * 1e-9,
-            steps=self.steps,
-            late_steps=self.late,
+            sim_seconds=self.clock.now_ns * 1e-9,
+            steps=self.clock.steps,
+            late_steps=self.clock.late,
             mean_heights=None if soil is None else soil.cell_means().round(6).tolist(),
             volume=None if soil is None else soil.volume(),
             slips=0 if soil is None else self.sim.counters.slips,
@@ -524,10 +464,10 @@ class DynamicsNode(Node):
         """Sim time, real-time factor, grid events."""
         wall = max(time.monotonic() - self.wall_started, 1e-9)
         c = self.sim.counters
-        level = DiagnosticStatus.OK if self.started else DiagnosticStatus.WARN
+        level = DiagnosticStatus.OK if self.clock.started else DiagnosticStatus.WARN
         message = (
-            f"stepping: {self.now_ns * 1e-9:.2f} s of sim time"
-            if self.started
+            f"stepping: {self.clock.now_ns * 1e-9:.2f} s of sim time"
+            if self.clock.started
             else "waiting for every robot's executor"
         )
         self.diag_pub.publish(
@@ -536,10 +476,12 @@ class DynamicsNode(Node):
                 level,
                 message,
                 {
-                    "sim_time": f"{self.now_ns * 1e-9:.3f}",
-                    "real_time_factor": f"{self.now_ns * 1e-9 / wall:.2f}" if self.started else 0,
-                    "steps": self.steps,
-                    "late_steps": self.late,
+                    "sim_time": f"{self.clock.now_ns * 1e-9:.3f}",
+                    "real_time_factor": (
+                        f"{self.clock.now_ns * 1e-9 / wall:.2f}" if self.clock.started else 0
+                    ),
+                    "steps": self.clock.steps,
+                    "late_steps": self.clock.late,
                     "moves": c.moves,
                     "refused_moves": c.refused,
                     "turns": c.turns,
