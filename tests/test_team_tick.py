@@ -338,33 +338,32 @@ def test_absent_robots_are_not_waited_for():
     assert kinds(tt.step(1.1, 0.2)) == [RequestSnapshot] and tt.tick == 1
 
 
-def test_finishes_after_the_last_tick_s_snapshot():
+def one_tick(word: int) -> tuple[TeamTick, list, list]:
+    """A one-robot, one-tick run whose robot says ``word``: the team tick and the actions
+    after its motion and after the last snapshot."""
     tt = make(robots=1, steps=1)
     tt.start(0.0)
     feed_snapshot(tt, 0.2, [(2, 2, 0)])
     tt.step(0.3, 0.0)
-    tt.on_word(0, 0)
+    tt.on_word(0, word)
     tt.step(0.3, 0.1)
     tt.on_status(0, 0, terminal=True, aborted=False, now=0.4)
-    assert kinds(tt.step(0.4, 0.2)) == [RequestSnapshot]
+    moved = tt.step(0.4, 0.2)
     feed_snapshot(tt, 0.6, [(2, 2, 0)])
-    assert tt.step(0.6, 0.3) == [Finished()]
+    return tt, moved, tt.step(0.6, 0.3)
+
+
+def test_finishes_after_the_last_tick_s_snapshot():
+    tt, moved, last = one_tick(0)
+    assert kinds(moved) == [RequestSnapshot]
+    assert last == [Finished()]
     assert tt.phase is Phase.FINISHED and len(tt.records) == 1
 
 
 def test_the_summary_is_a_record_that_goes_through_json_and_back():
     """The trial's result crosses a process as JSON (``result.json``): the same record comes
     back; a missing or malformed field is named."""
-    tt = make(robots=1, steps=1)
-    tt.start(0.0)
-    feed_snapshot(tt, 0.2, [(2, 2, 0)])
-    tt.step(0.3, 0.0)
-    tt.on_word(0, 5)
-    tt.step(0.3, 0.1)
-    tt.on_status(0, 0, terminal=True, aborted=False, now=0.4)
-    tt.step(0.4, 0.2)
-    feed_snapshot(tt, 0.6, [(2, 2, 0)])
-    tt.step(0.6, 0.3)
+    tt, _, _ = one_tick(5)
     summary = tt.summary()
     assert summary.ticks == 1 and summary.commands == [[5]] and summary.missed == {0: 0}
     text = json.dumps(summary.to_json() | {"reports": []})
