@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray
+from helpers.diagnostics import DiagnosticsProbe
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -73,14 +73,10 @@ def _node(kind, context, tmp_path):
 )
 def test_node_publishes_diagnostics(ros, kind, tmp_path):
     node = ros.add(_node(kind, ros.context, tmp_path))
-    statuses = []
-    watcher = ros.add(Node("watcher", context=ros.context))
-    watcher.create_subscription(
-        DiagnosticArray, "/diagnostics", lambda m: statuses.extend(m.status), 10
-    )
+    probe = DiagnosticsProbe(ros.add(Node("watcher", context=ros.context)))
     try:
-        assert ros.spin_until(lambda: len(statuses) > 0, timeout=10.0), f"{kind}: no diagnostics"
-        assert all(s.message for s in statuses)
+        assert ros.spin_until(lambda: probe.statuses, timeout=10.0), f"{kind}: no diagnostics"
+        assert all(s.message for s in probe.statuses)
     finally:
         if kind == "recorder":
             node.close()

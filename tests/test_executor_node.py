@@ -12,8 +12,9 @@ import time
 
 import pytest
 from action_msgs.msg import GoalInfo, GoalStatus
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
+from helpers.diagnostics import DiagnosticsProbe
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time import Time
@@ -247,10 +248,7 @@ def test_sigint_to_the_executor_program_sends_a_stop_before_it_exits(rig):
     """``ros2 run drive_executor executor`` stopped with Ctrl-C (the dome's shutdown) while its
     robot drives: its last ``cmd_vel`` is a stop, sent while ROS is still up."""
     ros, base, _ = rig  # the rig's in-process executor stays unconfigured: silent
-    diagnostics: list[DiagnosticStatus] = []
-    base.create_subscription(
-        DiagnosticArray, "/diagnostics", lambda m: diagnostics.extend(m.status), 10
-    )
+    diagnostics = DiagnosticsProbe(base).statuses
     env = dict(os.environ, ROS_DOMAIN_ID=str(ros.domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     cmd = [sys.executable, "-m", "drive_executor.executor_node", "--ros-args"]
     cmd += ["-r", "__ns:=/robot_0", "-r", "__node:=program", "-p", "progress_window:=5.0"]
@@ -280,11 +278,8 @@ class Clocked(Node):
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "/robot_0/pose", 10)
         self.cmds: list = []
-        self.diagnostics: list[DiagnosticStatus] = []
         self.create_subscription(cmd_type, "/robot_0/cmd_vel", self.cmds.append, 10)
-        self.create_subscription(
-            DiagnosticArray, "/diagnostics", lambda m: self.diagnostics.extend(m.status), 10
-        )
+        self.diagnostics = DiagnosticsProbe(self).statuses
 
     def pose(self, seconds: float) -> None:
         msg = PoseWithCovarianceStamped()

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
+from helpers.diagnostics import DiagnosticsProbe
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
@@ -42,13 +43,8 @@ class Probe:
                 lambda m, k=k: self.poses[k].append(m),
                 10,
             )
-        self.status: dict[str, DiagnosticStatus] = {}
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
+        self.status = DiagnosticsProbe(self.node).latest
         self.ros = ros
-
-    def on_diag(self, msg):
-        for s in msg.status:
-            self.status[s.name] = s
 
     def send(self, image_msg, sec):
         image_msg.header.stamp = Time(sec=sec)

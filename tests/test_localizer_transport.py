@@ -10,8 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
+from helpers.diagnostics import DiagnosticsProbe
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
@@ -228,13 +229,8 @@ class Probe:
         self.node.create_subscription(
             CompressedImage, "/overhead/image_annotated", self.annotated.append, 10
         )
-        self.status: dict[str, DiagnosticStatus] = {}
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
+        self.status = DiagnosticsProbe(self.node).latest
         self.ros = ros
-
-    def on_diag(self, msg):
-        for s in msg.status:
-            self.status[s.name] = s
 
     def camera(self, level) -> DiagnosticStatus | None:
         """The localizer's camera status once it is at ``level``."""

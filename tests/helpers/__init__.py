@@ -17,6 +17,8 @@ Modules:
     watchers: the operator's watcher of a running trial, the fault matrix's threaded
         watcher, and the occlusion sequence (hiding LEDs through ``/sensors``' parameters).
     limits: resource limits for a child process (``limited``).
+    diagnostics: a ``/diagnostics`` probe (``DiagnosticsProbe``: every status, in order and
+        the newest by name).
     figures: what a written figure must be (``assert_figure``: decodes, plotted size, not
         blank).
 """

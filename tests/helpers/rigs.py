@@ -36,13 +36,13 @@ class MapperRig:
             wait: Longest wait for the subscriptions, seconds (not asserted on).
             params: Further mapper parameters (they win over the rig's).
         """
-        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
         from rclpy.node import Node
         from rclpy.parameter import Parameter
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from sensor_msgs.msg import Image, JointState, LaserScan
 
         from excavation_common.ros import LATCHED
+        from helpers.diagnostics import DiagnosticsProbe
         from terrain_mapper.mapper_node import MOUNT_TOPIC, SCAN_TOPIC, MapperNode
 
         settings = dict(
@@ -60,8 +60,7 @@ class MapperRig:
         self.mount_pub = node.create_publisher(JointState, MOUNT_TOPIC, qos)
         self.maps: list[Image] = []
         node.create_subscription(Image, "/worksite/height_map", self.maps.append, LATCHED)
-        self.status: DiagnosticStatus | None = None
-        node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diag, 10)
+        self.diagnostics = DiagnosticsProbe(node)
         ros.spin_until(
             lambda: (
                 self.scan_pub.get_subscription_count() > 0
@@ -70,11 +69,10 @@ class MapperRig:
             wait,
         )
 
-    def on_diag(self, msg) -> None:
-        """Keep the mapper's latest status."""
-        for s in msg.status:
-            if s.name == "/mapper":
-                self.status = s
+    @property
+    def status(self):
+        """The mapper's latest status."""
+        return self.diagnostics.latest.get("/mapper")
 
     @staticmethod
     def _mount_msg(stamp, tilt: float, joints=None):
