@@ -164,6 +164,7 @@ class BladeDriverNode(LifecycleNode):
         self._io: list = []
 
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.tf = TfBroadcaster(self)
         self.create_subscription(Bool, ESTOP_TOPIC, self.on_estop, LATCHED)
         self.create_subscription(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
         self.create_subscription(Header, ARMED_TOPIC, self.on_armed, LATCHED)
@@ -189,7 +190,6 @@ class BladeDriverNode(LifecycleNode):
         if p.backend != "sim":
             self._io.append(sub(Header, TEAM_TICK_TOPIC, self.on_team_tick, 10))
         self.last_joint: JointState | None = None
-        self.tf = TfBroadcaster(self)
         self.joint_pub = self.create_publisher(
             JointState,
             "blade/joint_states",
