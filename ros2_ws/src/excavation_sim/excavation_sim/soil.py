@@ -128,7 +128,11 @@ class SoilParams:
         0.45, "blade height above its edge, m: soil above it falls over", low=0.01, high=10.0
     )
     pile_reach: float = param(
-        1.5, "cells ahead of the blade whose soil above the edge resists it", low=0.25, high=8.0
+        1.5,
+        "cells ahead of the blade whose loose soil above the edge it pushes (the drag prism; "
+        "also the held volume V_blade)",
+        low=0.25,
+        high=8.0,
     )
     end_plates: float = param(
         0.0,
