@@ -1,24 +1,19 @@
 """The suite's frame tree on ``/tf`` and ``/tf_static`` (tf2_msgs/TFMessage, REP 105 names).
 
-Each transform is published by the node that knows it (docs/interfaces.md, "Frames"):
+Each transform is published by the node that knows it (docs/interfaces.md, "The frame
+tree"):
 
-==============================  ==================================  ==========================
-parent -> child                 published by                        topic
-==============================  ==================================  ==========================
-``map`` -> ``robot_k/base_link``  the source of ``/robot_k/pose``: the  ``/tf``, with every pose
-                                localiser (dome, full perception),
-                                the simulator's truth otherwise
-``robot_k/base_link`` ->        the blade driver, from the blade's  ``/tf``, with every joint
-``robot_k/blade``               joint position                      state
-``map`` -> ``overhead_camera``  the localiser, from its calibration ``/tf_static``
-``map`` -> ``overhead_laser``   the terrain mapper, from the mount  ``/tf``, on each mount
-                                geometry and its pan and tilt       state
-==============================  ==================================  ==========================
+* ``map`` -> ``robot_k/base_link`` on ``/tf`` with every pose, by the source of
+  ``/robot_k/pose``: the localiser (the dome, full perception), else the simulator;
+* ``robot_k/base_link`` -> ``robot_k/blade`` on ``/tf`` with every joint state, by the
+  blade driver (:func:`blade_transform`);
+* ``map`` -> ``overhead_camera`` on ``/tf_static``, by the localiser from its calibration;
+* ``map`` -> ``overhead_laser`` on ``/tf`` with every mount state, by the terrain mapper.
 
 QoS as tf2_ros uses it: ``/tf`` reliable, volatile, depth 100; ``/tf_static`` reliable,
 transient local, depth 1, each static broadcaster sending all its transforms in one
 message. A tf2 listener, RViz or Foxglove through a ROS bridge read them as they are;
-:class:`FrameTree` composes a chain without tf2 (tests, the live view).
+:class:`FrameTree` composes a chain without tf2.
 
 The transform builders and :class:`FrameTree` are pure; :class:`TfBroadcaster` takes a node.
 """
