@@ -26,7 +26,8 @@ channel                     schema                           from
 ==========================  ===============================  =================================
 
 The latest robots, grids and transforms are sent again every ``--period`` seconds, so a
-client that connects late sees the site at once. ``--site`` gives the robots and the soil
+client that connects late sees the site at once (transforms only then: ``/tf`` comes in
+bursts). ``--site`` gives the robots and the soil
 unit. The server binds 127.0.0.1 unless ``--host`` says otherwise. ``ant-dome up --view``
 starts it.
 
@@ -194,7 +195,7 @@ class ViewNode:
 
         self.node = node = Node("ant_view", **kwargs)
         self.n = robots
-        self.transforms: dict = {}  # child frame -> the newest foxglove FrameTransform
+        self.transforms: dict = {}  # child frame -> its newest TransformStamped
         self.height_unit = height_unit
         self.cell_size = 0.25
         self.poses: dict[int, tuple[float, float, float, int, int]] = {}
@@ -240,10 +241,13 @@ class ViewNode:
         self.publish_robots()
 
     def on_tf(self, msg) -> None:
-        """Transforms from ``/tf`` or ``/tf_static``: the newest of each frame, forwarded."""
+        """Transforms from ``/tf`` or ``/tf_static``: the newest of each frame, kept.
+
+        They go out with every ``--period`` (:meth:`republish`), not with each message: the
+        mapper sends one per mount state and a sweep comes in bursts.
+        """
         for t in msg.transforms:
-            self.transforms[t.child_frame_id] = frame_transform(t)
-        self.publish_frames()
+            self.transforms[t.child_frame_id] = t
 
     def on_info(self, msg) -> None:
         """The cell size."""
@@ -317,7 +321,8 @@ class ViewNode:
         from foxglove.messages import FrameTransforms
 
         if self.transforms:
-            self.tf_ch.log(FrameTransforms(transforms=list(self.transforms.values())))
+            frames = [frame_transform(t) for t in self.transforms.values()]
+            self.tf_ch.log(FrameTransforms(transforms=frames))
 
     def publish_grids(self) -> None:
         """Height map, blueprint, their difference; the mapped fitness."""
