@@ -56,8 +56,20 @@ def test_a_backgrounded_command_is_seen_as_such():
     assert not shown["ant-operator arm"]
 
 
+# A composed trial SIGINTed after the operator's turn ran on at full CPU (docs/reliability.md,
+# "Pending"): that run waits in make test-pending until the cause is found.
+PENDING_RUNS = {"operator"}
+
+
 @pytest.mark.system
-@pytest.mark.parametrize("run", RUNS, ids=[r.workflow for r in RUNS])
+@pytest.mark.parametrize(
+    "run",
+    [
+        pytest.param(r, marks=pytest.mark.pending) if r.workflow in PENDING_RUNS else r
+        for r in RUNS
+    ],
+    ids=[r.workflow for r in RUNS],
+)
 def test_documented_workflow_runs(run, tmp_path, domains):
     start = time.monotonic()
     outcomes = run_doc(run, scratch(run, tmp_path), domains(), free_port())
