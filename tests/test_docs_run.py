@@ -64,10 +64,7 @@ PENDING_RUNS = {"operator"}
 @pytest.mark.system
 @pytest.mark.parametrize(
     "run",
-    [
-        pytest.param(r, marks=pytest.mark.pending) if r.workflow in PENDING_RUNS else r
-        for r in RUNS
-    ],
+    [pytest.param(r, marks=pytest.mark.pending) if r.workflow in PENDING_RUNS else r for r in RUNS],
     ids=[r.workflow for r in RUNS],
 )
 def test_documented_workflow_runs(run, tmp_path, domains):
