@@ -56,9 +56,9 @@ def test_a_backgrounded_command_is_seen_as_such():
     assert not shown["ant-operator arm"]
 
 
-# A composed trial SIGINTed after the operator's turn ran on at full CPU (docs/reliability.md,
-# "Pending"): that run waits in make test-pending until the cause is found.
-PENDING_RUNS = {"operator"}
+# Documented runs that wait in make test-pending while their cause is open (docs/reliability.md,
+# "Pending"); none now.
+PENDING_RUNS: set[str] = set()
 
 
 @pytest.mark.system

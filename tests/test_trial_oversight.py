@@ -18,6 +18,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -207,3 +208,31 @@ def test_robot_hidden_from_the_camera_stops_is_disabled_and_the_others_finish(do
     assert commands[lost_at + 1 :, others].any()  # the other three carry on
     # Only the ticks before the supervisor stopped it were lost to the team.
     assert max(result.missed[k] for k in others) <= lost_at - hidden_at + 1
+
+
+@pytest.mark.system
+def test_a_trial_a_script_started_in_the_background_stops_on_sigint(domain):
+    """A shell without job control starts ``cmd &`` with SIGINT ignored, and Python keeps an
+    inherited ignore: ``ant-trial`` (nodes composed on a context of its own, so no rclpy
+    handler) ran on at full CPU after the Ctrl-C of docs/operator.md's session. It now
+    stops on SIGINT however it was started, closing its nodes, with exit code 130."""
+    watch = OperatorWatcher(domain)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    trial = subprocess.Popen(
+        [str(Path(sys.executable).parent / "ant-trial"), "--genome", str(GENOME),
+         "--robots", "2", "--steps", "100000", "--domain", str(domain)],
+        cwd=Path(__file__).parents[1], env=env, stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE, text=True, start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+    )  # fmt: skip
+    try:
+        assert watch.spin_until(lambda: watch.tick >= 3, timeout=120), "the trial never ticked"
+        trial.send_signal(signal.SIGINT)
+        _, err = trial.communicate(timeout=60)
+    finally:
+        if trial.poll() is None:
+            trial.kill()
+            trial.wait()
+        watch.close()
+    assert trial.returncode == 130, err
+    assert "interrupted" in err

@@ -524,6 +524,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     from excavation_common.errors import FieldError
+    from excavation_common.ros import interrupt_on_sigint
+
+    interrupt_on_sigint()  # Ctrl-C stops it even when a script started it in the background
 
     try:
         result = run_trial(
@@ -549,6 +552,9 @@ def main(argv: list[str] | None = None) -> int:
     except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
         print(f"ant-trial: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("ant-trial: interrupted: the trial's nodes are closed", file=sys.stderr)
+        return 130
     extra = {}
     if args.drive == "continuous":
         extra = {
