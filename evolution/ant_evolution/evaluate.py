@@ -21,13 +21,22 @@ per-program decision cache) and the world step, with no Python in the per-step p
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from ant_evolution.kernel import DecisionProgram, ScenarioArrays, run_episode, run_scenarios
+from ant_evolution.kernel import (
+    DecisionProgram,
+    ScenarioArrays,
+    run_episode,
+    run_physical_episode,
+    run_physical_scenarios,
+    run_scenarios,
+)
 from blueprint_server.blueprint import Blueprint
+from excavation_sim import cell_soil
 from excavation_sim.rules import DEFAULT_RULES, WorldRules
+from excavation_sim.soil import SoilParams
 from excavation_sim.world import World, placement_zones, scenario_start
 
 DEFAULT_STEPS = 300
@@ -51,6 +60,9 @@ class ScenarioSet:
         steps: Timesteps per scenario.
         seed: The seed the scenarios were drawn from (scenario i: ``scenario_start(..., seed, i)``).
         robot_counts: The robot counts scenarios alternate between.
+        soil: ``grid`` (the world model's soil rules) or a physical soil
+            (``physical[:PRESET][,KEY=VALUE...]``, :mod:`excavation_sim.cell_soil`).
+        physics: The physical soil's constants (empty for ``grid``).
     """
 
     heights: np.ndarray
@@ -63,6 +75,8 @@ class ScenarioSet:
     steps: int
     seed: int = 0
     robot_counts: tuple[int, ...] = ()
+    soil: str = "grid"
+    physics: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @classmethod
     def create(
@@ -73,10 +87,13 @@ class ScenarioSet:
         steps: int,
         seed: int,
         rules: WorldRules = DEFAULT_RULES,
+        soil: str = "grid",
     ) -> ScenarioSet:
         """The scenarios of ``seed``; ``robots`` may list counts to alternate between.
 
         ``rules``: the world's readings (kernel switches, and where robots start).
+        ``soil``: ``grid``, or a physical soil on the blueprint's cell size and height unit
+        (its ``grid`` preset calibrated to ``rules``' push capacities).
 
         Raises:
             ValueError: When a count is not positive.
@@ -111,7 +128,14 @@ class ScenarioSet:
             steps=steps,
             seed=seed,
             robot_counts=tuple(counts),
+            soil=soil,
+            physics=physics_of(soil, blueprint, rules),
         )
+
+    @property
+    def physical(self) -> bool:
+        """Whether the scenarios run on the physical soil."""
+        return self.physics.size > 0
 
     @property
     def size(self) -> int:
@@ -155,9 +179,47 @@ class ScenarioSet:
 
     def score(self, program: DecisionProgram, n_robots: int = 0) -> np.ndarray:
         """Final fitness of ``program`` on every scenario (``n_robots``: the N gene, 0: none)."""
+        return self.run(program, n_robots)[0]
+
+    def run(self, program: DecisionProgram, n_robots: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """``(scores, counters)``: the final fitness on every scenario, and its counters.
+
+        The counters (``int64 [S, 4]``, :mod:`excavation_sim.cell_soil`): on the physical
+        soil each scenario's moves, refusals, stalls and quanta cut; zeros on the grid.
+        """
         scores = np.zeros(self.size)
-        run_scenarios(self.arrays(), self.steps, program.record(), n_robots, scores)
-        return scores
+        counters = np.zeros((self.size, cell_soil.N_COUNTERS), dtype=np.int64)
+        if self.physical:
+            run_physical_scenarios(
+                self.arrays(), _read_only(self.physics), self.steps, program.record(),
+                n_robots, scores, counters,
+            )  # fmt: skip
+        else:
+            run_scenarios(self.arrays(), self.steps, program.record(), n_robots, scores)
+        return scores, counters
+
+    def soil_of(self, world: World) -> cell_soil.SoilArrays | None:
+        """Fresh physical soil arrays for ``world`` (None on the grid)."""
+        if not self.physical:
+            return None
+        return cell_soil.new_soil(world.heights.shape, world.n_robots, self.physics)
+
+
+def physics_of(soil: str, blueprint: Blueprint, rules: WorldRules) -> np.ndarray:
+    """The physical soil's constants for ``blueprint`` (empty for ``soil: grid``).
+
+    Raises:
+        excavation_sim.soil.SoilError: When ``soil`` names no soil or bad parameters.
+    """
+    params = SoilParams(soil=soil)
+    if not params.physical:
+        return np.zeros(0)
+    return cell_soil.physics_vector(
+        params,
+        float(blueprint.cell_size),
+        float(blueprint.height_unit),
+        (int(rules.normal_load), int(rules.throttle_load)),
+    )
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:
@@ -177,11 +239,22 @@ def program_fitness(program: DecisionProgram, sets: Sequence[ScenarioSet]) -> fl
 
 
 def advance(
-    world: World, program: DecisionProgram, steps: int, trace: np.ndarray | None = None
+    world: World,
+    program: DecisionProgram,
+    steps: int,
+    trace: np.ndarray | None = None,
+    soil: cell_soil.SoilArrays | None = None,
 ) -> None:
-    """Step ``world`` in place ``steps`` times under ``program``."""
+    """Step ``world`` in place ``steps`` times under ``program``.
+
+    ``soil``: the world's physical soil (:meth:`ScenarioSet.soil_of`), reset from the
+    world's heights first; ``None``: the grid's soil rules.
+    """
     trace = np.zeros(0) if trace is None else trace
-    run_episode(world.arrays(), steps, program.record(), trace)
+    if soil is None:
+        run_episode(world.arrays(), steps, program.record(), trace)
+    else:
+        run_physical_episode(world.arrays(), soil, steps, program.record(), trace)
 
 
 def scenario_worlds(
@@ -232,17 +305,20 @@ def evaluate(
     steps: int = DEFAULT_STEPS,
     seed: int = 0,
     rules: WorldRules = DEFAULT_RULES,
+    soil: str = "grid",
 ) -> Evaluation:
     """Run ``controller`` on ``scenarios`` seeded scenarios and collect fitness curves.
+
+    ``soil``: ``grid`` or a physical soil (:meth:`ScenarioSet.create`).
 
     Raises:
         ValueError: When a count is not positive.
         excavation_sim.world.PlacementError: When the robots do not fit the grid.
     """
-    batch = ScenarioSet.create(blueprint, n_robots, scenarios, steps, seed, rules)
+    batch = ScenarioSet.create(blueprint, n_robots, scenarios, steps, seed, rules, soil)
     curves = np.zeros((scenarios, steps + 1))
     for i in range(scenarios):
         w = batch.world(i)
         curves[i, 0] = w.fitness()
-        advance(w, controller, steps, curves[i, 1:])
+        advance(w, controller, steps, curves[i, 1:], batch.soil_of(w))
     return Evaluation(curves[:, -1].copy(), curves)

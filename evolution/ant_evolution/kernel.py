@@ -44,6 +44,7 @@ from ant_controller.hand_coded import HandCodedRules, hand_coded_program
 from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, SENSOR_STATES
 from ant_controller.tissue import TissueRecord, decide_into, new_scratch
 from ant_evolution.baselines.network import NetworkRecord, program_decide_into, program_scratch
+from excavation_sim import cell_soil
 from excavation_sim.world import WorldArrays, fitness, occupancy, sense_robot, step_robots
 
 
@@ -303,3 +304,96 @@ def run_scenarios(start, steps, program, n_robots, scores):
         world.rng[0] = start.rng[s]
         _run_steps(world, steps, program, work, no_trace)
         scores[s] = fitness(world.heights, world.zones, world.goal)
+
+
+# --- the physical soil (excavation_sim.cell_soil) ----------------------------------------------
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _run_physical_steps(world, soil, steps, program, work, trace):
+    """:func:`_run_steps` on the physical soil (:mod:`excavation_sim.cell_soil`).
+
+    The same loop, sensing and acting through the physical soil; a fixed point ends it
+    early the same way.
+    """
+    heights = world.heights
+    robots = world.robots
+    active = world.active
+    codes = work.codes
+    masks = work.masks
+    occ = work.occupancy
+    n = robots.shape[0]
+    occupancy(robots, active, occ)
+    for t in range(steps):
+        for k in range(n):
+            if active[k]:
+                cell_soil.sense_robot(
+                    heights,
+                    world.zones,
+                    world.goal,
+                    robots,
+                    active,
+                    k,
+                    codes[k],
+                    world.params,
+                    soil,
+                )
+        for k in range(n):
+            if not active[k]:
+                masks[k] = 0
+            else:
+                masks[k] = decide_cached(codes[k], program, work.scratch, work.cache)
+        changed = cell_soil.step_robots(heights, robots, active, occ, masks, world.rng, soil)
+        if trace.shape[0] > t:
+            trace[t] = cell_soil.soil_fitness(soil, heights, world.zones, world.goal)
+        if not changed:
+            for u in range(t + 1, min(steps, trace.shape[0])):
+                trace[u] = trace[t]
+            return
+
+
+@nb.njit(cache=True)
+def run_physical_episode(world, soil, steps, program, trace):
+    """Step ``world`` and its physical ``soil`` (reset from the world first) ``steps`` times.
+
+    ``trace[t]`` gets the fitness after step t; ``trace`` may be empty.
+    """
+    rows, cols = world.heights.shape
+    work = new_workspace(program, world.robots.shape[0], rows, cols)
+    cell_soil.reset(soil, world.heights, world.robots, world.active)
+    _run_physical_steps(world, soil, steps, program, work, trace)
+
+
+@nb.njit(cache=True)
+def run_physical_scenarios(start, physics, steps, program, n_robots, scores, counters):
+    """:func:`run_scenarios` on the physical soil of ``physics``.
+
+    ``physics``: :func:`excavation_sim.cell_soil.physics_vector`; ``counters[s]`` gets
+    scenario s's moves, refusals, stalls and quanta cut.
+    """
+    n = start.robots.shape[1]
+    rows, cols = start.zones.shape
+    work = new_workspace(program, n, rows, cols)
+    world = WorldArrays(
+        np.empty_like(start.heights[0]),
+        start.zones,
+        start.goal,
+        np.empty_like(start.robots[0]),
+        np.empty_like(start.active[0]),
+        np.empty(1, dtype=np.uint64),
+        start.params,
+    )
+    soil = cell_soil.new_soil((rows, cols), n, physics)
+    no_trace = np.zeros(0)
+    for s in range(start.heights.shape[0]):
+        world.heights[:] = start.heights[s]
+        world.robots[:] = start.robots[s]
+        world.active[:] = start.active[s]
+        if n_robots > 0:
+            for k in range(n):
+                world.active[k] = k < n_robots
+        world.rng[0] = start.rng[s]
+        cell_soil.reset(soil, world.heights, world.robots, world.active)
+        _run_physical_steps(world, soil, steps, program, work, no_trace)
+        scores[s] = cell_soil.soil_fitness(soil, world.heights, world.zones, world.goal)
+        counters[s, :] = soil.counters

@@ -718,6 +718,68 @@ def relax(fine, loose, blocked, max_diff, passes):
 
 
 @nb.njit(cache=True, inline="always")
+def _push(stack, queued, top, i, j, cols):
+    """Queue sub-cell ``(i, j)`` on ``stack`` unless it is queued already; the new top."""
+    if not queued[i, j]:
+        queued[i, j] = True
+        stack[top] = i * cols + j
+        top += 1
+    return top
+
+
+@nb.njit(cache=True)
+def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, touched):
+    """Settle every slope steeper than ``max_diff`` that sub-cells ``[i0:i1, j0:j1]`` start.
+
+    A worklist avalanche: each queued sub-cell that is not ``blocked`` is compared with its
+    4-neighbours that are not ``blocked``; where the slope exceeds ``max_diff``, half the
+    excess (rounded up) moves from the higher to the lower (:func:`_move`) and both are
+    queued again, wherever they lie. It ends where no slope exceeds ``max_diff`` around any
+    sub-cell it touched (each move lowers the sum of squared heights when ``max_diff >=
+    1``), at a cost in proportion to the avalanche, not the field. ``stack`` (``int64``,
+    one slot per sub-cell) and ``queued`` (``bool`` like ``fine``, all False) are scratch;
+    ``queued`` is all False again on return. ``touched`` (``int64 [4]``: first row, last
+    row, first column, last column) grows to cover every sub-cell that changed. Returns the
+    quanta moved.
+    """
+    rows, cols = fine.shape
+    top = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            top = _push(stack, queued, top, i, j, cols)
+    moved = 0
+    while top > 0:
+        top -= 1
+        i = stack[top] // cols
+        j = stack[top] % cols
+        queued[i, j] = False
+        if blocked[i, j]:
+            continue
+        for n in range(4):
+            ni = i + (1 if n == 0 else -1 if n == 1 else 0)
+            nj = j + (1 if n == 2 else -1 if n == 3 else 0)
+            if ni < 0 or nj < 0 or ni >= rows or nj >= cols or blocked[ni, nj]:
+                continue
+            diff = fine[i, j] - fine[ni, nj]
+            if diff > max_diff:
+                t = (diff - max_diff + 1) // 2
+                _move(fine, loose, i, j, ni, nj, t)
+            elif -diff > max_diff:
+                t = (-diff - max_diff + 1) // 2
+                _move(fine, loose, ni, nj, i, j, t)
+            else:
+                continue
+            moved += t
+            touched[0] = min(touched[0], i, ni)
+            touched[1] = max(touched[1], i, ni)
+            touched[2] = min(touched[2], j, nj)
+            touched[3] = max(touched[3], j, nj)
+            top = _push(stack, queued, top, i, j, cols)
+            top = _push(stack, queued, top, ni, nj, cols)
+    return moved
+
+
+@nb.njit(cache=True, inline="always")
 def _index(x, y, sub, rows, cols):
     """Sub-cell ``(i, j)`` holding point ``(x, y)``, or ``(-1, -1)`` off the field."""
     i = int(math.floor(y / sub))

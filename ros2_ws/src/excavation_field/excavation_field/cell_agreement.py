@@ -1,0 +1,212 @@
+"""How closely the offline physical world follows ``dynamics``: the same scenarios in both.
+
+``python -m excavation_field.cell_agreement run --out DIR --soil physical:dome``: continuous
+trials through ``dynamics`` (truth perception, no slip or noise, the default blueprint with
+goal depth 1) of the shipped genome and the hand-coded rules on ``--scenarios`` scenarios of
+``--seed``, each written to ``DIR/trials/*.json`` when it ends (run the command again and it
+goes on); then, or with ``report`` alone, the same scenarios in the offline physical world
+(:mod:`excavation_sim.cell_soil`, ``ant-eval --soil``) and ``DIR/agreement.md``: per
+controller the correlation of the final fitness over the scenarios, the mean of each, and
+the U1 events (a move refused or stalled: the offline world's refusals plus stalls against
+the executors' stuck events in ``dynamics``).
+
+The tolerances (the physical-evaluator issue): fitness correlation at least 0.9 over 20
+scenarios, stall counts within a factor of two; :func:`check` says which hold.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from excavation_common.files import write_text_atomic
+from excavation_common.limits import int_in
+from excavation_sim.soil import soil_arg
+
+CONTROLLERS = ("genomes/best.json", "hand-coded")
+BLUEPRINT = "default:1"
+MIN_CORRELATION = 0.9
+STALL_FACTOR = 2.0
+
+
+def trial_name(soil: str, controller: str, robots: int, scenario: int) -> str:
+    """The trial's file name under ``DIR/trials``."""
+    ctl = "hand" if controller == "hand-coded" else "genome"
+    return f"{soil.replace(':', '-').replace(',', '_')}-{ctl}-n{robots}-s{scenario}.json"
+
+
+def run_one(soil: str, controller: str, robots: int, scenario: int, args) -> dict:
+    """One continuous trial through ``dynamics`` (a JSON-ready row)."""
+    from excavation_bringup.trial import run_trial
+
+    r = run_trial(
+        controller,
+        robots,
+        args.steps,
+        args.seed,
+        BLUEPRINT,
+        domain=args.domain,
+        scenario=scenario,
+        command_timeout=30.0,
+        timeout=max(900.0, 10.0 * args.steps),
+        drive="continuous",
+        exact=True,
+        soil=soil,
+    )
+    return {
+        "soil": soil,
+        "controller": controller,
+        "robots": robots,
+        "seed": args.seed,
+        "scenario": scenario,
+        "steps": args.steps,
+        "fitness": float(r.fitness),
+        "stuck_events": r.stuck_events,
+        "slips": r.slips,
+        "wall_seconds": r.seconds,
+    }
+
+
+def offline(soil: str, controller: str, robots: int, scenarios: list[int], seed: int, steps: int):
+    """``(fitness, u1_events)`` per scenario in the offline physical world."""
+    from ant_controller.controller import Controller
+    from ant_evolution.evaluate import ScenarioSet
+    from blueprint_server.blueprint import resolve_blueprint
+    from excavation_sim.cell_soil import C_REFUSED, C_STALLS
+
+    program = (
+        Controller.hand_coded() if controller == "hand-coded" else Controller.from_file(controller)
+    )
+    blueprint = resolve_blueprint("default", 1)
+    batch = ScenarioSet.create(blueprint, robots, max(scenarios) + 1, steps, seed, soil=soil)
+    scores, counters = batch.run(program)
+    pick = np.asarray(scenarios)
+    return scores[pick], counters[pick, C_REFUSED] + counters[pick, C_STALLS]
+
+
+@dataclass(frozen=True)
+class Agreement:
+    """One controller's comparison over the scenarios both worlds ran."""
+
+    controller: str
+    scenarios: int
+    correlation: float
+    fitness_dynamics: float
+    fitness_offline: float
+    u1_dynamics: float
+    u1_offline: float
+
+    @property
+    def stall_ratio(self) -> float:
+        """Offline U1 events over ``dynamics``' (mean per scenario)."""
+        return self.u1_offline / self.u1_dynamics if self.u1_dynamics else math.inf
+
+    def check(self) -> dict[str, bool]:
+        """Which tolerance holds."""
+        return {
+            "correlation": self.correlation >= MIN_CORRELATION,
+            "stalls": 1 / STALL_FACTOR <= self.stall_ratio <= STALL_FACTOR,
+        }
+
+
+def compare(rows: list[dict], soil: str) -> list[Agreement]:
+    """Each controller's agreement over the trials of ``soil`` in ``rows``."""
+    out = []
+    for controller in CONTROLLERS:
+        mine = sorted(
+            (r for r in rows if r["soil"] == soil and r["controller"] == controller),
+            key=lambda r: r["scenario"],
+        )
+        if len(mine) < 2:
+            continue
+        first = mine[0]
+        scen = [r["scenario"] for r in mine]
+        fit, u1 = offline(soil, controller, first["robots"], scen, first["seed"], first["steps"])
+        dyn = np.array([r["fitness"] for r in mine])
+        corr = float(np.corrcoef(dyn, fit)[0, 1]) if dyn.std() and fit.std() else math.nan
+        out.append(
+            Agreement(
+                controller,
+                len(mine),
+                corr,
+                float(dyn.mean()),
+                float(fit.mean()),
+                float(np.mean([r["stuck_events"] for r in mine])),
+                float(u1.mean()),
+            )
+        )
+    return out
+
+
+def report(rows: list[dict], soil: str) -> str:
+    """``agreement.md``: the comparison table of ``soil``."""
+    lines = [
+        f"# The offline physical world against `dynamics`: `{soil}`",
+        "",
+        "Written by `python -m excavation_field.cell_agreement`. Continuous trials (truth "
+        "perception, no slip or noise) against the offline world on the same scenarios.",
+        "",
+        "| controller | scenarios | fitness correlation | mean fitness, dynamics / offline "
+        "| U1 events per scenario, dynamics / offline (ratio) | within tolerance |",
+        "|---|---:|---:|---|---|---|",
+    ]
+    for a in compare(rows, soil):
+        held = ", ".join(k for k, ok in a.check().items() if ok) or "none"
+        lines.append(
+            f"| {a.controller} | {a.scenarios} | {a.correlation:.3f} | "
+            f"{a.fitness_dynamics:.3f} / {a.fitness_offline:.3f} | "
+            f"{a.u1_dynamics:.1f} / {a.u1_offline:.1f} ({a.stall_ratio:.2f}) | {held} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def load_rows(out: Path) -> list[dict]:
+    """Every finished trial under ``DIR/trials``."""
+    return [json.loads(p.read_text()) for p in sorted((out / "trials").glob("*.json"))]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m excavation_field.cell_agreement run|report``."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("what", choices=("run", "report"))
+    p.add_argument("--out", type=Path, required=True, help="directory (resumed)")
+    p.add_argument("--soil", type=soil_arg, default="physical:dome")
+    p.add_argument("--scenarios", type=int_in(2, 1000), default=20)
+    p.add_argument("--seed", type=int_in(0, 2**31 - 1), default=100)
+    p.add_argument("--steps", type=int_in(1, 100_000), default=100)
+    p.add_argument("--robots", type=int_in(1, 16), default=2)
+    p.add_argument("--controllers", nargs="+", default=list(CONTROLLERS))
+    p.add_argument("--domain", type=int_in(0, 101), default=100, help="ROS domain id")
+    args = p.parse_args(argv)
+    from excavation_common.ros import interrupt_on_sigint
+
+    interrupt_on_sigint()
+    if args.what == "run":
+        os.environ["ROS_DOMAIN_ID"] = str(args.domain)
+        from excavation_common.progress import tqdm
+
+        (args.out / "trials").mkdir(parents=True, exist_ok=True)
+        jobs = [(c, i) for i in range(args.scenarios) for c in CONTROLLERS if c in args.controllers]
+        todo = [
+            j
+            for j in jobs
+            if not (args.out / "trials" / trial_name(args.soil, j[0], args.robots, j[1])).exists()
+        ]
+        for controller, i in tqdm(todo, desc="continuous trials", unit="trial"):
+            row = run_one(args.soil, controller, args.robots, i, args)
+            path = args.out / "trials" / trial_name(args.soil, controller, args.robots, i)
+            write_text_atomic(path, json.dumps(row, indent=1) + "\n")
+    text = report(load_rows(args.out), args.soil)
+    write_text_atomic(args.out / "agreement.md", text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,153 @@
+"""The offline physical world (excavation_sim.cell_soil): conservation, the soil's own forces,
+refusals and stalls, heights that match the fine field, determinism."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ant_controller.controller import Controller
+from ant_controller.layout import (
+    BLADE_BELOW_CMD,
+    BLADE_LEVEL_CMD,
+    MOVE_BACKWARD,
+    MOVE_FORWARD,
+    N_BEHAVIOURS,
+    THROTTLE_UP,
+)
+from ant_evolution.evaluate import ScenarioSet, evaluate
+from blueprint_server.blueprint import resolve_blueprint
+from excavation_sim import cell_soil as cs
+from excavation_sim.soil import Site, Soil, SoilParams
+from excavation_sim.world import COL, ROW, STUCK, occupancy
+
+CELL, UNIT = 0.25, 0.05
+PRESETS = ("physical", "physical:dome", "physical:lunar")
+
+
+def world(heights, robots, soil="physical"):
+    """A world of ``robots`` rows ``(row, col, heading, blade)`` on ``heights``."""
+    heights = np.asarray(heights, dtype=np.int32).copy()
+    n = len(robots)
+    state = np.zeros((n, 6), dtype=np.int64)
+    for k, r in enumerate(robots):
+        state[k, :4] = r
+    active = np.ones(n, dtype=np.bool_)
+    physics = cs.physics_vector(SoilParams(soil=soil), CELL, UNIT)
+    arrays = cs.new_soil(heights.shape, n, physics)
+    cs.reset(arrays, heights, state, active)
+    occ = np.zeros(heights.shape, dtype=np.int16)
+    occupancy(state, active, occ)
+    return heights, state, active, occ, arrays
+
+
+def step(w, masks, rng=None):
+    heights, robots, active, occ, soil = w
+    rng = np.array([7], dtype=np.uint64) if rng is None else rng
+    return cs.step_robots(heights, robots, active, occ, np.asarray(masks, np.int64), rng, soil)
+
+
+def rounded(soil, shape):
+    s = int(soil.physics[cs.X_S])
+    per = s * s * int(soil.physics[cs.X_Q])
+    sums = soil.fine.reshape(shape[0], s, shape[1], s).sum(axis=(1, 3))
+    return (2 * sums + per) // (2 * per)
+
+
+@pytest.mark.parametrize("soil", PRESETS)
+def test_random_behaviour_conserves_soil_and_keeps_heights_the_fine_fields(soil):
+    """Soil is conserved to the quantum, no sub-cell gains firm ground (what moves arrives
+    loose), and every cell's height is its sub-cell mean rounded (the kernels refresh only
+    near the robot)."""
+    rng = np.random.default_rng(3)
+    heights = rng.integers(0, 4, (12, 12))
+    w = world(heights, [(1, 1, 1, 0), (8, 8, 3, 0), (1, 8, 0, 0)], soil)
+    total = cs.total_quanta(w[4])
+    firm = w[4].fine - w[4].loose
+    for _ in range(150):
+        step(w, rng.integers(0, 1 << N_BEHAVIOURS, 3))
+        assert cs.total_quanta(w[4]) == total
+        assert (w[4].loose >= 0).all()
+        now = w[4].fine - w[4].loose
+        assert (now <= firm).all()
+        firm = now
+        assert np.array_equal(w[0], rounded(w[4], w[0].shape))
+    assert w[4].counters[cs.C_MOVES] > 0
+
+
+@pytest.mark.parametrize("soil", PRESETS)
+def test_the_blade_force_is_the_soil_models(soil):
+    """The compiled force equals excavation_sim.soil's on the same field, edge and pose."""
+    rng = np.random.default_rng(5)
+    w = world(rng.integers(0, 3, (10, 10)), [(2, 2, 1, 1)], soil)
+    for _ in range(30):
+        step(w, [1 << MOVE_FORWARD | 1 << BLADE_BELOW_CMD])
+        step(w, [rng.integers(0, 1 << N_BEHAVIOURS)])
+    arrays = w[4]
+    ref = Soil(
+        np.zeros((10, 10), np.int64), Site(10, 10, CELL, UNIT), SoilParams(soil=soil).resolved()
+    )
+    ref.fine[...] = arrays.fine
+    ref.loose[...] = arrays.loose
+    for x, y, yaw, edge in [
+        (0.75, 1.0, 0.0, 0),
+        (1.5, 1.25, np.pi / 2, 500),
+        (1.0, 1.5, np.pi, 1200),
+    ]:
+        assert cs.force_at(arrays, x, y, yaw, edge) == pytest.approx(
+            ref.resistance(x, y, yaw, edge), rel=1e-12, abs=1e-9
+        )
+
+
+def test_a_move_into_another_robot_is_refused_and_changes_nothing():
+    w = world(np.ones((8, 8)), [(2, 1, 1, 1), (2, 3, 0, 0)])
+    before = (w[0].copy(), w[4].fine.copy())
+    step(w, [1 << MOVE_FORWARD, 0])
+    assert w[1][0, COL] == 1 and w[1][0, STUCK] == 1
+    assert np.array_equal(w[0], before[0]) and np.array_equal(w[4].fine, before[1])
+    assert w[4].counters[cs.C_REFUSED] == 1
+
+
+def test_a_pile_beyond_the_push_stalls_a_level_blade_and_a_small_one_does_not():
+    """The grid preset's motors are calibrated to the grid's capacities (12 / 24 units)."""
+    heights = np.zeros((8, 12), dtype=np.int32)
+    heights[3:5, 4] = 2  # 4 units ahead of the blade: it pushes on
+    w = world(heights, [(3, 1, 1, 0)])
+    step(w, [1 << BLADE_LEVEL_CMD])
+    step(w, [1 << MOVE_FORWARD])
+    step(w, [1 << MOVE_FORWARD])
+    assert w[1][0, COL] == 3 and w[1][0, STUCK] == 0
+    heights[3:5, 4:8] = 20  # 160 units: far beyond even throttle-up
+    w = world(heights, [(3, 1, 1, 0)])
+    step(w, [1 << BLADE_LEVEL_CMD])
+    for _ in range(4):
+        step(w, [1 << MOVE_FORWARD | 1 << THROTTLE_UP])
+    assert w[1][0, STUCK] == 1 and w[4].counters[cs.C_STALLS] >= 1
+    assert w[1][0, COL] < 4
+
+
+def test_a_robot_backs_out_of_a_stall():
+    heights = np.zeros((8, 12), dtype=np.int32)
+    heights[3:5, 4:8] = 20
+    w = world(heights, [(3, 1, 1, 0)])
+    step(w, [1 << BLADE_LEVEL_CMD])
+    for _ in range(3):
+        step(w, [1 << MOVE_FORWARD])
+    col = w[1][0, COL]
+    step(w, [1 << MOVE_BACKWARD])
+    assert w[1][0, COL] == col - 1 and w[1][0, STUCK] == 0 and w[1][0, ROW] == 3
+
+
+@pytest.mark.parametrize("soil", ("physical", "physical:dome"))
+def test_evaluation_on_physical_soil_is_deterministic_and_differs_from_the_grid(soil):
+    blueprint = resolve_blueprint("default", 1)
+    genome = Controller.from_file("genomes/best.json")
+    batch = ScenarioSet.create(blueprint, 2, 4, 60, 11, soil=soil)
+    a, ca = batch.run(genome)
+    b, cb = ScenarioSet.create(blueprint, 2, 4, 60, 11, soil=soil).run(genome)
+    assert np.array_equal(a, b) and np.array_equal(ca, cb)
+    grid = ScenarioSet.create(blueprint, 2, 4, 60, 11).score(genome)
+    assert not np.array_equal(a, grid)
+    assert (ca[:, cs.C_MOVES] > 0).all()
+    curves = evaluate(genome, blueprint, 2, 4, 60, 11, soil=soil).curves
+    assert np.array_equal(curves[:, -1], a)  # one episode kernel, traced or not
