@@ -3,6 +3,8 @@ refusals and stalls, heights that match the fine field, determinism."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -151,3 +153,19 @@ def test_evaluation_on_physical_soil_is_deterministic_and_differs_from_the_grid(
     assert (ca[:, cs.C_MOVES] > 0).all()
     curves = evaluate(genome, blueprint, 2, 4, 60, 11, soil=soil).curves
     assert np.array_equal(curves[:, -1], a)  # one episode kernel, traced or not
+
+
+def test_ant_eval_scores_on_the_physical_soil(tmp_path, capsys):
+    from ant_evolution.cli_eval import main
+
+    args = ["--genome", "genomes/best.json", "--scenarios", "3", "--steps", "40"]
+    assert main([*args, "--soil", "physical:dome", "--json", "--snapshots", str(tmp_path)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["soil"] == "physical:dome" and out["moves"] > 0 and "stalls" in out
+    assert len(list(tmp_path.glob("step_*.png"))) >= 2
+    assert main([*args, "--json"]) == 0
+    grid = json.loads(capsys.readouterr().out)
+    assert "soil" not in grid and "stalls" not in grid and grid["mean"] != out["mean"]
+    with pytest.raises(SystemExit):
+        main([*args, "--soil", "physical,repose_angle=95"])
+    assert "repose_angle" in capsys.readouterr().err

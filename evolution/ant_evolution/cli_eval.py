@@ -6,9 +6,11 @@ Examples::
     ant-eval --genome genomes/best.json --blueprint my_site.yaml --json
     ant-eval --hand-coded --snapshots out/snapshots --snapshot-steps 0,50,100,300
     ant-eval --hand-coded --profile paper --set hand_coded=chain
+    ant-eval --genome genomes/best.json --soil physical:dome
 
 ``--profile`` picks the readings of the paper (world, hand-coded rules; docs/evolution.md,
-"Profiles"); ``--set KEY=VALUE`` overrides one switch.
+"Profiles"); ``--set KEY=VALUE`` overrides one switch. ``--soil physical[:PRESET]`` runs the
+scenarios on the physical soil (:mod:`excavation_sim.cell_soil`; docs/world-model.md).
 
 Exit codes: 0 success, 2 bad arguments or input file (the message names the file, the
 field and the value).
@@ -31,7 +33,6 @@ from ant_evolution.evaluate import (
     DEFAULT_STEPS,
     advance,
     evaluate,
-    scenario_worlds,
 )
 from ant_evolution.limits import MAX_DEPTH_UNITS, MAX_STEPS, check_workload, option
 from ant_evolution.profiles import add_profile_options, switches_of, world_rules_of
@@ -39,6 +40,7 @@ from blueprint_server.blueprint import resolve_blueprint
 from blueprint_server.errors import BlueprintError
 from excavation_common.limits import int_in
 from excavation_sim.rules import DEFAULT_RULES, WorldRules
+from excavation_sim.soil import SoilError, soil_arg
 from excavation_sim.world import PlacementError
 
 DEFAULT_SNAPSHOT_STEPS = (0, 50, 75, 100, 170)
@@ -90,6 +92,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--seed", type=option("seed"), default=0, help="scenario seed (default 0)")
     add_profile_options(p)
+    p.add_argument(
+        "--soil",
+        type=soil_arg,
+        default="grid",
+        help="grid (the world model's soil rules) or physical[:PRESET][,KEY=VALUE...]: the "
+        "physical soil, robots moving cell by cell (presets: grid, dome, lunar)",
+    )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--snapshots", metavar="DIR", help="write terrain PNGs of scenario 0 here")
     p.add_argument(
@@ -111,17 +120,28 @@ def write_snapshots(
     out_dir: Path,
     at: list[int],
     rules: WorldRules = DEFAULT_RULES,
+    soil: str = "grid",
 ) -> list[Path]:
     """Replay scenario 0 of ``seed`` and write a PNG at each step in ``at`` plus a strip."""
+    from ant_evolution.evaluate import ScenarioSet
+    from excavation_sim.cell_soil import soil_fitness
     from excavation_sim.snapshots import save_snapshot, save_strip
 
-    world = scenario_worlds(blueprint, n_robots, 1, seed, rules)[0]
+    batch = ScenarioSet.create(blueprint, n_robots, 1, 1, seed, rules, soil)
+    world = batch.world(0)
+    physical = batch.soil_of(world)
+
+    def fitness() -> float:
+        if physical is None:
+            return world.fitness()
+        return soil_fitness(physical, world.heights, world.zones, world.goal)
+
     wanted = sorted({s for s in at if s <= steps} | {steps})
     frames = []
     paths = []
     done = 0
     for s in wanted:
-        advance(world, controller, s - done)
+        advance(world, controller, s - done, soil=physical)
         done = s
         frames.append((s, world.heights.copy(), world.robots.copy()))
         paths.append(
@@ -131,7 +151,7 @@ def write_snapshots(
                 world.zones,
                 world.robots,
                 world.active,
-                f"{controller.name}: t = {s}, fitness {world.fitness():.3f}",
+                f"{controller.name}: t = {s}, fitness {fitness():.3f}",
             )
         )
     paths.append(
@@ -161,7 +181,14 @@ def main(argv: list[str] | None = None) -> int:
         n_robots = args.robots or controller.robots or DEFAULT_ROBOTS
         check_workload("<command line>", blueprint.zones.size, args.scenarios, args.steps)
         result = evaluate(
-            controller, blueprint, n_robots, args.scenarios, args.steps, args.seed, rules
+            controller,
+            blueprint,
+            n_robots,
+            args.scenarios,
+            args.steps,
+            args.seed,
+            rules,
+            args.soil,
         )
         snaps = []
         if args.snapshots:
@@ -174,8 +201,9 @@ def main(argv: list[str] | None = None) -> int:
                 Path(args.snapshots),
                 args.snapshot_steps,
                 rules,
+                args.soil,
             )
-    except (GenomeFormatError, BlueprintError, PlacementError, ConfigError) as exc:
+    except (GenomeFormatError, BlueprintError, PlacementError, ConfigError, SoilError) as exc:
         print(f"ant-eval: error: {exc}", file=sys.stderr)
         return 2
     summary = result.summary()
@@ -191,7 +219,9 @@ def main(argv: list[str] | None = None) -> int:
                     "seed": args.seed,
                     **({"profile": args.profile} if args.profile != "v1" else {}),
                     **({"switches": dict(args.assignments)} if args.assignments else {}),
+                    **({"soil": args.soil} if args.soil != "grid" else {}),
                     **summary,
+                    **_counts(result),
                     "scores": [float(v) for v in result.scores],
                     "snapshots": [str(p) for p in snaps],
                 },
@@ -201,6 +231,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         profile = "" if args.profile == "v1" else f" | profile {args.profile}"
         changed = "".join(f" | {k}={v}" for k, v in args.assignments)
+        changed += f" | soil {args.soil}" if args.soil != "grid" else ""
         print(
             f"{controller.name} | {blueprint.name} | {n_robots} robots | "
             f"{args.scenarios} scenarios x {args.steps} steps | seed {args.seed}"
@@ -213,9 +244,23 @@ def main(argv: list[str] | None = None) -> int:
         )
         start = float(np.mean(result.curves[:, 0]))
         print(f"(start of each scenario: {start:.4f})")
+        if result.counters is not None:
+            c = _counts(result)
+            print(
+                f"per scenario: {c['moves']:.1f} moves, {c['refused']:.1f} refused, "
+                f"{c['stalls']:.1f} stalls (the push the robot could not give)"
+            )
         if snaps:
             print(f"snapshots: {len(snaps)} PNG files in {args.snapshots}")
     return 0
+
+
+def _counts(result) -> dict:
+    """Mean moves, refusals and stalls per scenario on the physical soil (empty: grid)."""
+    if result.counters is None:
+        return {}
+    mean = result.counters.mean(axis=0)
+    return {"moves": float(mean[0]), "refused": float(mean[1]), "stalls": float(mean[2])}
 
 
 if __name__ == "__main__":

@@ -199,10 +199,16 @@ class ScenarioSet:
         return scores, counters
 
     def soil_of(self, world: World) -> cell_soil.SoilArrays | None:
-        """Fresh physical soil arrays for ``world`` (None on the grid)."""
+        """The physical soil of ``world`` as it starts (None on the grid).
+
+        It also rounds ``world.heights`` to the settled soil's cells (as ``dynamics``
+        starts); step both with :func:`advance`.
+        """
         if not self.physical:
             return None
-        return cell_soil.new_soil(world.heights.shape, world.n_robots, self.physics)
+        soil = cell_soil.new_soil(world.heights.shape, world.n_robots, _read_only(self.physics))
+        cell_soil.reset(soil, world.heights, world.robots, world.active)
+        return soil
 
 
 def physics_of(soil: str, blueprint: Blueprint, rules: WorldRules) -> np.ndarray:
@@ -247,8 +253,8 @@ def advance(
 ) -> None:
     """Step ``world`` in place ``steps`` times under ``program``.
 
-    ``soil``: the world's physical soil (:meth:`ScenarioSet.soil_of`), reset from the
-    world's heights first; ``None``: the grid's soil rules.
+    ``soil``: the world's physical soil (:meth:`ScenarioSet.soil_of`), stepped with it;
+    ``None``: the grid's soil rules.
     """
     trace = np.zeros(0) if trace is None else trace
     if soil is None:
@@ -276,10 +282,13 @@ class Evaluation:
     Attributes:
         scores: Final fitness per scenario.
         curves: ``[scenarios, steps + 1]`` fitness after each step (column 0: start).
+        counters: On the physical soil, ``int64 [scenarios, 4]``: moves, refusals,
+            stalls and quanta cut (:mod:`excavation_sim.cell_soil`); ``None`` on the grid.
     """
 
     scores: np.ndarray
     curves: np.ndarray
+    counters: np.ndarray | None = None
 
     @property
     def mean(self) -> float:
@@ -317,8 +326,15 @@ def evaluate(
     """
     batch = ScenarioSet.create(blueprint, n_robots, scenarios, steps, seed, rules, soil)
     curves = np.zeros((scenarios, steps + 1))
+    counters = np.zeros((scenarios, cell_soil.N_COUNTERS), dtype=np.int64)
     for i in range(scenarios):
         w = batch.world(i)
-        curves[i, 0] = w.fitness()
-        advance(w, controller, steps, curves[i, 1:], batch.soil_of(w))
-    return Evaluation(curves[:, -1].copy(), curves)
+        soil = batch.soil_of(w)
+        if soil is None:
+            curves[i, 0] = w.fitness()
+        else:
+            curves[i, 0] = cell_soil.soil_fitness(soil, w.heights, w.zones, w.goal)
+        advance(w, controller, steps, curves[i, 1:], soil)
+        if soil is not None:
+            counters[i] = soil.counters
+    return Evaluation(curves[:, -1].copy(), curves, counters if batch.physical else None)

@@ -354,13 +354,13 @@ def _run_physical_steps(world, soil, steps, program, work, trace):
 
 @nb.njit(cache=True)
 def run_physical_episode(world, soil, steps, program, trace):
-    """Step ``world`` and its physical ``soil`` (reset from the world first) ``steps`` times.
+    """Step ``world`` and its physical ``soil`` in place ``steps`` times under ``program``.
 
-    ``trace[t]`` gets the fitness after step t; ``trace`` may be empty.
+    ``soil`` starts as :func:`excavation_sim.cell_soil.reset` left it, or where an earlier
+    call stopped. ``trace[t]`` gets the fitness after step t; ``trace`` may be empty.
     """
     rows, cols = world.heights.shape
     work = new_workspace(program, world.robots.shape[0], rows, cols)
-    cell_soil.reset(soil, world.heights, world.robots, world.active)
     _run_physical_steps(world, soil, steps, program, work, trace)
 
 

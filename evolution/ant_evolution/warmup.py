@@ -34,7 +34,8 @@ def compile_kind(kind: str) -> float:
     decision (the controller node's) and, for tissues and the hand-coded rules, the
     per-phase timing of ``ant-bench`` (:func:`ant_evolution.breakdown.phase_times`); for
     tissues, one generation's compiled mutation under each profile; for networks, a NEAT
-    genome's layout and one NEAT generation's compiled mutation too.
+    genome's layout and one NEAT generation's compiled mutation too; for tissues and the
+    hand-coded rules, the physical soil's two episode kernels.
     """
     import numpy as np
 
@@ -75,6 +76,13 @@ def compile_kind(kind: str) -> float:
             ant.tell(ant_state, np.arange(len(genomes), dtype=np.float64))
     program_fitness(program, sets)
     advance(world, program, 2)
+    if kind != "network":  # the physical soil's episode kernels (ant-eval --soil)
+        from ant_evolution.evaluate import ScenarioSet
+
+        physical = ScenarioSet.create(blueprints[0], 2, 1, 5, 1, soil="physical")
+        physical.run(program)
+        start = physical.world(0)
+        advance(start, program, 2, soil=physical.soil_of(start))
     world.step(np.zeros(world.n_robots, dtype=np.int64))
     return time.perf_counter() - started
 

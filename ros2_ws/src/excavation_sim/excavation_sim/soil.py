@@ -614,12 +614,27 @@ def round_heights(sums, per_cell, out):
 
 
 @nb.njit(cache=True, inline="always")
-def _window(x, y, radius, sub, rows, cols):
-    """Row and column bounds ``(i0, i1, j0, j1)`` of the sub-cells within ``radius`` m."""
-    i0 = max(int(math.floor((y - radius) / sub)), 0)
-    i1 = min(int(math.floor((y + radius) / sub)) + 1, rows)
-    j0 = max(int(math.floor((x - radius) / sub)), 0)
-    j1 = min(int(math.floor((x + radius) / sub)) + 1, cols)
+def _rect(x, y, cy, sy, u0, u1, v0, v1, sub, rows, cols):
+    """Row and column bounds ``(i0, i1, j0, j1)`` of the sub-cells a robot's rectangle covers.
+
+    The rectangle: ``u0 <= u <= u1``, ``v0 <= v <= v1`` in the robot's frame (:func:`_local`);
+    the bounds: its bounding box on the field, a sub-cell wider on each side: a kernel that
+    tests each centre against the rectangle visits only these (in the same order as over
+    a larger window, so its result is the same).
+    """
+    x0 = x1 = x + u0 * cy - v0 * sy
+    y0 = y1 = y + u0 * sy + v0 * cy
+    for u, v in ((u0, v1), (u1, v0), (u1, v1)):
+        px = x + u * cy - v * sy
+        py = y + u * sy + v * cy
+        x0 = min(x0, px)
+        x1 = max(x1, px)
+        y0 = min(y0, py)
+        y1 = max(y1, py)
+    i0 = max(int(math.floor(y0 / sub)) - 1, 0)
+    i1 = min(int(math.floor(y1 / sub)) + 2, rows)
+    j0 = max(int(math.floor(x0 / sub)) - 1, 0)
+    j1 = min(int(math.floor(x1 / sub)) + 2, cols)
     return i0, i1, j0, j1
 
 
@@ -643,13 +658,14 @@ def body_mask(mask, bodies, active, sub, half_length, half_width, wings=None, wi
     """
     mask[:] = False
     rows, cols = mask.shape
-    reach = math.hypot(half_length + wing, half_width + sub)
     for k in range(bodies.shape[0]):
         if not active[k]:
             continue
         x, y, yaw = bodies[k, 0], bodies[k, 1], bodies[k, 2]
         cy, sy = math.cos(yaw), math.sin(yaw)
-        i0, i1, j0, j1 = _window(x, y, reach, sub, rows, cols)
+        ahead = half_length + wing
+        side = half_width + sub
+        i0, i1, j0, j1 = _rect(x, y, cy, sy, -half_length, ahead, -side, side, sub, rows, cols)
         for i in range(i0, i1):
             for j in range(j0, j1):
                 u, v = _local(i, j, sub, x, y, cy, sy)
@@ -798,8 +814,7 @@ def band_ground(fine, x, y, yaw, sub, near, far, half_width):
     """
     rows, cols = fine.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
-    span = math.hypot(max(abs(near), abs(far)), half_width) + sub
-    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
+    i0, i1, j0, j1 = _rect(x, y, cy, sy, near, far, -half_width, half_width, sub, rows, cols)
     total = 0
     n = 0
     for i in range(i0, i1):
@@ -823,8 +838,7 @@ def dig_wheels(fine, loose, x, y, yaw, sub, length, half_width, take):
     """
     rows, cols = fine.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
-    span = math.hypot(length, half_width) + sub
-    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
+    i0, i1, j0, j1 = _rect(x, y, cy, sy, -length, 0.0, -half_width, half_width, sub, rows, cols)
     moved = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
@@ -850,8 +864,9 @@ def volume_above(fine, x, y, yaw, sub, front, half_width, reach, edge):
     """
     rows, cols = fine.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
-    span = math.hypot(front + reach, half_width) + sub
-    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
+    i0, i1, j0, j1 = _rect(
+        x, y, cy, sy, front, front + reach, -half_width, half_width, sub, rows, cols
+    )
     volume = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
@@ -877,8 +892,9 @@ def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedg
     """
     rows, cols = fine.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
-    span = math.hypot(front + sub, half_width) + sub
-    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
+    i0, i1, j0, j1 = _rect(
+        x, y, cy, sy, front, front + sub, -half_width, half_width, sub, rows, cols
+    )
     cut_total = 0
     cut_n = 0
     for i in range(i0, i1):
@@ -893,8 +909,9 @@ def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedg
     depth = cut_total / cut_n if cut_n else 0.0
     length = depth * wedge
     far = length if length > reach else reach
-    span = math.hypot(front + far, half_width) + sub
-    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
+    i0, i1, j0, j1 = _rect(
+        x, y, cy, sy, front, front + far, -half_width, half_width, sub, rows, cols
+    )
     over = 0
     beyond = 0
     for i in range(i0, i1):
@@ -927,8 +944,9 @@ def cut(fine, loose, blocked, x, y, yaw, sub, front, half_width, edge, top, fill
     """
     rows, cols = fine.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
-    span = math.hypot(front + sub, half_width) + sub
-    i0, i1, j0, j1 = _window(x, y, span, sub, rows, cols)
+    i0, i1, j0, j1 = _rect(
+        x, y, cy, sy, front - sub, front + sub, -half_width, half_width, sub, rows, cols
+    )
     total = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
