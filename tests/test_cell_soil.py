@@ -169,3 +169,37 @@ def test_ant_eval_scores_on_the_physical_soil(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main([*args, "--soil", "physical,repose_angle=95"])
     assert "repose_angle" in capsys.readouterr().err
+
+
+def test_evolution_on_the_physical_soil_resumes_bit_identically_on_other_workers(tmp_path):
+    """A run on ``soil: physical:dome``: stopped after 2 generations and resumed on 2
+    workers, it equals a straight run; its key differs from the grid's, which keeps its own
+    (checkpoints of runs before the option still resume)."""
+    import dataclasses
+
+    from ant_evolution.evolve import EvolveConfig, run_evolution
+
+    base = EvolveConfig(population=6, generations=4, scenarios=2, steps=30, robots=2, depths=(1,))
+    cfg = dataclasses.replace(base, soil="physical:dome", checkpoint_every=2, seed=4)
+    assert cfg.run_key() != base.run_key()
+    assert dataclasses.replace(base, soil="grid").run_key() == base.run_key()
+    run_evolution(cfg, tmp_path / "a", workers=1)
+    run_evolution(cfg, tmp_path / "b", workers=1, stop_after=2)
+    run_evolution(cfg, tmp_path / "b", workers=2, resume=True)
+
+    def strip(d):
+        ck = json.loads((d / "checkpoint.json").read_text())
+        for row in ck["history"]:
+            row.pop("seconds")
+        return ck
+
+    assert strip(tmp_path / "b") == strip(tmp_path / "a")
+    assert "soil: physical:dome" in (tmp_path / "b" / "config.yaml").read_text()
+
+
+def test_a_bad_soil_in_a_run_config_names_the_key():
+    from ant_evolution.errors import ConfigError
+    from ant_evolution.evolve import config_from_dict
+
+    with pytest.raises(ConfigError, match="soil"):
+        config_from_dict({"soil": "physical:mars"}, "run.yaml")

@@ -40,6 +40,7 @@ from ant_evolution.ros_evaluator import TrialError
 from blueprint_server.errors import BlueprintError
 from excavation_common.limits import int_in
 from excavation_common.progress import tqdm
+from excavation_sim.soil import soil_arg
 from excavation_sim.world import PlacementError
 
 
@@ -101,6 +102,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--seed", type=option("seed"), help="run seed (default 0)")
     p.add_argument(
+        "--soil",
+        type=soil_arg,
+        help="grid (default: the world model's soil rules) or physical[:PRESET][,KEY=VALUE...]"
+        ": train on the physical soil, robots moving cell by cell (presets: grid, dome, lunar)",
+    )
+    p.add_argument(
         "--checkpoint-every",
         type=option("checkpoint_every"),
         help="generations between checkpoints",
@@ -129,6 +136,7 @@ def resolve_config(args: argparse.Namespace) -> EvolveConfig:
         "checkpoint_every": args.checkpoint_every,
         "depths": args.depths,
         "blueprint": args.blueprint,
+        "soil": args.soil,
     }
     values = {k: v for k, v in overrides.items() if v is not None}
     if args.robots is not None:

@@ -50,6 +50,7 @@ from ant_evolution.profiles import (
 from blueprint_server.blueprint import Blueprint, resolve_blueprint
 from excavation_common.loaders import load_yaml
 from excavation_sim.rules import WorldRules
+from excavation_sim.soil import SoilError, check_soil
 
 CHECKPOINT_FORMAT = "ant-checkpoint/1"
 
@@ -85,6 +86,8 @@ class EvolveConfig:
         mutation_scope, mutation_operator, mutation_width, replication_parent: The GA's
             switches (:class:`ant_evolution.ga.GAParams`).
         neat_activation, neat_budget: The NEAT baseline's switches.
+        soil: ``grid`` (the world model's soil rules) or a physical soil the scenarios run
+            on (``physical[:PRESET][,KEY=VALUE...]``, :mod:`excavation_sim.cell_soil`).
     """
 
     population: int = 100
@@ -121,6 +124,7 @@ class EvolveConfig:
     replication_parent: str = "max"
     neat_activation: str = "sigmoid"
     neat_budget: str = "library"
+    soil: str = "grid"
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -150,6 +154,10 @@ class EvolveConfig:
                 list(self.robots_mix),
                 "cannot be combined with evolve_robots",
             )
+        try:
+            check_soil(self.soil)
+        except SoilError as exc:
+            raise ConfigError("<config>", "soil", self.soil, str(exc)) from None
         profile_switches(self.profile, "<config>")  # a known profile name
         world_rules_of(self.to_dict())
         for name, allowed in CHOICES.items():
@@ -218,6 +226,8 @@ class EvolveConfig:
         for key in _KEYED_SINCE_PROFILES:
             if d[key] == v1[key]:
                 d.pop(key)
+        if d["soil"] == "grid":  # keyed only where it differs, as the switches
+            d.pop("soil")
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
@@ -317,7 +327,7 @@ def scenario_sets(
     sizes = [config.scenarios // n + (i < config.scenarios % n) for i in range(n)]
     rules = config.world_rules
     return [
-        ScenarioSet.create(bp, robots, size, config.steps, seed + i, rules)
+        ScenarioSet.create(bp, robots, size, config.steps, seed + i, rules, config.soil)
         for i, (bp, size) in enumerate(zip(blueprints, sizes, strict=True))
         if size > 0
     ]
