@@ -203,3 +203,80 @@ def test_a_bad_soil_in_a_run_config_names_the_key():
 
     with pytest.raises(ConfigError, match="soil"):
         config_from_dict({"soil": "physical:mars"}, "run.yaml")
+
+
+def test_the_bench_times_each_physical_soil_against_the_grid():
+    from ant_controller.genome_io import load_genome
+    from ant_evolution.bench import SOILS, STEPS, soil_costs, soil_table
+
+    costs = soil_costs(load_genome("genomes/best.json"), 1, 3, repeats=1)
+    assert [c[0] for c in costs] == ["grid", *SOILS]
+    genome = Controller.from_file("genomes/best.json")
+    for soil, rate, fitness, _ in costs:
+        assert rate > 0
+        batch = ScenarioSet.create(resolve_blueprint("default", 1), 4, 1, STEPS, 3, soil=soil)
+        assert fitness == batch.score(genome).mean()
+    table = "\n".join(soil_table(costs, 1))
+    assert "| `physical:dome` |" in table and "x |" in table
+
+
+@pytest.mark.parametrize(
+    ("soil", "units"),
+    [
+        ("physical", 6),
+        ("physical", 14),
+        ("physical:dome", 0.2),
+        ("physical:dome", 0.5),
+        ("physical:lunar", 3),
+    ],
+)
+def test_a_pushed_pile_keeps_what_it_keeps_in_dynamics(soil, units):
+    """A level blade pushes a heaped pile two cells: the share still held against the blade
+    in the offline world is within 10 points of ``dynamics``' (its executor driving)."""
+    from test_dynamics import drive as drive_word
+
+    from ant_controller.layout import BLADE_HOME, BLADE_LEVEL
+    from blueprint_server.blueprint import default_blueprint
+    from excavation_sim.dynamics import Dynamics, DynamicsParams
+    from excavation_sim.soil import volume_above
+    from excavation_sim.world import BLADE, World
+
+    bp = default_blueprint(1)
+    world = World.scenario(bp.zones, bp.goal, 1, 0, 0)
+    world.robots[0, :3] = (6, 2, 1)  # facing east
+    params = SoilParams(soil=soil)
+    dyn = Dynamics(world, DynamicsParams.exact(), CELL, np.random.default_rng(0), soil=params)
+    dyn.set_blade(0, BLADE_LEVEL)
+    x, y, yaw = dyn.bodies[0]
+    dyn.soil.heap(x, y, yaw, units)
+    dyn.soil.settle(dyn.bodies, world.active)  # the heap slumps before the push, in both
+    pile = dyn.soil.held(x, y, yaw, dyn.edge(0))
+    heights = world.heights.copy()
+    robots = world.robots.copy()
+    robots[0, BLADE] = BLADE_HOME
+    world_arrays = (heights, robots, world.active.copy())
+    physics = cs.physics_vector(params, CELL, UNIT)
+    arrays = cs.new_soil(heights.shape, 1, physics)
+    cs.reset(arrays, heights, robots, world_arrays[2])
+    arrays.fine[...] = dyn.soil.fine
+    arrays.loose[...] = dyn.soil.loose
+    occ = np.zeros(heights.shape, dtype=np.int16)
+    occupancy(robots, world_arrays[2], occ)
+    w = (heights, robots, world_arrays[2], occ, arrays)
+    step(w, [1 << BLADE_LEVEL_CMD])
+    for _ in range(2):
+        drive_word(dyn, 0, 1 << MOVE_FORWARD)
+        step(w, [1 << MOVE_FORWARD])
+    x, y, yaw = dyn.bodies[0]
+    kept_dynamics = dyn.soil.held(x, y, yaw, dyn.edge(0)) / pile
+    bx, by, byaw = arrays.bodies[0]
+    ph = arrays.physics
+    edge = arrays.ground[0] + arrays.lift[0]
+    held = volume_above(arrays.fine, bx, by, byaw, ph[cs.X_SUB], CELL, CELL, ph[cs.X_REACH], edge)
+    kept_offline = held / pile
+    print(
+        f"{soil}, {units} units: kept {kept_dynamics:.2f} (dynamics), {kept_offline:.2f} "
+        f"(offline); pushed {world.robots[0, COL] - 2} cells (dynamics), {robots[0, COL] - 2}"
+    )
+    assert world.robots[0, COL] == robots[0, COL]  # both pushed as far
+    assert abs(kept_offline - kept_dynamics) <= 0.10

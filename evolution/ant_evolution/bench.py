@@ -11,7 +11,9 @@ T = 300. Measured in one run:
 * where the time goes per robot-step (:mod:`ant_evolution.breakdown`: sensing, decision,
   world step), compiled and in plain Python;
 * the wall time of whole generations of ANT, NEAT and the fixed network (same P, S, T,
-  workers), split into evaluation and breeding (``tell``).
+  workers), split into evaluation and breeding (``tell``);
+* the shipped evolved genome on the physical soil (:mod:`excavation_sim.cell_soil`, each
+  preset) against the grid, on one core in the same run.
 
 It prints the tables with ratios against the plain-Python reference and, with
 ``--write``, puts them into their section of ``docs/benchmarks.md`` (between
@@ -49,6 +51,10 @@ PAPER_GENERATION = 100 * 100 * STEPS * ROBOTS
 PAPER_GENERATIONS = 5000
 MARK = "<!-- evaluation-bench -->"
 PHASES = ("sensing", "decision", "world step")
+SOILS = ("physical", "physical:dome", "physical:lunar")
+"""The physical soils timed against the grid (the ``grid`` preset, the dome, the Moon)."""
+PHYSICAL_TARGET = 20.0
+"""Most time per robot-step on the physical soil, as a multiple of the grid's (the issue's)."""
 
 NOTES = """## Evaluation throughput (`ant-bench`)
 
@@ -191,6 +197,51 @@ def generation_costs(
             "total": float(np.median(a[1:].sum(axis=1))),
         }
     return out
+
+
+def soil_costs(genome, n_scenarios: int, seed: int, repeats: int = 3) -> list[tuple]:
+    """``(soil, rate, mean fitness, stalls per scenario)`` on the grid and each physical soil.
+
+    ``genome`` on ``n_scenarios`` scenarios, one core, best of ``repeats`` after a warm-up.
+    """
+    controller = Controller.from_genome(genome)
+    out = []
+    for soil in ("grid", *SOILS):
+        batch = ScenarioSet.create(
+            default_blueprint(1), ROBOTS, n_scenarios, STEPS, seed, soil=soil
+        )
+        scores, counters = batch.run(controller)
+        best = 0.0
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            batch.run(controller)
+            best = max(best, n_scenarios * STEPS * ROBOTS / (time.perf_counter() - t0))
+        out.append((soil, best, float(scores.mean()), float(counters[:, 2].mean())))
+    return out
+
+
+def soil_table(costs: list[tuple], n_scenarios: int) -> list[str]:
+    """The physical soil's section: rates and the cost per robot-step against the grid."""
+    grid = costs[0][1]
+    lines = [
+        "",
+        "### The physical soil (`ant-eval --soil`)",
+        "",
+        f"The shipped evolved genome, {n_scenarios} scenarios x {STEPS} steps x {ROBOTS} "
+        "robots, one core, best of 3: the offline physical world (robots moving cell by "
+        "cell through the physical soil) against the grid in the same run. Target: at most "
+        f"{PHYSICAL_TARGET:.0f} x the grid's time per robot-step.",
+        "",
+        "| soil | robot-steps/s | ns per robot-step | / grid | mean fitness | stalls per "
+        "scenario |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for soil, rate, fitness, stalls in costs:
+        lines.append(
+            f"| `{soil}` | {rate:,.0f} | {_ns(1 / rate)} | {grid / rate:,.1f}x | {fitness:.3f} "
+            f"| {stalls:.1f} |"
+        )
+    return lines
 
 
 def replace_section(path: Path, section: str) -> None:
@@ -343,6 +394,8 @@ def main(argv: list[str] | None = None) -> int:
             "",
             *breakdown_table(compiled),
         ]
+        n_soil = min(args.scenarios, 20)
+        lines += soil_table(soil_costs(evolved, n_soil, args.seed), n_soil)
     if args.generations > 1:
         costs = generation_costs(args.genomes, 20, 2, args.generations)
         ant = costs["ANT"]["total"]

@@ -5,7 +5,7 @@ trials through ``dynamics`` (truth perception, no slip or noise, the default blu
 goal depth 1) of the shipped genome and the hand-coded rules on ``--scenarios`` scenarios of
 ``--seed``, each written to ``DIR/trials/*.json`` when it ends (run the command again and it
 goes on); then, or with ``report`` alone, the same scenarios in the offline physical world
-(:mod:`excavation_sim.cell_soil`, ``ant-eval --soil``) and ``DIR/agreement.md``: per
+(:mod:`excavation_sim.cell_soil`, ``ant-eval --soil``) and ``DIR/agreement-SOIL.md``: per
 controller the correlation of the final fitness over the scenarios, the mean of each, and
 the U1 events (a move refused or stalled: the offline world's refusals plus stalls against
 the executors' stuck events in ``dynamics``).
@@ -35,10 +35,15 @@ MIN_CORRELATION = 0.9
 STALL_FACTOR = 2.0
 
 
+def slug(soil: str) -> str:
+    """``soil`` as a file name part."""
+    return soil.replace(":", "-").replace(",", "_").replace("=", "-")
+
+
 def trial_name(soil: str, controller: str, robots: int, scenario: int) -> str:
     """The trial's file name under ``DIR/trials``."""
     ctl = "hand" if controller == "hand-coded" else "genome"
-    return f"{soil.replace(':', '-').replace(',', '_')}-{ctl}-n{robots}-s{scenario}.json"
+    return f"{slug(soil)}-{ctl}-n{robots}-s{scenario}.json"
 
 
 def run_one(soil: str, controller: str, robots: int, scenario: int, args) -> dict:
@@ -203,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
             path = args.out / "trials" / trial_name(args.soil, controller, args.robots, i)
             write_text_atomic(path, json.dumps(row, indent=1) + "\n")
     text = report(load_rows(args.out), args.soil)
-    write_text_atomic(args.out / "agreement.md", text)
+    write_text_atomic(args.out / f"agreement-{slug(args.soil)}.md", text)
     print(text)
     return 0
 
