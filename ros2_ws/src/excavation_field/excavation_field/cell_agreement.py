@@ -171,6 +171,35 @@ def report(rows: list[dict], soil: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+MARK = "<!-- cell-agreement -->"
+END = "<!-- /cell-agreement -->"
+
+
+def combined(rows: list[dict]) -> str:
+    """One table over every soil in ``rows`` (docs/world-model.md's section)."""
+    lines = [
+        "| soil | controller | scenarios | fitness correlation | mean fitness, dynamics / "
+        "offline | U1 events per scenario, dynamics / offline (ratio) | within tolerance |",
+        "|---|---|---:|---:|---|---|---|",
+    ]
+    for soil in sorted({r["soil"] for r in rows}):
+        for a in compare(rows, soil):
+            held = ", ".join(k for k, ok in a.check().items() if ok) or "none"
+            lines.append(
+                f"| `{soil}` | {a.controller} | {a.scenarios} | {a.correlation:.3f} | "
+                f"{a.fitness_dynamics:.3f} / {a.fitness_offline:.3f} | "
+                f"{a.u1_dynamics:.1f} / {a.u1_offline:.1f} ({a.stall_ratio:.2f}) | {held} |"
+            )
+    return "\n".join(lines)
+
+
+def write_section(path: Path, table: str) -> None:
+    """Put ``table`` between the markers of ``path`` (the rest is left alone)."""
+    text = path.read_text()
+    start, end = text.index(MARK) + len(MARK), text.index(END)
+    write_text_atomic(path, text[:start] + "\n" + table + "\n" + text[end:])
+
+
 def load_rows(out: Path) -> list[dict]:
     """Every finished trial under ``DIR/trials``."""
     return [json.loads(p.read_text()) for p in sorted((out / "trials").glob("*.json"))]
@@ -188,6 +217,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--robots", type=int_in(1, 16), default=2)
     p.add_argument("--controllers", nargs="+", default=list(CONTROLLERS))
     p.add_argument("--domain", type=int_in(0, 101), default=100, help="ROS domain id")
+    p.add_argument("--write", type=Path, metavar="MD", help="put every soil's table into MD")
     args = p.parse_args(argv)
     from excavation_common.ros import interrupt_on_sigint
 
@@ -210,6 +240,8 @@ def main(argv: list[str] | None = None) -> int:
     text = report(load_rows(args.out), args.soil)
     write_text_atomic(args.out / f"agreement-{slug(args.soil)}.md", text)
     print(text)
+    if args.write:
+        write_section(args.write, combined(load_rows(args.out)))
     return 0
 
 
