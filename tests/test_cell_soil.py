@@ -280,3 +280,29 @@ def test_a_pushed_pile_keeps_what_it_keeps_in_dynamics(soil, units):
     )
     assert world.robots[0, COL] == robots[0, COL]  # both pushed as far
     assert abs(kept_offline - kept_dynamics) <= 0.10
+
+
+def test_fine_tuning_starts_from_the_genome_and_its_mutants(tmp_path):
+    import dataclasses
+
+    from ant_controller.genome_io import genome_to_dict, load_genome
+    from ant_evolution.errors import ConfigError
+    from ant_evolution.evolve import EvolveConfig, initial_population, run_evolution
+
+    cfg = EvolveConfig(population=5, generations=2, scenarios=2, steps=30, robots=2, depths=(1,))
+    tuned = dataclasses.replace(cfg, start="genomes/best.json", soil="physical:dome")
+    assert tuned.run_key() != dataclasses.replace(cfg, soil="physical:dome").run_key()
+    first = initial_population(tuned, np.random.default_rng(2))
+    again = initial_population(tuned, np.random.default_rng(2))
+    start = genome_to_dict(dataclasses.replace(load_genome("genomes/best.json"), metadata={}))
+    assert genome_to_dict(first[0]) == start
+    assert all(genome_to_dict(g) != start for g in first[1:])
+    assert [genome_to_dict(g) for g in first] == [genome_to_dict(g) for g in again]
+    state = run_evolution(tuned, tmp_path / "run", workers=1)
+    assert state.best_fitness > 0.13  # the shipped genome digs some on the dome's soil
+    for bad, word in (("nowhere.json", "nowhere"), ("README.md", "README")):
+        with pytest.raises(ConfigError, match=word):
+            initial_population(dataclasses.replace(tuned, start=bad), np.random.default_rng(0))
+    nocc = dataclasses.replace(tuned, coarse_coding=False)
+    with pytest.raises(ConfigError, match="coarse_coding"):
+        initial_population(nocc, np.random.default_rng(0))

@@ -112,6 +112,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=option("checkpoint_every"),
         help="generations between checkpoints",
     )
+    p.add_argument(
+        "--start",
+        metavar="GENOME",
+        help="fine-tune: generation 0 is this genome and P - 1 mutants of it (e.g. a "
+        "grid-evolved genome trained on with --soil)",
+    )
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.json")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -137,6 +143,7 @@ def resolve_config(args: argparse.Namespace) -> EvolveConfig:
         "depths": args.depths,
         "blueprint": args.blueprint,
         "soil": args.soil,
+        "start": args.start,
     }
     values = {k: v for k, v in overrides.items() if v is not None}
     if args.robots is not None:

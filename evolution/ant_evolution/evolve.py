@@ -31,12 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ant_controller.errors import GenomeFormatError
 from ant_controller.genome import Genome, random_genome
-from ant_controller.genome_io import genome_from_dict, genome_to_dict
+from ant_controller.genome_io import genome_from_dict, genome_to_dict, load_genome
 from ant_evolution.backends import Evaluator, compile_genome
 from ant_evolution.errors import ConfigError
 from ant_evolution.evaluate import DEFAULT_STEPS, ScenarioSet
-from ant_evolution.ga import GAParams, next_generation
+from ant_evolution.ga import GAParams, mutate, next_generation
 from ant_evolution.ga_kernel import PackedCells
 from ant_evolution.limits import MAX_CONFIG_BYTES, check_config_value
 from ant_evolution.loop import RunState, run_strategy
@@ -88,6 +89,8 @@ class EvolveConfig:
         neat_activation, neat_budget: The NEAT baseline's switches.
         soil: ``grid`` (the world model's soil rules) or a physical soil the scenarios run
             on (``physical[:PRESET][,KEY=VALUE...]``, :mod:`excavation_sim.cell_soil`).
+        start: A genome file the run starts from (fine-tuning: generation 0 is that genome
+            and ``population - 1`` mutants of it); empty: random tissues.
     """
 
     population: int = 100
@@ -125,6 +128,7 @@ class EvolveConfig:
     neat_activation: str = "sigmoid"
     neat_budget: str = "library"
     soil: str = "grid"
+    start: str = ""
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -226,8 +230,9 @@ class EvolveConfig:
         for key in _KEYED_SINCE_PROFILES:
             if d[key] == v1[key]:
                 d.pop(key)
-        if d["soil"] == "grid":  # keyed only where it differs, as the switches
-            d.pop("soil")
+        for key, default in (("soil", "grid"), ("start", "")):
+            if d[key] == default:  # keyed only where set, as the switches
+                d.pop(key)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
@@ -334,7 +339,15 @@ def scenario_sets(
 
 
 def initial_population(config: EvolveConfig, rng: np.random.Generator) -> list[Genome]:
-    """P random tissues (N gene drawn uniformly from its range when evolved)."""
+    """P random tissues (N gene drawn uniformly from its range when evolved).
+
+    With ``config.start``: that genome and P - 1 mutants of it (the GA's own mutation).
+
+    Raises:
+        ConfigError: When the start genome cannot be read or does not fit the run.
+    """
+    if config.start:
+        return start_population(config, rng)
     pop = []
     for _ in range(config.population):
         robots = None
@@ -344,6 +357,25 @@ def initial_population(config: EvolveConfig, rng: np.random.Generator) -> list[G
             random_genome(rng, config.neurons, coarse_coding=config.coarse_coding, robots=robots)
         )
     return pop
+
+
+def start_population(config: EvolveConfig, rng: np.random.Generator) -> list[Genome]:
+    """Generation 0 of a fine-tuning run: ``config.start`` and P - 1 mutants of it."""
+    try:
+        genome = load_genome(config.start)
+    except GenomeFormatError as exc:
+        raise ConfigError("<config>", "start", config.start, str(exc)) from None
+    if genome.coarse_coding != config.coarse_coding:
+        raise ConfigError(
+            "<config>",
+            "start",
+            config.start,
+            f"coarse_coding is {genome.coarse_coding}, the run's {config.coarse_coding}",
+        )
+    if config.evolve_robots != (genome.tissue.robots is not None):
+        raise ConfigError("<config>", "start", config.start, "the N gene must match evolve_robots")
+    genome = dataclasses.replace(genome, metadata={})
+    return [genome] + [mutate(rng, genome, config.ga) for _ in range(config.population - 1)]
 
 
 def generator(state: dict) -> np.random.Generator:
