@@ -224,7 +224,9 @@ def test_the_bench_times_each_physical_soil_against_the_grid():
     ("soil", "units"),
     [
         ("physical", 6),
-        ("physical", 14),
+        # beyond the push capacity: the offline robot stalls a cell early (docs/reliability.md,
+        # "Pending"; docs/world-model.md, "The offline physical world")
+        pytest.param("physical", 14, marks=pytest.mark.pending),
         ("physical:dome", 0.2),
         ("physical:dome", 0.5),
         ("physical:lunar", 3),

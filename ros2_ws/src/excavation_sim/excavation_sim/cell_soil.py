@@ -116,9 +116,6 @@ STALL_SLIP = (0.10, 0.15)
 ``progress_window`` (1 s) at its ``max_speed`` and ``throttle_speed`` (drive_executor
 defaults), after which it gives the move up as stuck."""
 
-NO_TOP = 1 << 40
-"""A blade top no pile reaches (a cut that lets nothing fall over)."""
-
 COMMIT_FRACTION = 0.25
 """Travel (cells) past the footprint centre at which a move is made (``dynamics``' default)."""
 
@@ -534,17 +531,17 @@ def _commit(robots, occ, k, sign):
 
 
 @nb.njit(cache=True, inline="always")
-def _cut(soil, k, top):
+def _cut(soil, k):
     """Robot k's blade cuts where it stands (:func:`excavation_sim.soil.cut`).
 
-    Soil more than ``top`` quanta over the edge ahead of it falls behind it. Returns the
+    Soil standing more than the blade's height over its edge falls behind it. Returns the
     quanta cut.
     """
     ph = soil.physics
     cell = ph[X_CELL]
     return cut(
         soil.fine, soil.loose, soil.blocked, soil.bodies[k, 0], soil.bodies[k, 1],
-        soil.bodies[k, 2], ph[X_SUB], cell, cell, _edge(soil, k), top, ph[X_FILL] != 0,
+        soil.bodies[k, 2], ph[X_SUB], cell, cell, _edge(soil, k), int(ph[X_TOP]), ph[X_FILL] != 0,
     )  # fmt: skip
 
 
@@ -595,9 +592,8 @@ def drive(heights, robots, active, occ, k, sign, throttle, soil):
         soil.offset[k] = off
         _place(soil, robots, k)
         changed = True
-        cutting = sign > 0 and engaged
-        if cutting:  # the row behind the edge goes ahead; nothing spills over yet
-            soil.counters[C_CUT] += _cut(soil, k, NO_TOP)
+        if sign > 0 and engaged:
+            soil.counters[C_CUT] += _cut(soil, k)
         if not moved and sign * off >= commit:
             _commit(robots, occ, k, sign)
             off -= sign * s
@@ -608,9 +604,6 @@ def drive(heights, robots, active, occ, k, sign, throttle, soil):
         _mask(soil, active)
         _relax_band(soil, k, cell - 3.0 * sub, cell + 2.0 * sub)  # the blade's cut
         _relax_band(soil, k, -cell - 2.0 * sub, -cell + 2.0 * sub)  # left behind the body
-        if cutting:  # the blade cuts again, and what still stands over its top falls behind
-            soil.counters[C_CUT] += _cut(soil, k, int(ph[X_TOP]))
-            _relax_band(soil, k, cell - 3.0 * sub, cell + 2.0 * sub)
     if soil.touched[1] >= 0:
         _refresh(
             soil, heights, soil.touched[0] // s, min(soil.touched[1] // s + 1, rows),
