@@ -308,3 +308,19 @@ def test_fine_tuning_starts_from_the_genome_and_its_mutants(tmp_path):
     nocc = dataclasses.replace(tuned, coarse_coding=False)
     with pytest.raises(ConfigError, match="coarse_coding"):
         initial_population(nocc, np.random.default_rng(0))
+
+
+def test_ant_eval_writes_a_transfer_matrix(tmp_path, capsys):
+    from ant_evolution.cli_eval import main
+    from ant_evolution.transfer import SOILS
+
+    out = tmp_path / "transfer.json"
+    args = ["--genome", "genomes/best.json", "--scenarios", "2", "--steps", "60"]
+    assert main([*args, "--transfer", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["format"] == "ant-transfer/1" and [r["soil"] for r in data["rows"]] == list(SOILS)
+    grid, physical = data["rows"][0], data["rows"][1]
+    assert grid["progress"] == 1.0
+    gain = (physical["fitness"] - physical["start"]) / (grid["fitness"] - grid["start"])
+    assert physical["progress"] == pytest.approx(gain)
+    assert "| `physical:lunar` |" in capsys.readouterr().out

@@ -7,10 +7,13 @@ Examples::
     ant-eval --hand-coded --snapshots out/snapshots --snapshot-steps 0,50,100,300
     ant-eval --hand-coded --profile paper --set hand_coded=chain
     ant-eval --genome genomes/best.json --soil physical:dome
+    ant-eval --genome genomes/best.json --transfer transfer.json
 
 ``--profile`` picks the readings of the paper (world, hand-coded rules; docs/evolution.md,
 "Profiles"); ``--set KEY=VALUE`` overrides one switch. ``--soil physical[:PRESET]`` runs the
-scenarios on the physical soil (:mod:`excavation_sim.cell_soil`; docs/world-model.md).
+scenarios on the physical soil (:mod:`excavation_sim.cell_soil`; docs/world-model.md);
+``--transfer FILE`` scores the same scenarios on the grid and on each physical soil and
+writes the transfer matrix (:mod:`ant_evolution.transfer`).
 
 Exit codes: 0 success, 2 bad arguments or input file (the message names the file, the
 field and the value).
@@ -99,6 +102,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="grid (the world model's soil rules) or physical[:PRESET][,KEY=VALUE...]: the "
         "physical soil, robots moving cell by cell (presets: grid, dome, lunar)",
     )
+    p.add_argument(
+        "--transfer",
+        metavar="FILE",
+        help="score on the grid and every physical soil; write the transfer matrix (JSON)",
+    )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--snapshots", metavar="DIR", help="write terrain PNGs of scenario 0 here")
     p.add_argument(
@@ -180,6 +188,8 @@ def main(argv: list[str] | None = None) -> int:
         blueprint = resolve_blueprint(args.blueprint, args.depth, rules.fitted_site)
         n_robots = args.robots or controller.robots or DEFAULT_ROBOTS
         check_workload("<command line>", blueprint.zones.size, args.scenarios, args.steps)
+        if args.transfer:
+            return _transfer(args, controller, blueprint, n_robots, rules)
         result = evaluate(
             controller,
             blueprint,
@@ -252,6 +262,32 @@ def main(argv: list[str] | None = None) -> int:
             )
         if snaps:
             print(f"snapshots: {len(snaps)} PNG files in {args.snapshots}")
+    return 0
+
+
+def _transfer(args, controller, blueprint, n_robots: int, rules) -> int:
+    """``--transfer``: the matrix printed and written."""
+    from ant_evolution.transfer import table, transfer_matrix, write
+
+    if args.soil != "grid":
+        raise ConfigError("<command line>", "--soil", args.soil, "--transfer scores every soil")
+    rows = transfer_matrix(
+        controller, blueprint, n_robots, args.scenarios, args.steps, args.seed, rules
+    )
+    about = {
+        "controller": controller.name,
+        "blueprint": blueprint.name,
+        "robots": n_robots,
+        "scenarios": args.scenarios,
+        "steps": args.steps,
+        "seed": args.seed,
+    }
+    write(Path(args.transfer), rows, about)
+    print(
+        f"{controller.name} | {blueprint.name} | {n_robots} robots | "
+        f"{args.scenarios} scenarios x {args.steps} steps | seed {args.seed}"
+    )
+    print(table(rows))
     return 0
 
 
