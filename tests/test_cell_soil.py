@@ -324,3 +324,26 @@ def test_ant_eval_writes_a_transfer_matrix(tmp_path, capsys):
     gain = (physical["fitness"] - physical["start"]) / (grid["fitness"] - grid["start"])
     assert physical["progress"] == pytest.approx(gain)
     assert "| `physical:lunar` |" in capsys.readouterr().out
+
+
+def test_the_combined_fitness_is_the_lower_soils_mean(tmp_path):
+    import dataclasses
+
+    from ant_evolution.errors import ConfigError
+    from ant_evolution.evaluate import program_fitness
+    from ant_evolution.evolve import EvolveConfig, blueprints_of, run_evolution, scenario_sets
+
+    cfg = EvolveConfig(population=4, generations=2, scenarios=3, steps=40, robots=2, depths=(1,))
+    both = dataclasses.replace(cfg, also_soil="physical:dome", seed=3)
+    assert both.run_key() != dataclasses.replace(cfg, seed=3).run_key()
+    sets = scenario_sets(both, 0, blueprints_of(both))
+    assert [s.soil for s in sets] == ["grid", "physical:dome"]
+    assert np.array_equal(sets[0].robots, sets[1].robots)  # the same scenarios on each soil
+    genome = Controller.from_file("genomes/best.json")
+    grid, dome = (float(s.score(genome).mean()) for s in sets)
+    assert grid > dome
+    assert program_fitness(genome, sets) == dome
+    state = run_evolution(both, tmp_path / "run", workers=1)
+    assert state.evaluations == 2 * 4 * 3 * 2  # generations x population x scenarios x soils
+    with pytest.raises(ConfigError, match="also_soil"):
+        dataclasses.replace(cfg, also_soil="grid")

@@ -113,6 +113,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="generations between checkpoints",
     )
     p.add_argument(
+        "--also-soil",
+        type=soil_arg,
+        metavar="SOIL",
+        help="score every genome on this soil too (same scenarios); the fitness is the lower "
+        "of the two soils' means (e.g. --soil grid --also-soil physical:dome)",
+    )
+    p.add_argument(
         "--start",
         metavar="GENOME",
         help="fine-tune: generation 0 is this genome and P - 1 mutants of it (e.g. a "
@@ -143,6 +150,7 @@ def resolve_config(args: argparse.Namespace) -> EvolveConfig:
         "depths": args.depths,
         "blueprint": args.blueprint,
         "soil": args.soil,
+        "also_soil": args.also_soil,
         "start": args.start,
     }
     values = {k: v for k, v in overrides.items() if v is not None}
@@ -189,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
         nonlocal evaluated
         if bar.n == 0 and row["generation"] > 0:
             bar.update(row["generation"])  # resumed run
-        evaluated += config.population * config.scenarios
+        evaluated += config.population * config.scenarios * (2 if config.also_soil else 1)
         rate = evaluated / max(time.perf_counter() - started, 1e-9)
         bar.set_postfix(
             best=f"{row['best']:.3f}", mean=f"{row['mean']:.3f}", evals_s=f"{rate:,.0f}"

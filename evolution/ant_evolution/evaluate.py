@@ -239,9 +239,14 @@ def program_fitness(program: DecisionProgram, sets: Sequence[ScenarioSet]) -> fl
     """A program's fitness: the mean final fitness over every scenario of every set.
 
     A program with an N gene (``program.robots``) uses that many robots of each scenario.
+    Sets on more than one soil (a run with ``also_soil``) give the **combined fitness**: the
+    mean over each soil's scenarios, then the lowest of those means.
     """
     n_robots = program.robots or 0
-    return float(np.concatenate([s.score(program, n_robots) for s in sets]).mean())
+    by_soil: dict[str, list[np.ndarray]] = {}
+    for s in sets:
+        by_soil.setdefault(s.soil, []).append(s.score(program, n_robots))
+    return min(float(np.concatenate(scores).mean()) for scores in by_soil.values())
 
 
 def advance(

@@ -89,6 +89,9 @@ class EvolveConfig:
         neat_activation, neat_budget: The NEAT baseline's switches.
         soil: ``grid`` (the world model's soil rules) or a physical soil the scenarios run
             on (``physical[:PRESET][,KEY=VALUE...]``, :mod:`excavation_sim.cell_soil`).
+        also_soil: A second soil every genome is also scored on, on the same scenarios
+            (empty: none); the fitness is then the lower of the two soils' means (the
+            combined fitness, :func:`ant_evolution.evaluate.program_fitness`).
         start: A genome file the run starts from (fine-tuning: generation 0 is that genome
             and ``population - 1`` mutants of it); empty: random tissues.
     """
@@ -128,6 +131,7 @@ class EvolveConfig:
     neat_activation: str = "sigmoid"
     neat_budget: str = "library"
     soil: str = "grid"
+    also_soil: str = ""
     start: str = ""
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -158,10 +162,15 @@ class EvolveConfig:
                 list(self.robots_mix),
                 "cannot be combined with evolve_robots",
             )
-        try:
-            check_soil(self.soil)
-        except SoilError as exc:
-            raise ConfigError("<config>", "soil", self.soil, str(exc)) from None
+        for key in ("soil", "also_soil"):
+            value = getattr(self, key)
+            try:
+                if value or key == "soil":
+                    check_soil(value)
+            except SoilError as exc:
+                raise ConfigError("<config>", key, value, str(exc)) from None
+        if self.also_soil == self.soil:
+            raise ConfigError("<config>", "also_soil", self.also_soil, "is the run's soil")
         profile_switches(self.profile, "<config>")  # a known profile name
         world_rules_of(self.to_dict())
         for name, allowed in CHOICES.items():
@@ -230,7 +239,7 @@ class EvolveConfig:
         for key in _KEYED_SINCE_PROFILES:
             if d[key] == v1[key]:
                 d.pop(key)
-        for key, default in (("soil", "grid"), ("start", "")):
+        for key, default in (("soil", "grid"), ("also_soil", ""), ("start", "")):
             if d[key] == default:  # keyed only where set, as the switches
                 d.pop(key)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
@@ -331,8 +340,10 @@ def scenario_sets(
     n = len(blueprints)
     sizes = [config.scenarios // n + (i < config.scenarios % n) for i in range(n)]
     rules = config.world_rules
+    soils = [config.soil, *([config.also_soil] if config.also_soil else [])]
     return [
-        ScenarioSet.create(bp, robots, size, config.steps, seed + i, rules, config.soil)
+        ScenarioSet.create(bp, robots, size, config.steps, seed + i, rules, soil)
+        for soil in soils
         for i, (bp, size) in enumerate(zip(blueprints, sizes, strict=True))
         if size > 0
     ]

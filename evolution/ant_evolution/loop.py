@@ -208,8 +208,9 @@ def run_generations(
         t0 = time.perf_counter()
         g = run.generation
         population, state = strategy.ask(run.strategy)
-        fit = evaluator.evaluate(population, scenario_sets(g), strategy.compiler(state))
-        run.evaluations += len(population) * config.scenarios
+        sets = scenario_sets(g)
+        fit = evaluator.evaluate(population, sets, strategy.compiler(state))
+        run.evaluations += len(population) * sum(s.size for s in sets)
         i = int(np.argmax(fit))
         improved = bool(fit[i] > run.best_fitness)
         if improved:
