@@ -554,8 +554,9 @@ def drive(heights, robots, active, occ, k, sign, throttle, soil):
     footprint moves once the body is ``commit_fraction`` of a cell past its centre.
 
     Returns:
-        ``(moved, changed)``: the footprint moved a cell, and anything changed (a stall
-        counts: the wheels slipped; a refusal does not).
+        ``(moved, changed, stalled)``: the footprint moved a cell, anything changed (a
+        stall counts: the wheels slipped; a refusal does not), and the robot stalled on
+        the way (before or after its footprint moved: the executor's stuck event either way).
     """
     ph = soil.physics
     rows, cols = heights.shape
@@ -563,7 +564,7 @@ def drive(heights, robots, active, occ, k, sign, throttle, soil):
     refuse_engaged = sign > 0 and engaged and ph[X_REFUSALS] != 0
     if not _footprint_free(robots, occ, k, rows, cols, sign, refuse_engaged):
         soil.counters[C_REFUSED] += 1
-        return False, False
+        return False, False, False
     s = int(ph[X_S])
     sub = ph[X_SUB]
     cell = ph[X_CELL]
@@ -577,6 +578,7 @@ def drive(heights, robots, active, occ, k, sign, throttle, soil):
     off = soil.offset[k]
     moved = False
     changed = False
+    stalled = False
     for _ in range(s - sign * off):
         if sign > 0:
             blade = _blade_force(soil, robots, k) if engaged else 0.0
@@ -587,6 +589,7 @@ def drive(heights, robots, active, occ, k, sign, throttle, soil):
                 _dig_in(soil, k, throttle)
                 _relax_band(soil, k, -2.0 * cell - 2.0 * sub, sub)
                 changed = True
+                stalled = True
                 break
         off += sign
         soil.offset[k] = off
@@ -609,7 +612,7 @@ def drive(heights, robots, active, occ, k, sign, throttle, soil):
             soil, heights, soil.touched[0] // s, min(soil.touched[1] // s + 1, rows),
             soil.touched[2] // s, min(soil.touched[3] // s + 1, cols),
         )  # fmt: skip
-    return moved, changed
+    return moved, changed, stalled
 
 
 @nb.njit(cache=True)
@@ -617,7 +620,8 @@ def step_robot(heights, robots, active, occ, k, mask, rng, soil):
     """Run robot k's selected behaviours (bit mask) in Table 2 order on the physical soil.
 
     As :func:`excavation_sim.world.step_robot`: U1 becomes 1 when a move this timestep was
-    refused or stalled. Returns False when the world is exactly as before.
+    refused or stalled (also where the stall came after the footprint moved). Returns
+    False when the world is exactly as before.
     """
     if not active[k]:
         return False
@@ -628,8 +632,10 @@ def step_robot(heights, robots, active, occ, k, mask, rng, soil):
     word = robots[k, HEADING] | blade << 8 | robots[k, MEMORY] << 16 | robots[k, STUCK] << 24
     for sign in (1, -1):
         if (mask >> (MOVE_FORWARD if sign > 0 else MOVE_BACKWARD)) & 1:
-            moved, soil_changed = drive(heights, robots, active, occ, k, sign, throttle, soil)
-            if not moved:
+            moved, soil_changed, stalled = drive(
+                heights, robots, active, occ, k, sign, throttle, soil
+            )
+            if stalled or not moved:
                 stuck = 1
             if soil_changed:
                 changed = True
