@@ -48,14 +48,7 @@ import numba as nb
 import numpy as np
 
 from ant_controller.layout import (
-    BLADE_ABOVE,
-    BLADE_ABOVE_CMD,
-    BLADE_BELOW,
-    BLADE_BELOW_CMD,
     BLADE_HOME,
-    BLADE_HOME_CMD,
-    BLADE_LEVEL,
-    BLADE_LEVEL_CMD,
     MOVE_BACKWARD,
     MOVE_FORWARD,
     RANDOM_TURN,
@@ -63,7 +56,6 @@ from ant_controller.layout import (
     TURN_LEFT,
     TURN_RIGHT,
 )
-from ant_controller.memory import next_memory
 from ant_controller.sensing import (
     FORWARD,
     MAX_LOAD,
@@ -96,9 +88,10 @@ from excavation_sim.world import (
     ROW,
     STUCK,
     fitness,
-    next_random,
     occupied,
+    robot_word,
     stamp_footprint,
+    turn_and_set,
 )
 
 # Indexes of the physics vector (:func:`physics_vector`).
@@ -118,6 +111,9 @@ defaults), after which it gives the move up as stuck."""
 
 COMMIT_FRACTION = 0.25
 """Travel (cells) past the footprint centre at which a move is made (``dynamics``' default)."""
+
+TURNS = 1 << RANDOM_TURN | 1 << TURN_RIGHT | 1 << TURN_LEFT
+"""The behaviour bits that turn a robot."""
 
 # Counters (:attr:`SoilArrays.counters`).
 C_MOVES, C_REFUSED, C_STALLS, C_CUT = range(4)
@@ -629,7 +625,7 @@ def step_robot(heights, robots, active, occ, k, mask, rng, soil):
     stuck = 0
     changed = (mask >> RANDOM_TURN) & 1 == 1
     blade = robots[k, BLADE]
-    word = robots[k, HEADING] | blade << 8 | robots[k, MEMORY] << 16 | robots[k, STUCK] << 24
+    word = robot_word(robots, k)
     for sign in (1, -1):
         if (mask >> (MOVE_FORWARD if sign > 0 else MOVE_BACKWARD)) & 1:
             moved, soil_changed, stalled = drive(
@@ -639,37 +635,15 @@ def step_robot(heights, robots, active, occ, k, mask, rng, soil):
                 stuck = 1
             if soil_changed:
                 changed = True
-    turned = False
-    if (mask >> RANDOM_TURN) & 1:
-        if next_random(rng) >> np.uint64(63):
-            robots[k, HEADING] = (robots[k, HEADING] + 1) % 4
-        else:
-            robots[k, HEADING] = (robots[k, HEADING] + 3) % 4
-        turned = True
-    if (mask >> TURN_RIGHT) & 1:
-        robots[k, HEADING] = (robots[k, HEADING] + 1) % 4
-        turned = True
-    if (mask >> TURN_LEFT) & 1:
-        robots[k, HEADING] = (robots[k, HEADING] + 3) % 4
-        turned = True
-    if turned:  # a turn starts from the footprint's centre (a short body is set there)
+    turn_and_set(robots, k, mask, rng)
+    if mask & TURNS:  # a turn starts from the footprint's centre (a short body is set there)
         soil.offset[k] = 0
         _place(soil, robots, k)
-    if (mask >> BLADE_ABOVE_CMD) & 1:
-        robots[k, BLADE] = BLADE_ABOVE
-    if (mask >> BLADE_BELOW_CMD) & 1:
-        robots[k, BLADE] = BLADE_BELOW
-    if (mask >> BLADE_LEVEL_CMD) & 1:
-        robots[k, BLADE] = BLADE_LEVEL
-    if (mask >> BLADE_HOME_CMD) & 1:
-        robots[k, BLADE] = BLADE_HOME
     if robots[k, BLADE] != blade:
         soil.down[k] = robots[k, BLADE] != BLADE_HOME
         _measure(soil, robots, k)
-    robots[k, MEMORY] = next_memory(robots[k, MEMORY], mask)
     robots[k, STUCK] = stuck
-    after = robots[k, HEADING] | robots[k, BLADE] << 8 | robots[k, MEMORY] << 16 | stuck << 24
-    return changed or after != word
+    return changed or robot_word(robots, k) != word
 
 
 @nb.njit(cache=True, _nrt=False)

@@ -268,7 +268,7 @@ def try_backward(heights, robots, occ, k, throttle, params):
 
 
 @nb.njit(cache=True, inline="always")
-def _robot_word(robots, k):
+def robot_word(robots, k):
     """Robot k's heading, blade, memory and stuck bit packed into one integer."""
     return (
         robots[k, HEADING]
@@ -296,7 +296,7 @@ def step_robot(heights, robots, active, occ, k, mask, rng, params):
     throttle = (mask >> THROTTLE_UP) & 1 == 1
     stuck = 0
     changed = (mask >> RANDOM_TURN) & 1 == 1  # the random turn draws from the generator
-    before = _robot_word(robots, k)
+    before = robot_word(robots, k)
     if (mask >> MOVE_FORWARD) & 1:
         if try_forward(heights, robots, occ, k, throttle, params):
             changed = True
@@ -307,6 +307,18 @@ def step_robot(heights, robots, active, occ, k, mask, rng, params):
             changed = True
         else:
             stuck = 1
+    turn_and_set(robots, k, mask, rng)
+    robots[k, STUCK] = stuck
+    return changed or robot_word(robots, k) != before
+
+
+@nb.njit(cache=True, inline="always")
+def turn_and_set(robots, k, mask, rng):
+    """What follows the moves in Table 2 order: turns, blade commands and memory.
+
+    Robot k's random turn (drawn from ``rng``), its turns, its blade commands (the last
+    wins) and its memory bit.
+    """
     if (mask >> RANDOM_TURN) & 1:
         if next_random(rng) >> np.uint64(63):
             robots[k, HEADING] = (robots[k, HEADING] + 1) % 4
@@ -325,8 +337,6 @@ def step_robot(heights, robots, active, occ, k, mask, rng, params):
     if (mask >> BLADE_HOME_CMD) & 1:
         robots[k, BLADE] = BLADE_HOME
     robots[k, MEMORY] = next_memory(robots[k, MEMORY], mask)
-    robots[k, STUCK] = stuck
-    return changed or _robot_word(robots, k) != before
 
 
 @nb.njit(cache=True)
