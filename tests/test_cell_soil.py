@@ -318,7 +318,8 @@ def test_ant_eval_writes_a_transfer_matrix(tmp_path, capsys):
     args = ["--genome", "genomes/best.json", "--scenarios", "2", "--steps", "60"]
     assert main([*args, "--transfer", str(out)]) == 0
     data = json.loads(out.read_text())
-    assert data["format"] == "ant-transfer/1" and [r["soil"] for r in data["rows"]] == list(SOILS)
+    assert data["format"] == "ant-transfer/1"
+    assert [(r["soil"], r["randomised"]) for r in data["rows"]] == list(SOILS)
     grid, physical = data["rows"][0], data["rows"][1]
     assert grid["progress"] == 1.0
     gain = (physical["fitness"] - physical["start"]) / (grid["fitness"] - grid["start"])

@@ -103,6 +103,12 @@ def build_parser() -> argparse.ArgumentParser:
         "physical soil, robots moving cell by cell (presets: grid, dome, lunar)",
     )
     p.add_argument(
+        "--randomise",
+        action="store_true",
+        help="each scenario draws its world over training's randomisation ranges "
+        '(docs/evolution.md, "Domain randomisation")',
+    )
+    p.add_argument(
         "--transfer",
         metavar="FILE",
         help="score on the grid and every physical soil; write the transfer matrix (JSON)",
@@ -129,13 +135,14 @@ def write_snapshots(
     at: list[int],
     rules: WorldRules = DEFAULT_RULES,
     soil: str = "grid",
+    randomised: bool = False,
 ) -> list[Path]:
     """Replay scenario 0 of ``seed`` and write a PNG at each step in ``at`` plus a strip."""
     from ant_evolution.evaluate import ScenarioSet
     from excavation_sim.cell_soil import soil_fitness
     from excavation_sim.snapshots import save_snapshot, save_strip
 
-    batch = ScenarioSet.create(blueprint, n_robots, 1, 1, seed, rules, soil)
+    batch = ScenarioSet.create(blueprint, n_robots, 1, 1, seed, rules, soil, randomised)
     world = batch.world(0)
     physical = batch.soil_of(world)
 
@@ -199,6 +206,7 @@ def main(argv: list[str] | None = None) -> int:
             args.seed,
             rules,
             args.soil,
+            args.randomise,
         )
         snaps = []
         if args.snapshots:
@@ -212,6 +220,7 @@ def main(argv: list[str] | None = None) -> int:
                 args.snapshot_steps,
                 rules,
                 args.soil,
+                args.randomise,
             )
     except (GenomeFormatError, BlueprintError, PlacementError, ConfigError, SoilError) as exc:
         print(f"ant-eval: error: {exc}", file=sys.stderr)
@@ -230,6 +239,7 @@ def main(argv: list[str] | None = None) -> int:
                     **({"profile": args.profile} if args.profile != "v1" else {}),
                     **({"switches": dict(args.assignments)} if args.assignments else {}),
                     **({"soil": args.soil} if args.soil != "grid" else {}),
+                    **({"randomised": True} if args.randomise else {}),
                     **summary,
                     **_counts(result),
                     "scores": [float(v) for v in result.scores],
@@ -242,6 +252,7 @@ def main(argv: list[str] | None = None) -> int:
         profile = "" if args.profile == "v1" else f" | profile {args.profile}"
         changed = "".join(f" | {k}={v}" for k, v in args.assignments)
         changed += f" | soil {args.soil}" if args.soil != "grid" else ""
+        changed += " | randomised" if args.randomise else ""
         print(
             f"{controller.name} | {blueprint.name} | {n_robots} robots | "
             f"{args.scenarios} scenarios x {args.steps} steps | seed {args.seed}"
@@ -267,26 +278,17 @@ def main(argv: list[str] | None = None) -> int:
 
 def _transfer(args, controller, blueprint, n_robots: int, rules) -> int:
     """``--transfer``: the matrix printed and written."""
-    from ant_evolution.transfer import table, transfer_matrix, write
+    from ant_evolution.transfer import about, table, title, transfer_matrix, write
 
-    if args.soil != "grid":
-        raise ConfigError("<command line>", "--soil", args.soil, "--transfer scores every soil")
+    if args.soil != "grid" or args.randomise:
+        flag, value = ("--soil", args.soil) if args.soil != "grid" else ("--randomise", True)
+        raise ConfigError("<command line>", flag, value, "--transfer scores every soil")
     rows = transfer_matrix(
         controller, blueprint, n_robots, args.scenarios, args.steps, args.seed, rules
     )
-    about = {
-        "controller": controller.name,
-        "blueprint": blueprint.name,
-        "robots": n_robots,
-        "scenarios": args.scenarios,
-        "steps": args.steps,
-        "seed": args.seed,
-    }
-    write(Path(args.transfer), rows, about)
-    print(
-        f"{controller.name} | {blueprint.name} | {n_robots} robots | "
-        f"{args.scenarios} scenarios x {args.steps} steps | seed {args.seed}"
-    )
+    header = about(controller, blueprint, n_robots, args.scenarios, args.steps, args.seed)
+    write(Path(args.transfer), rows, header)
+    print(title(header))
     print(table(rows))
     return 0
 

@@ -26,7 +26,13 @@ import time
 from pathlib import Path
 
 from ant_evolution.errors import CheckpointError, ConfigError
-from ant_evolution.evolve import EvolveConfig, blueprints_of, load_config, run_evolution
+from ant_evolution.evolve import (
+    COMBINES,
+    EvolveConfig,
+    blueprints_of,
+    load_config,
+    run_evolution,
+)
 from ant_evolution.limits import (
     LIST_RANGES,
     MAX_DOMAIN,
@@ -37,6 +43,7 @@ from ant_evolution.limits import (
 )
 from ant_evolution.profiles import add_profile_options, apply_assignments
 from ant_evolution.ros_evaluator import TrialError
+from ant_evolution.transfer import write_for_run
 from blueprint_server.errors import BlueprintError
 from excavation_common.limits import int_in
 from excavation_common.progress import tqdm
@@ -125,6 +132,29 @@ def build_parser() -> argparse.ArgumentParser:
         help="fine-tune: generation 0 is this genome and P - 1 mutants of it (e.g. a "
         "grid-evolved genome trained on with --soil)",
     )
+    p.add_argument(
+        "--randomise",
+        action="store_true",
+        default=None,
+        help="each scenario draws its world (push capacities, climbs, fill, sensor noise, "
+        "the physical soil's repose, friction, density, push and epsilon rule) over the "
+        'documented ranges (docs/evolution.md, "Domain randomisation")',
+    )
+    p.add_argument(
+        "--combine",
+        choices=COMBINES,
+        help="with --also-soil: mean (default: the lower soil's mean fitness) or progress "
+        "(the lower soil's gain over the start in units of the hand-coded rules' gain)",
+    )
+    p.add_argument(
+        "--transfer-scenarios",
+        type=int_in(0, 10_000),
+        default=100,
+        metavar="S",
+        help="a run on physical soil, with --also-soil or --randomise writes OUT/transfer.json "
+        "when it finishes: its best genome on S unseen scenarios of each soil (default 100; "
+        "0: none)",
+    )
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.json")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -152,6 +182,8 @@ def resolve_config(args: argparse.Namespace) -> EvolveConfig:
         "soil": args.soil,
         "also_soil": args.also_soil,
         "start": args.start,
+        "randomise": args.randomise,
+        "combine": args.combine,
     }
     values = {k: v for k, v in overrides.items() if v is not None}
     if args.robots is not None:
@@ -197,7 +229,8 @@ def main(argv: list[str] | None = None) -> int:
         nonlocal evaluated
         if bar.n == 0 and row["generation"] > 0:
             bar.update(row["generation"])  # resumed run
-        evaluated += config.population * config.scenarios * (2 if config.also_soil else 1)
+        soils = 2 if config.also_soil else 1
+        evaluated += config.population * config.scenarios * soils
         rate = evaluated / max(time.perf_counter() - started, 1e-9)
         bar.set_postfix(
             best=f"{row['best']:.3f}", mean=f"{row['mean']:.3f}", evals_s=f"{rate:,.0f}"
@@ -229,6 +262,10 @@ def main(argv: list[str] | None = None) -> int:
         f"best fitness {state.best_fitness:.4f} after {state.generation} generations "
         f"({state.evaluations:,} scenario evaluations); {args.out}/best.json"
     )
+    crosses = config.soil != "grid" or config.also_soil or config.randomise
+    if crosses and args.transfer_scenarios and state.generation >= config.generations:
+        print(f"transfer matrix ({args.out}/transfer.json):")
+        print(write_for_run(Path(args.out), config, args.transfer_scenarios))
     return 0
 
 

@@ -20,11 +20,13 @@ per-program decision cache) and the world step, with no Python in the per-step p
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ant_evolution import randomise
 from ant_evolution.kernel import (
     DecisionProgram,
     ScenarioArrays,
@@ -57,12 +59,19 @@ class ScenarioSet:
         active: ``bool [S, N_max]`` robots taking part.
         rng: ``uint64 [S]`` random-turn generator states.
         params: Packed world rules (:meth:`~excavation_sim.rules.WorldRules.as_array`).
+        scenario_params: ``int64 [S, N_PACKED]`` each scenario's packed rules: ``params``
+            in every row, or each randomised scenario's draw (:mod:`ant_evolution.randomise`).
         steps: Timesteps per scenario.
         seed: The seed the scenarios were drawn from (scenario i: ``scenario_start(..., seed, i)``).
         robot_counts: The robot counts scenarios alternate between.
         soil: ``grid`` (the world model's soil rules) or a physical soil
             (``physical[:PRESET][,KEY=VALUE...]``, :mod:`excavation_sim.cell_soil`).
-        physics: The physical soil's constants (empty for ``grid``).
+        physics: ``float64 [S, N_PHYSICS]`` each scenario's physical soil constants (no
+            rows for ``grid``).
+        randomised: Each scenario draws its world (:mod:`ant_evolution.randomise`).
+        start_fitness, reference: ``float64 [S]``, set by :meth:`with_reference` (else
+            empty): each scenario's fitness at the start and a reference program's at the
+            end, the units of the combined fitness ``progress``.
     """
 
     heights: np.ndarray
@@ -72,11 +81,15 @@ class ScenarioSet:
     active: np.ndarray
     rng: np.ndarray
     params: np.ndarray
+    scenario_params: np.ndarray
     steps: int
     seed: int = 0
     robot_counts: tuple[int, ...] = ()
     soil: str = "grid"
-    physics: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    physics: np.ndarray = field(default_factory=lambda: np.zeros((0, cell_soil.N_PHYSICS)))
+    randomised: bool = False
+    start_fitness: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    reference: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @classmethod
     def create(
@@ -88,12 +101,15 @@ class ScenarioSet:
         seed: int,
         rules: WorldRules = DEFAULT_RULES,
         soil: str = "grid",
+        randomised: bool = False,
     ) -> ScenarioSet:
         """The scenarios of ``seed``; ``robots`` may list counts to alternate between.
 
         ``rules``: the world's readings (kernel switches, and where robots start).
         ``soil``: ``grid``, or a physical soil on the blueprint's cell size and height unit
         (its ``grid`` preset calibrated to ``rules``' push capacities).
+        ``randomised``: each scenario draws its rules, sensor noise and soil around these
+        (:mod:`ant_evolution.randomise`; the starts are the unrandomised ones).
 
         Raises:
             ValueError: When a count is not positive.
@@ -117,6 +133,19 @@ class ScenarioSet:
             all_robots[i], active[i], rng_states[i] = scenario_start(
                 shape, n_max, counts[i % len(counts)], seed, i, worksite
             )
+        base = physics_of(soil, blueprint, rules)
+        no_soil = np.zeros((0, cell_soil.N_PHYSICS))
+        if randomised:
+            draws = [randomise.draw(rules, seed, i) for i in range(scenarios)]
+            scenario_params = np.stack([randomise.packed(d) for d in draws])
+            physics = (
+                np.stack([_drawn_physics(soil, blueprint, rules, d) for d in draws])
+                if base.size
+                else no_soil
+            )
+        else:
+            scenario_params = np.tile(rules.as_array(), (scenarios, 1))
+            physics = np.tile(base, (scenarios, 1)) if base.size else no_soil
         return cls(
             heights=np.zeros((scenarios, *shape), dtype=np.int32),
             zones=blueprint.zones,
@@ -125,17 +154,19 @@ class ScenarioSet:
             active=active,
             rng=rng_states,
             params=rules.as_array(),
+            scenario_params=scenario_params,
             steps=steps,
             seed=seed,
             robot_counts=tuple(counts),
             soil=soil,
-            physics=physics_of(soil, blueprint, rules),
+            physics=physics,
+            randomised=randomised,
         )
 
     @property
     def physical(self) -> bool:
         """Whether the scenarios run on the physical soil."""
-        return self.physics.size > 0
+        return self.physics.shape[0] > 0
 
     @property
     def size(self) -> int:
@@ -151,7 +182,7 @@ class ScenarioSet:
             robots=self.robots[i].copy(),
             active=self.active[i].copy(),
             rng=self.rng[i : i + 1].copy(),
-            params=self.params,
+            params=_read_only(self.scenario_params[i]),
         )
 
     def arrays(self) -> ScenarioArrays:
@@ -172,7 +203,7 @@ class ScenarioSet:
                     self.robots,
                     self.active,
                     self.rng,
-                    self.params,
+                    self.scenario_params,
                 )
             )
         )
@@ -198,17 +229,41 @@ class ScenarioSet:
             run_scenarios(self.arrays(), self.steps, program.record(), n_robots, scores)
         return scores, counters
 
-    def soil_of(self, world: World) -> cell_soil.SoilArrays | None:
-        """The physical soil of ``world`` as it starts (None on the grid).
+    def with_reference(self, program: DecisionProgram) -> ScenarioSet:
+        """This set with each scenario's start fitness and ``program``'s final fitness."""
+        start = np.zeros(self.size)
+        for i in range(self.size):
+            world = self.world(i)
+            soil = self.soil_of(world, i)
+            start[i] = (
+                world.fitness()
+                if soil is None
+                else cell_soil.soil_fitness(soil, world.heights, world.zones, world.goal)
+            )
+        return dataclasses.replace(
+            self, start_fitness=start, reference=self.score(program, program.robots or 0)
+        )
+
+    def soil_of(self, world: World, i: int = 0) -> cell_soil.SoilArrays | None:
+        """The physical soil of ``world`` (scenario ``i``) as it starts (None on the grid).
 
         It also rounds ``world.heights`` to the settled soil's cells (as ``dynamics``
         starts); step both with :func:`advance`.
         """
         if not self.physical:
             return None
-        soil = cell_soil.new_soil(world.heights.shape, world.n_robots, _read_only(self.physics))
+        soil = cell_soil.new_soil(world.heights.shape, world.n_robots, self.physics[i].copy())
         cell_soil.reset(soil, world.heights, world.robots, world.active)
         return soil
+
+
+def _drawn_physics(
+    soil: str, blueprint: Blueprint, rules: WorldRules, draw: randomise.Draw
+) -> np.ndarray:
+    """A randomised scenario's physical soil constants (its soil factors and push)."""
+    out = physics_of(randomise.soil_spec(soil, draw), blueprint, rules)
+    randomise.scale_push(out, draw.push)
+    return out
 
 
 def physics_of(soil: str, blueprint: Blueprint, rules: WorldRules) -> np.ndarray:
@@ -235,18 +290,35 @@ def _read_only(array: np.ndarray) -> np.ndarray:
     return view
 
 
+MIN_REFERENCE_GAIN = 0.01
+"""Smallest reference gain the ``progress`` fitness divides by (a reference that moves no
+soil on a soil would otherwise make any gain there infinite)."""
+
+
 def program_fitness(program: DecisionProgram, sets: Sequence[ScenarioSet]) -> float:
     """A program's fitness: the mean final fitness over every scenario of every set.
 
     A program with an N gene (``program.robots``) uses that many robots of each scenario.
     Sets on more than one soil (a run with ``also_soil``) give the **combined fitness**: the
-    mean over each soil's scenarios, then the lowest of those means.
+    mean over each soil's scenarios, then the lowest of those means. Sets that carry a
+    reference (:meth:`ScenarioSet.with_reference`, a run with ``combine: progress``) give
+    each soil's **progress** instead, its mean gain over the start in units of the
+    reference's mean gain (at least :data:`MIN_REFERENCE_GAIN`), then the lowest: the soils
+    weigh alike however much soil each lets a robot move.
     """
     n_robots = program.robots or 0
-    by_soil: dict[str, list[np.ndarray]] = {}
+    by_soil: dict[str, list[tuple[np.ndarray, ScenarioSet]]] = {}
     for s in sets:
-        by_soil.setdefault(s.soil, []).append(s.score(program, n_robots))
-    return min(float(np.concatenate(scores).mean()) for scores in by_soil.values())
+        by_soil.setdefault(s.soil, []).append((s.score(program, n_robots), s))
+    values = []
+    for pairs in by_soil.values():
+        mean = float(np.concatenate([scores for scores, _ in pairs]).mean())
+        if all(s.reference.size for _, s in pairs):
+            start = float(np.concatenate([s.start_fitness for _, s in pairs]).mean())
+            ref = float(np.concatenate([s.reference for _, s in pairs]).mean())
+            mean = (mean - start) / max(ref - start, MIN_REFERENCE_GAIN)
+        values.append(mean)
+    return min(values)
 
 
 def advance(
@@ -320,21 +392,23 @@ def evaluate(
     seed: int = 0,
     rules: WorldRules = DEFAULT_RULES,
     soil: str = "grid",
+    randomised: bool = False,
 ) -> Evaluation:
     """Run ``controller`` on ``scenarios`` seeded scenarios and collect fitness curves.
 
-    ``soil``: ``grid`` or a physical soil (:meth:`ScenarioSet.create`).
+    ``soil``: ``grid`` or a physical soil; ``randomised``: each scenario draws its world
+    (:meth:`ScenarioSet.create`).
 
     Raises:
         ValueError: When a count is not positive.
         excavation_sim.world.PlacementError: When the robots do not fit the grid.
     """
-    batch = ScenarioSet.create(blueprint, n_robots, scenarios, steps, seed, rules, soil)
+    batch = ScenarioSet.create(blueprint, n_robots, scenarios, steps, seed, rules, soil, randomised)
     curves = np.zeros((scenarios, steps + 1))
     counters = np.zeros((scenarios, cell_soil.N_COUNTERS), dtype=np.int64)
     for i in range(scenarios):
         w = batch.world(i)
-        soil = batch.soil_of(w)
+        soil = batch.soil_of(w, i)
         if soil is None:
             curves[i, 0] = w.fitness()
         else:

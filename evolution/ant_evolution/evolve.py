@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ant_controller.controller import Controller
 from ant_controller.errors import GenomeFormatError
 from ant_controller.genome import Genome, random_genome
 from ant_controller.genome_io import genome_from_dict, genome_to_dict, load_genome
@@ -54,6 +55,8 @@ from excavation_sim.rules import WorldRules
 from excavation_sim.soil import SoilError, check_soil
 
 CHECKPOINT_FORMAT = "ant-checkpoint/1"
+COMBINES = ("mean", "progress")
+"""How a run's soils combine into one fitness (``EvolveConfig.combine``)."""
 
 
 @dataclass(frozen=True)
@@ -94,6 +97,12 @@ class EvolveConfig:
             combined fitness, :func:`ant_evolution.evaluate.program_fitness`).
         start: A genome file the run starts from (fine-tuning: generation 0 is that genome
             and ``population - 1`` mutants of it); empty: random tissues.
+        randomise: Each scenario draws its world (rules, sensor noise, soil) over the
+            documented ranges (:mod:`ant_evolution.randomise`).
+        combine: How the soils of a run with ``also_soil`` combine: ``mean`` (the lowest
+            soil's mean fitness) or ``progress`` (the lowest soil's gain over the start in
+            units of the hand-coded rules' gain on the same scenarios,
+            :func:`ant_evolution.evaluate.program_fitness`).
     """
 
     population: int = 100
@@ -133,6 +142,8 @@ class EvolveConfig:
     soil: str = "grid"
     also_soil: str = ""
     start: str = ""
+    randomise: bool = False
+    combine: str = "mean"
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -169,6 +180,8 @@ class EvolveConfig:
                     check_soil(value)
             except SoilError as exc:
                 raise ConfigError("<config>", key, value, str(exc)) from None
+        if self.combine not in COMBINES:
+            raise ConfigError("<config>", "combine", self.combine, f"must be one of {COMBINES}")
         if self.also_soil == self.soil:
             raise ConfigError("<config>", "also_soil", self.also_soil, "is the run's soil")
         profile_switches(self.profile, "<config>")  # a known profile name
@@ -239,13 +252,21 @@ class EvolveConfig:
         for key in _KEYED_SINCE_PROFILES:
             if d[key] == v1[key]:
                 d.pop(key)
-        for key, default in (("soil", "grid"), ("also_soil", ""), ("start", "")):
+        for key, default in _KEYED_WHERE_SET.items():
             if d[key] == default:  # keyed only where set, as the switches
                 d.pop(key)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
 _FIELD_TYPES = {f.name: f.type for f in dataclasses.fields(EvolveConfig)}
+_KEYED_WHERE_SET = {
+    "soil": "grid",
+    "also_soil": "",
+    "start": "",
+    "randomise": False,
+    "combine": "mean",
+}
+"""Keys added after the first runs: keyed in ``run_key`` only where not their default."""
 _KEYED_SINCE_PROFILES = ("profile", *(k for k in SWITCHES if k != "elitism"))
 
 
@@ -341,12 +362,16 @@ def scenario_sets(
     sizes = [config.scenarios // n + (i < config.scenarios % n) for i in range(n)]
     rules = config.world_rules
     soils = [config.soil, *([config.also_soil] if config.also_soil else [])]
-    return [
-        ScenarioSet.create(bp, robots, size, config.steps, seed + i, rules, soil)
+    sets = [
+        ScenarioSet.create(bp, robots, size, config.steps, seed + i, rules, soil, config.randomise)
         for soil in soils
         for i, (bp, size) in enumerate(zip(blueprints, sizes, strict=True))
         if size > 0
     ]
+    if config.combine == "progress":
+        reference = Controller.hand_coded(config.hand_coded)
+        sets = [s.with_reference(reference) for s in sets]
+    return sets
 
 
 def initial_population(config: EvolveConfig, rng: np.random.Generator) -> list[Genome]:

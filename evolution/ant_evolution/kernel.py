@@ -45,7 +45,14 @@ from ant_controller.layout import N_BEHAVIOURS, N_SENSORS, SENSOR_STATES
 from ant_controller.tissue import TissueRecord, decide_into, new_scratch
 from ant_evolution.baselines.network import NetworkRecord, program_decide_into, program_scratch
 from excavation_sim import cell_soil
-from excavation_sim.world import WorldArrays, fitness, occupancy, sense_robot, step_robots
+from excavation_sim.world import (
+    WorldArrays,
+    fitness,
+    occupancy,
+    sense_robot,
+    sensor_noise,
+    step_robots,
+)
 
 
 class DecisionProgram(Protocol):
@@ -69,7 +76,8 @@ class ScenarioArrays(NamedTuple):
         robots: ``int64 [S, N_max, 6]`` robot states.
         active: ``bool [S, N_max]`` robots taking part.
         rng: ``uint64 [S]`` random-turn generator states.
-        params: Packed world parameters.
+        params: ``int64 [S, N_PACKED]`` each scenario's packed world parameters (the same
+            row everywhere unless the scenarios are randomised).
     """
 
     heights: np.ndarray
@@ -234,7 +242,9 @@ def _run_steps(world, steps, program, work, trace):
     False: no robot moved, turned, drew a random turn or changed its blade, memory or stuck
     bit) leaves the world in a fixed point: every later timestep starts from the same
     state, senses and decides the same, and changes nothing either. The loop stops there
-    (the trace keeps the last fitness), which gives exactly the result of running on.
+    (the trace keeps the last fitness), which gives exactly the result of running on. A
+    randomised scenario's sensor noise (:func:`excavation_sim.world.sensor_noise`) draws
+    from the generator; a timestep that drew is not a fixed point.
     """
     heights = world.heights
     zones = world.zones
@@ -246,19 +256,23 @@ def _run_steps(world, steps, program, work, trace):
     occ = work.occupancy
     n = robots.shape[0]
     occupancy(robots, active, occ)
+    params = world.params
     for t in range(steps):
+        drew = False
         for k in range(n):  # every robot senses the snapshot before any acts
             if active[k]:
-                sense_robot(heights, zones, goal, robots, active, k, codes[k], world.params)
+                sense_robot(heights, zones, goal, robots, active, k, codes[k], params)
+                if sensor_noise(heights, zones, goal, robots, k, codes[k], world.rng, params):
+                    drew = True
         for k in range(n):
             if not active[k]:
                 masks[k] = 0
             else:
                 masks[k] = decide_cached(codes[k], program, work.scratch, work.cache)
-        changed = step_robots(heights, robots, active, occ, masks, world.rng, world.params)
+        changed = step_robots(heights, robots, active, occ, masks, world.rng, params)
         if trace.shape[0] > t:
             trace[t] = fitness(heights, zones, goal)
-        if not changed:
+        if not changed and not drew:
             for u in range(t + 1, min(steps, trace.shape[0])):
                 trace[u] = trace[t]
             return
@@ -284,17 +298,13 @@ def run_scenarios(start, steps, program, n_robots, scores):
     """
     n = start.robots.shape[1]
     work = new_workspace(program, n, start.zones.shape[0], start.zones.shape[1])
-    world = WorldArrays(
-        np.empty_like(start.heights[0]),
-        start.zones,
-        start.goal,
-        np.empty_like(start.robots[0]),
-        np.empty_like(start.active[0]),
-        np.empty(1, dtype=np.uint64),
-        start.params,
-    )
+    heights = np.empty_like(start.heights[0])
+    robots = np.empty_like(start.robots[0])
+    active = np.empty_like(start.active[0])
+    rng = np.empty(1, dtype=np.uint64)
     no_trace = np.zeros(0)
     for s in range(start.heights.shape[0]):
+        world = WorldArrays(heights, start.zones, start.goal, robots, active, rng, start.params[s])
         world.heights[:] = start.heights[s]
         world.robots[:] = start.robots[s]
         world.active[:] = start.active[s]
@@ -324,20 +334,18 @@ def _run_physical_steps(world, soil, steps, program, work, trace):
     occ = work.occupancy
     n = robots.shape[0]
     occupancy(robots, active, occ)
+    zones = world.zones
+    goal = world.goal
+    params = world.params
     for t in range(steps):
+        drew = False
         for k in range(n):
             if active[k]:
                 cell_soil.sense_robot(
-                    heights,
-                    world.zones,
-                    world.goal,
-                    robots,
-                    active,
-                    k,
-                    codes[k],
-                    world.params,
-                    soil,
+                    heights, zones, goal, robots, active, k, codes[k], params, soil
                 )
+                if sensor_noise(heights, zones, goal, robots, k, codes[k], world.rng, params):
+                    drew = True
         for k in range(n):
             if not active[k]:
                 masks[k] = 0
@@ -345,8 +353,8 @@ def _run_physical_steps(world, soil, steps, program, work, trace):
                 masks[k] = decide_cached(codes[k], program, work.scratch, work.cache)
         changed = cell_soil.step_robots(heights, robots, active, occ, masks, world.rng, soil)
         if trace.shape[0] > t:
-            trace[t] = cell_soil.soil_fitness(soil, heights, world.zones, world.goal)
-        if not changed:
+            trace[t] = cell_soil.soil_fitness(soil, heights, zones, goal)
+        if not changed and not drew:
             for u in range(t + 1, min(steps, trace.shape[0])):
                 trace[u] = trace[t]
             return
@@ -368,24 +376,21 @@ def run_physical_episode(world, soil, steps, program, trace):
 def run_physical_scenarios(start, physics, steps, program, n_robots, scores, counters):
     """:func:`run_scenarios` on the physical soil of ``physics``.
 
-    ``physics``: :func:`excavation_sim.cell_soil.physics_vector`; ``counters[s]`` gets
-    scenario s's moves, refusals, stalls and quanta cut.
+    ``physics``: ``float64 [S, N_PHYSICS]``, each scenario's
+    :func:`excavation_sim.cell_soil.physics_vector`; ``counters[s]`` gets scenario s's moves,
+    refusals, stalls and quanta cut.
     """
     n = start.robots.shape[1]
     rows, cols = start.zones.shape
     work = new_workspace(program, n, rows, cols)
-    world = WorldArrays(
-        np.empty_like(start.heights[0]),
-        start.zones,
-        start.goal,
-        np.empty_like(start.robots[0]),
-        np.empty_like(start.active[0]),
-        np.empty(1, dtype=np.uint64),
-        start.params,
-    )
-    soil = cell_soil.new_soil((rows, cols), n, physics)
+    heights = np.empty_like(start.heights[0])
+    robots = np.empty_like(start.robots[0])
+    active = np.empty_like(start.active[0])
+    rng = np.empty(1, dtype=np.uint64)
+    soil = cell_soil.new_soil((rows, cols), n, physics[0].copy())
     no_trace = np.zeros(0)
     for s in range(start.heights.shape[0]):
+        world = WorldArrays(heights, start.zones, start.goal, robots, active, rng, start.params[s])
         world.heights[:] = start.heights[s]
         world.robots[:] = start.robots[s]
         world.active[:] = start.active[s]
@@ -393,6 +398,7 @@ def run_physical_scenarios(start, physics, steps, program, n_robots, scores, cou
             for k in range(n):
                 world.active[k] = k < n_robots
         world.rng[0] = start.rng[s]
+        soil.physics[:] = physics[s]
         cell_soil.reset(soil, world.heights, world.robots, world.active)
         _run_physical_steps(world, soil, steps, program, work, no_trace)
         scores[s] = cell_soil.soil_fitness(soil, world.heights, world.zones, world.goal)

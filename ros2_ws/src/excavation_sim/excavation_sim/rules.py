@@ -21,7 +21,8 @@ A first reading of the paper took choices that a careful reader contests
 
 ``soil_fill``, the loads, the climbs and ``h1`` act inside the kernels: :meth:`as_array`
 packs them into the ``int64`` array every world step and sensing kernel takes (indices
-``P_*``), so a switch costs one scalar load and no Python in the step.
+``P_*``), so a switch costs one scalar load and no Python in the step. Two more entries, 0
+here, carry a randomised training scenario's sensor noise (``P_MISREAD``, ``P_U1_DROPOUT``).
 ``placement`` acts when a scenario starts (:func:`excavation_sim.world.scenario_start`)
 and ``site`` when the default blueprint is made
 (:func:`blueprint_server.blueprint.resolve_blueprint`). ``docs/world-model.md`` states
@@ -40,7 +41,13 @@ from excavation_common.constants import MAX_LOAD
 
 P_NORMAL_LOAD, P_THROTTLE_LOAD, P_NORMAL_CLIMB, P_THROTTLE_CLIMB, P_SOIL_FILL, P_H1 = range(6)
 """Indices of the packed rules (:meth:`WorldRules.as_array`)."""
-N_PACKED = 6
+P_MISREAD, P_U1_DROPOUT = 6, 7
+"""Indices of the training noise (0 in every rule set; only a randomised scenario sets them,
+:mod:`ant_evolution.randomise`): the chance, in units of 1 / :data:`CHANCE_ONE`, that a Z
+sensor misreads a dig cell within a unit of its goal, and that U1 reads 0 when set."""
+N_PACKED = 8
+CHANCE_ONE = 1 << 20
+"""A chance of 1 in the packed noise entries (20-bit fixed point)."""
 
 PLACEMENTS = ("anywhere", "worksite")
 SITES = ("shared", "fitted")

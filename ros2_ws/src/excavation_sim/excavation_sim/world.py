@@ -53,6 +53,8 @@ from ant_controller.layout import (
     THROTTLE_UP,
     TURN_LEFT,
     TURN_RIGHT,
+    U1,
+    Z1,
 )
 from ant_controller.memory import next_memory
 from ant_controller.sensing import (
@@ -65,16 +67,19 @@ from ant_controller.sensing import (
     is_tilted_down,
     rear_wheel,
     sense,
+    zone_code,
 )
 from excavation_common.constants import ZONE_DIG, ZONE_DUMP
 from excavation_sim.rules import (
     DEFAULT_RULES,
     P_H1,
+    P_MISREAD,
     P_NORMAL_CLIMB,
     P_NORMAL_LOAD,
     P_SOIL_FILL,
     P_THROTTLE_CLIMB,
     P_THROTTLE_LOAD,
+    P_U1_DROPOUT,
     WorldRules,
 )
 
@@ -373,6 +378,45 @@ def sense_robot(heights, zones, goal, robots, active, k, out, params):
         out,
         params[P_H1],
     )
+
+
+@nb.njit(cache=True, inline="always")
+def _chance(rng, chance):
+    """True with probability ``chance / CHANCE_ONE`` (one draw from ``rng``)."""
+    return np.int64(next_random(rng) >> np.uint64(44)) < chance
+
+
+@nb.njit(cache=True)
+def sensor_noise(heights, zones, goal, robots, k, out, rng, params):
+    """A randomised training scenario's sensor noise on robot k's vector ``out``.
+
+    With the chance ``params[P_MISREAD]`` each Z sensor over a dig cell within one unit of
+    its goal reads the cell a unit higher or lower (either, evenly); with the chance
+    ``params[P_U1_DROPOUT]`` a set U1 reads 0. Both chances are 0 outside randomised runs,
+    where nothing is drawn. Returns True when it drew from ``rng`` (the episode kernels'
+    fixed-point test counts a draw as a change).
+    """
+    drew = False
+    if params[P_MISREAD] > 0:
+        row = robots[k, ROW]
+        col = robots[k, COL]
+        h = robots[k, HEADING]
+        rows, cols = heights.shape
+        for j in range(4):
+            r, c = front_cell(row, col, h, j - 1)
+            if not in_grid(rows, cols, r, c) or zones[r, c] != ZONE_DIG:
+                continue
+            if abs(heights[r, c] - goal[r, c]) > 1:
+                continue
+            drew = True
+            if _chance(rng, params[P_MISREAD]):
+                step = 1 if next_random(rng) >> np.uint64(63) else -1
+                out[Z1 + j] = zone_code(zones[r, c], heights[r, c] + step, goal[r, c])
+    if params[P_U1_DROPOUT] > 0 and out[U1] == 1:
+        drew = True
+        if _chance(rng, params[P_U1_DROPOUT]):
+            out[U1] = 0
+    return drew
 
 
 @nb.njit(cache=True, _nrt=False)
