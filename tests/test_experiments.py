@@ -489,3 +489,25 @@ def test_a_cell_whose_robots_do_not_fit_its_site_is_left_out_not_fatal():
     (g4, g6) = every_run_summary(every, [(4, [(0,), (1,)]), (6, [(0,), (1,)])], "pit", [1, 2, 3])
     assert g4.peaks == [2, 2] and g6.peaks == [3, 3]
     assert np.isnan(g4.mean[2]) and not np.isnan(g4.mean[1])
+
+
+def test_an_experiment_on_a_physical_soil_trains_and_scores_there(tmp_path, capsys):
+    """``ant-experiment --soil physical:dome --randomise``: its runs train on that soil with
+    the randomisation, beside the grid's, and its tables score there."""
+    from pathlib import Path
+
+    scale = dataclasses.replace(TINY, steps=150)  # long enough for the genome to dig
+    ctx = Context(tmp_path, scale, runs=1, soil="physical:dome", randomise=True)
+    assert ctx.dir("training") == tmp_path / "training-physical-dome-randomised"
+    assert run_dir(ctx, "ant", 1, 0).parent.name == "quick-physical-dome-randomised"
+    cfg = train_config(ctx, "ant", 1, 0)
+    assert cfg.soil == "physical:dome" and cfg.randomise
+    genome = Path("genomes/best.json")
+    EXPERIMENTS["antagonism"](dataclasses.replace(ctx, genome=genome))
+    rows = (ctx.dir("antagonism") / "antagonism.csv").read_text()
+    grid = Context(tmp_path, scale, runs=1, genome=genome)
+    EXPERIMENTS["antagonism"](grid)
+    assert rows != (grid.dir("antagonism") / "antagonism.csv").read_text()
+    with pytest.raises(SystemExit):
+        cli.main(["behaviours", "--soil", "physical:dome", "--out", str(tmp_path)])
+    assert "on the grid" in capsys.readouterr().err

@@ -36,6 +36,7 @@ from ant_evolution.experiments.core import (
 from ant_evolution.limits import MAX_WORKERS, option
 from ant_evolution.profiles import add_profile_options, switches_of
 from excavation_common.limits import int_in
+from excavation_sim.soil import soil_arg
 
 NAMES = (
     "training",
@@ -113,6 +114,18 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="status: also write the report to this markdown file",
     )
+    p.add_argument(
+        "--soil",
+        type=soil_arg,
+        default="grid",
+        help="train and score on this soil: grid (default) or physical[:PRESET][,KEY=VALUE...] "
+        "(the offline physical world; runs and results get the soil in their names)",
+    )
+    p.add_argument(
+        "--randomise",
+        action="store_true",
+        help='every scenario draws its world (docs/evolution.md, "Domain randomisation")',
+    )
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
     if (
@@ -137,6 +150,8 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--run {k}: this scale has runs 0 to {runs - 1} (--runs {runs})")
     if args.genome is not None and not args.genome.is_file():
         p.error(f"--genome {args.genome}: no such file")
+    if args.name == "behaviours" and (args.soil != "grid" or args.randomise):
+        p.error("behaviours replays its runs on the grid: leave out --soil and --randomise")
     if args.write is not None and args.name != "status":
         p.error("--write is an option of status")
     # status needs none of the experiment modules
@@ -168,6 +183,8 @@ def main(argv: list[str] | None = None) -> int:
         tuple(args.run_indices) if args.run_indices else None,
         tuple(args.settings) if args.settings else None,
         args.finished,
+        args.soil,
+        args.randomise,
     )
     if args.name == "status":
         from ant_evolution.experiments.status import report
@@ -180,6 +197,10 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     readings = {} if args.profile == "v1" and not args.assignments else {
         "profile": args.profile, "switches": switches}  # fmt: skip
+    if args.soil != "grid":
+        readings["soil"] = args.soil
+    if args.randomise:
+        readings["randomise"] = True
     (ctx.dir(args.name) / "scale.json").write_text(
         json.dumps({**scale_dict(scale), "runs": runs, **readings}, indent=1)
     )

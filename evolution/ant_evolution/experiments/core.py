@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -182,6 +183,11 @@ class Context:
         finished_only: ``--finished``: a training experiment trains nothing and summarises
             the runs that are finished (a campaign in part; every table says how many runs
             each setting has).
+        soil: The soil every run trains on and every controller is scored on (``grid``, or a
+            physical soil: ``--soil``); its runs and results live under names with the
+            soil appended (:attr:`suffix`).
+        randomise: Every scenario draws its world (``--randomise``,
+            :mod:`ant_evolution.randomise`); names get ``-randomised``.
     """
 
     out: Path
@@ -198,6 +204,22 @@ class Context:
     only_runs: tuple[int, ...] | None = None
     only_settings: tuple[str, ...] | None = None
     finished_only: bool = False
+    soil: str = "grid"
+    randomise: bool = False
+
+    @property
+    def suffix(self) -> str:
+        """The name ending of this context's runs and results (empty: ``v1`` on the grid).
+
+        The profile (but ``v1``), the soil (but ``grid``; its punctuation as ``-``), and
+        ``randomised``.
+        """
+        parts = [] if self.profile == "v1" else [self.profile]
+        if self.soil != "grid":
+            parts.append(re.sub(r"[^A-Za-z0-9.]+", "-", self.soil).strip("-"))
+        if self.randomise:
+            parts.append("randomised")
+        return "".join(f"-{p}" for p in parts)
 
     @property
     def partial(self) -> bool:
@@ -216,8 +238,8 @@ class Context:
         return world_rules_of(self.readings)
 
     def dir(self, name: str) -> Path:
-        """Output directory of experiment ``name`` (``NAME-PROFILE`` but under ``v1``)."""
-        d = self.out / (name if self.profile == "v1" else f"{name}-{self.profile}")
+        """Output directory of experiment ``name`` (``NAME`` and the :attr:`suffix`)."""
+        d = self.out / f"{name}{self.suffix}"
         d.mkdir(parents=True, exist_ok=True)
         return d
 
@@ -280,12 +302,14 @@ def train_config(ctx: Context, method: str, robots, run: int) -> EvolveConfig:
         kw.update(robots=robots[0], robots_mix=robots)
     else:
         kw["robots"] = int(robots)
-    return EvolveConfig(profile=ctx.profile, **ctx.readings, **kw)
+    return EvolveConfig(
+        profile=ctx.profile, **ctx.readings, soil=ctx.soil, randomise=ctx.randomise, **kw
+    )
 
 
 def run_dir(ctx: Context, method: str, robots, run: int) -> Path:
-    """Directory of one training run (``runs/SCALE`` under ``v1``, else ``SCALE-PROFILE``)."""
-    scale = ctx.scale.name if ctx.profile == "v1" else f"{ctx.scale.name}-{ctx.profile}"
+    """Directory of one training run (``runs/SCALE`` and the context's :attr:`~Context.suffix`)."""
+    scale = f"{ctx.scale.name}{ctx.suffix}"
     return ctx.out / "runs" / scale / f"{method}-{setting_label(robots)}-r{run}"
 
 
@@ -466,9 +490,12 @@ def score(
     steps: int,
     seed: int,
     rules: WorldRules = DEFAULT_RULES,
+    soil: str = "grid",
+    randomise: bool = False,
 ):
     """Final fitness of a controller (ANT, hand-coded or network program) per scenario."""
-    return ScenarioSet.create(blueprint, robots, scenarios, steps, seed, rules).score(controller)
+    batch = ScenarioSet.create(blueprint, robots, scenarios, steps, seed, rules, soil, randomise)
+    return batch.score(controller)
 
 
 def depth_split(scale: Scale, robots: int) -> list[tuple[int, int, int]]:
@@ -491,10 +518,15 @@ def score_parts(
     robots: int,
     steps: int,
     rules: WorldRules = DEFAULT_RULES,
+    soil: str = "grid",
+    randomise: bool = False,
 ) -> np.ndarray:
     """Final fitness per scenario over ``parts`` (``(depth, scenarios, seed)``) of one pit."""
     return np.concatenate([
-        score(controller, site(pit, d, rules.fitted_site), robots, k, steps, seed, rules)
+        score(
+            controller, site(pit, d, rules.fitted_site), robots, k, steps, seed, rules, soil,
+            randomise,
+        )
         for d, k, seed in parts
         if k
     ])  # fmt: skip
@@ -503,7 +535,10 @@ def score_parts(
 def score_depths(controller, ctx: Context, robots: int, steps: int | None = None, size: int = 8):
     """Fitness over ``eval_scenarios`` scenarios split over the goal depths, as in training."""
     parts = depth_split(ctx.scale, robots)
-    return score_parts(controller, size, parts, robots, steps or ctx.scale.steps, ctx.rules)
+    return score_parts(
+        controller, size, parts, robots, steps or ctx.scale.steps, ctx.rules, ctx.soil,
+        ctx.randomise,
+    )  # fmt: skip
 
 
 def site(pit: int, depth: int, fitted: bool = False) -> Blueprint:

@@ -95,7 +95,9 @@ SWEEPS = {
 def score_cell(controller, ctx: Context, sweep: Sweep, key: int, robots: int):
     """Per-scenario fitness of one cell after ``long_steps``."""
     pit, parts = sweep.cell(ctx.scale, key, robots)
-    return score_parts(controller, pit, parts, robots, ctx.scale.long_steps, ctx.rules)
+    return score_parts(
+        controller, pit, parts, robots, ctx.scale.long_steps, ctx.rules, ctx.soil, ctx.randomise
+    )
 
 
 def compute(controller, ctx: Context, sweep: Sweep, progress: Progress) -> list[dict]:

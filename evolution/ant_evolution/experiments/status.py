@@ -132,6 +132,8 @@ def _f(x: float | None) -> str:
 
 def _command(ctx: Context, name: str, method: str, robots) -> str:
     profile = "" if ctx.profile == "v1" else f" --profile {ctx.profile}"
+    profile += "" if ctx.soil == "grid" else f" --soil {ctx.soil}"
+    profile += " --randomise" if ctx.randomise else ""
     return (
         f"ant-experiment {name} --scale {ctx.scale.name}{profile} --method {method} "
         f"--setting {setting_label(robots)} --workers 2 --out {ctx.out}"

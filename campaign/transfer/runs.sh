@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# The transfer runs of docs/results.md, "Crossing the reality gap": one queue of runs, each
+# resumed where it stopped and skipped once its transfer matrix is written.
+#   bash campaign/transfer/runs.sh QUEUE      (QUEUE: a, b or c; run two queues on two cores)
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+common=(--population 40 --scenarios 12 --generations 300 --checkpoint-every 5 --quiet)
+start=(--start genomes/best.json)
+run() {  # run NAME SEED ARGS...
+  local out="campaign/transfer/$1" seed="$2"
+  shift 2
+  [[ -f "$out/transfer.json" ]] && return 0
+  local resume=()
+  [[ -f "$out/checkpoint.json" ]] && resume=(--resume)
+  nice -n 10 ant-evolve --out "$out" --seed "$seed" "${common[@]}" "$@" "${resume[@]}"
+}
+case "${1:?queue a, b or c}" in
+  a)
+    for s in 1 2 3; do run "finetune-dome-rand-$s" "$s" --soil physical:dome --randomise "${start[@]}"; done
+    for s in 1 2 3; do run "scratch-dome-rand-$s" "$s" --soil physical:dome --randomise; done
+    ;;
+  b)
+    for s in 1 2 3; do
+      run "combined-progress-rand-$s" "$s" --also-soil physical:dome --combine progress --randomise "${start[@]}"
+    done
+    ;;
+  c)
+    for s in 1 2 3; do
+      run "combined-progress-$s" "$s" --also-soil physical:dome --combine progress "${start[@]}"
+    done
+    ;;
+esac
