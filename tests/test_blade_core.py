@@ -300,3 +300,36 @@ def test_gate_reason_kind_ignores_the_growing_age():
     assert first != later and MotionGate.kind(first) == MotionGate.kind(later) == "heartbeat lost"
     gate.on_heartbeat("paused", 2.0)
     assert MotionGate.kind(gate.reason(2.1)) == "team paused"
+
+
+def test_the_sim_schedule_sends_one_set_point_per_tick_when_its_word_is_in():
+    """TickSetpoints: a tick waits for its word, sends once, a closed gate sends home held
+    without touching the core, and the tick's own set-point follows when it opens."""
+    from blade_driver.core import TickSetpoints
+
+    core = BladeDriverCore(DriverParams())
+    ticks = TickSetpoints()
+    home = core.params.home
+    assert ticks.next(core, (1, 0), 1.0, None, held=False, waiting_for_drive=False) is None
+    core.command(word(BLADE_BELOW_CMD), 1.0)
+    ticks.word_tick = (1, 0)
+    assert ticks.next(core, (1, 0), 1.0, None, held=False, waiting_for_drive=True) is None
+    value, held = ticks.next(core, (1, 0), 1.0, None, held=False, waiting_for_drive=False)
+    assert not held and value == core.state.setpoint and core.state.setting == BLADE_BELOW
+    assert ticks.next(core, (1, 0), 1.0, None, held=False, waiting_for_drive=False) is None
+    before = core.state.setpoint
+    assert ticks.next(core, (2, 0), 2.0, None, held=True, waiting_for_drive=False) == (home, True)
+    assert core.state.setpoint == before  # held: the core untouched
+    assert ticks.next(core, (2, 0), 2.0, None, held=True, waiting_for_drive=False) is None
+    ticks.pending_override = 0.02  # an operator set-point: no word needed, taken once
+    value, held = ticks.next(core, (2, 0), 2.0, None, held=False, waiting_for_drive=False)
+    assert not held and ticks.pending_override is None and core.state.override == 0.02
+
+
+def test_the_driver_node_never_branches_on_its_backend():
+    from pathlib import Path
+
+    import blade_driver.driver_node as node
+
+    source = Path(node.__file__).read_text()
+    assert "backend ==" not in source and "backend !=" not in source

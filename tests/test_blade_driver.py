@@ -125,7 +125,7 @@ def test_sim_driver_node_answers_each_tick_in_sim_time(ros):
     from builtin_interfaces.msg import Time
     from std_msgs.msg import UInt16
 
-    from blade_driver.driver_node import joint_state
+    from blade_driver.hardware import joint_state
 
     driver = blade_driver_node(ros, backend="sim", watchdog_timeout=1.5)
     probe = blade_probe(ros)
@@ -166,7 +166,7 @@ def test_sim_driver_gives_a_late_reader_the_ticks_joint_state(ros):
     from rclpy.node import Node
     from sensor_msgs.msg import JointState
 
-    from blade_driver.driver_node import joint_state
+    from blade_driver.hardware import joint_state
 
     blade_driver_node(ros, backend="sim")
     probe = blade_probe(ros)
@@ -197,7 +197,7 @@ def test_sim_driver_waits_for_the_ticks_drive_before_moving_the_blade(ros):
     from builtin_interfaces.msg import Time
     from std_msgs.msg import UInt16
 
-    from blade_driver.driver_node import joint_state
+    from blade_driver.hardware import joint_state
 
     driver = blade_driver_node(ros, backend="sim", blade_after_motion=True)
     probe = blade_probe(ros)
@@ -274,7 +274,7 @@ def test_serial_driver_waits_for_the_team_ticks_drive(ros, board):
     assert ros.spin_until(lambda: probe.count_subscribers("/team/tick") > 0)
     assert ros.spin_until(lambda: len(probe.joints) > 3 and fake.target == cal.angle(0.10))
     team_tick.publish(Header(stamp=Time(sec=4), frame_id="4"))
-    assert ros.spin_until(lambda: driver.team_tick == (4, 0))
+    assert ros.spin_until(lambda: driver.hw.team_tick == (4, 0))
     level = UInt16(data=word(BLADE_LEVEL_CMD))
 
     def words_until(cond, timeout):
@@ -314,7 +314,7 @@ def test_serial_driver_watchdog_counts_team_ticks(ros, board):
         assert ros.spin_until(lambda topic=topic: probe.count_subscribers(topic) > 0)
     assert ros.spin_until(lambda: len(probe.joints) > 3 and fake.target == cal.angle(0.10))
     team_tick.publish(Header(stamp=Time(sec=4), frame_id="4"))
-    assert ros.spin_until(lambda: driver.team_tick == (4, 0))
+    assert ros.spin_until(lambda: driver.hw.team_tick == (4, 0))
     probe.behaviour.publish(UInt16(data=word(BLADE_LEVEL_CMD)))  # once
     assert ros.spin_until(lambda: driver.commands == 1)
     _drive_status(probe, 4, GoalStatus.STATUS_SUCCEEDED)
@@ -326,7 +326,7 @@ def test_serial_driver_watchdog_counts_team_ticks(ros, board):
     assert not driver.core.state.watchdog_tripped
     # Tick 5 without a word: still within the watchdog; tick 6 too: the blade goes home.
     team_tick.publish(Header(stamp=Time(sec=5), frame_id="5"))
-    assert ros.spin_until(lambda: driver.team_tick == (5, 0))
+    assert ros.spin_until(lambda: driver.hw.team_tick == (5, 0))
     seen = len(probe.joints)
     assert ros.spin_until(lambda: len(probe.joints) >= seen + 5, timeout=20.0)
     assert fake.target == cal.angle(0.0)
@@ -363,7 +363,7 @@ def test_the_driver_arms_the_boards_timeout_and_a_dead_driver_leaves_the_blade_h
     cal = ServoCalibration()
     driver = blade_driver_node(ros, backend="serial", port=path, rate=50.0, board_timeout=0.4)
     probe = blade_probe(ros)
-    assert ros.spin_until(lambda: driver.board_timeout == "armed" and fake.timeout == 0.4)
+    assert ros.spin_until(lambda: driver.hw.board_timeout == "armed" and fake.timeout == 0.4)
     level = UInt16(data=word(BLADE_LEVEL_CMD))
 
     def words_until(cond, timeout=10.0):

@@ -13,8 +13,8 @@ from helpers.blades import blade_driver_node, blade_probe, blade_supervisor, wor
 from std_msgs.msg import Float64MultiArray, UInt16
 
 from ant_controller.layout import BLADE_BELOW_CMD
-from blade_driver.driver_node import joint_state
 from blade_driver.fake_board import FakeBoard, open_pty
+from blade_driver.hardware import joint_state
 from blade_driver.protocol import ServoCalibration
 from excavation_common.safety import HELD
 
@@ -155,11 +155,11 @@ def test_serial_port_absent_at_start_then_unplugged_and_replugged(ros, tmp_path)
     def diag(text):
         return any(text in s.message for s in probe.diags)
 
-    assert ros.spin_until(lambda: diag("cannot open") and drv.backoff.failures >= 3)
+    assert ros.spin_until(lambda: diag("cannot open") and drv.hw.backoff.failures >= 3)
     assert probe.diags[-1].level == b"\x02"
     plug.plug()
     assert ros.spin_until(lambda: plug.board.set_points, timeout=10)  # found without a restart
-    assert drv.reopened == 1
+    assert drv.hw.reopened == 1
     below = UInt16(data=word(BLADE_BELOW_CMD))
 
     def commanded(angle):
@@ -172,10 +172,10 @@ def test_serial_port_absent_at_start_then_unplugged_and_replugged(ros, tmp_path)
     assert ros.spin_until(commanded(cal.angle(-0.02)))
     plug.unplug()
     assert ros.spin_until(lambda: diag("port closed, reopening"), timeout=10)
-    assert drv.board is None
+    assert drv.hw.board is None
     plug.plug()
     assert ros.spin_until(commanded(cal.angle(-0.02)), timeout=10)
-    assert drv.reopened == 2 and drv.backoff.failures == 0
+    assert drv.hw.reopened == 2 and drv.hw.backoff.failures == 0
 
     def reopened_twice():
         values = {v.key: v.value for v in probe.diags[-1].values}

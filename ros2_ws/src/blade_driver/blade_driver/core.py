@@ -282,6 +282,12 @@ class BladeDriverCore:
         self._pid = Pid(p.kp, p.ki, p.kd, p.trim_limit)
         self.state.setpoint = p.home
 
+    def set_params(self, params: DriverParams) -> None:
+        """New parameters at run time (the force loop's gains and limit take effect now)."""
+        self.params = params
+        pid = self._pid
+        pid.kp, pid.ki, pid.kd, pid.limit = params.kp, params.ki, params.kd, params.trim_limit
+
     def went_back(self, now: float) -> bool:
         """``now`` is earlier than a time the core has already seen."""
         s = self.state
@@ -416,3 +422,56 @@ class BladeDriverCore:
             target = min(s.setpoint + step, max(s.setpoint - step, target))
         s.setpoint = target
         return target
+
+
+@dataclass
+class TickSetpoints:
+    """One set-point per simulator tick: the ``sim`` backend's schedule, without ROS.
+
+    Each tick gets one set-point, computed once: at once when the watchdog or an operator
+    set-point is in charge, otherwise once the controller's word of that tick is in (and,
+    with the blade after the drive, once its blade bits are released). An operator
+    set-point waits in :attr:`pending_override` for the next set-point computed, so every
+    tick of a streamed override gets it. A closed gate sends home marked ``held`` without
+    touching the core; when the gate opens the tick's own set-point follows.
+
+    Attributes:
+        word_tick: The tick of the controller's latest word.
+        open_setpoint: ``(tick, value)`` computed for a tick with the gate open.
+        pending_override: An operator set-point not yet given to the core.
+        last_sent: ``(tick, held)`` of the last set-point handed out.
+    """
+
+    word_tick: Stamp | None = None
+    open_setpoint: tuple[Stamp, float] | None = None
+    pending_override: float | None = None
+    last_sent: tuple[Stamp, bool] | None = None
+
+    def next(
+        self,
+        core: BladeDriverCore,
+        tick: Stamp,
+        now: float,
+        force: float | None,
+        held: bool,
+        waiting_for_drive: bool,
+    ) -> tuple[float, bool] | None:
+        """``(value, held)`` to send for ``tick`` now, or ``None`` (not due, or already sent)."""
+        if held:
+            value = core.params.home
+        else:
+            if self.open_setpoint is None or self.open_setpoint[0] != tick:
+                if self.pending_override is not None:
+                    core.override(self.pending_override, now)
+                    self.pending_override = None
+                if not core.needs_no_controller(now):
+                    if self.word_tick != tick:
+                        return None  # wait for the controller's word of this tick
+                    if waiting_for_drive:
+                        return None  # its blade bits wait for the end of its drive
+                self.open_setpoint = (tick, core.update(now, force))
+            value = self.open_setpoint[1]
+        if self.last_sent == (tick, held):
+            return None
+        self.last_sent = (tick, held)
+        return value, held
