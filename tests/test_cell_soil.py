@@ -319,7 +319,10 @@ def test_ant_eval_writes_a_transfer_matrix(tmp_path, capsys):
     assert main([*args, "--transfer", str(out)]) == 0
     data = json.loads(out.read_text())
     assert data["format"] == "ant-transfer/1"
-    assert [(r["soil"], r["randomised"]) for r in data["rows"]] == list(SOILS)
+    assert [(r["soil"], r["randomised"]) for r in data["rows"]] == [s[:2] for s in SOILS]
+    scaled = [r for r in data["rows"] if r["steps"] != 60]
+    assert [r["soil"] for r in scaled] == ["physical:dome", "physical:lunar"]
+    assert all(r["steps"] == 180 for r in scaled)  # both stall far below the grid: 3 x
     grid, physical = data["rows"][0], data["rows"][1]
     assert grid["progress"] == 1.0
     gain = (physical["fitness"] - physical["start"]) / (grid["fitness"] - grid["start"])

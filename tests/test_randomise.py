@@ -159,3 +159,47 @@ def test_a_randomised_run_resumes_bit_for_bit_on_other_workers_and_writes_its_ma
 
     assert strip(b) == strip(a)
     assert json.loads((b / "transfer.json").read_text())["rows"] == matrix["rows"]
+
+
+def _row(soil, randomised, steps, fitness, progress):
+    from ant_evolution.transfer import TransferRow
+
+    return TransferRow(soil, randomised, steps, fitness, 0.0, 0.135, progress, 0.0)
+
+
+def test_the_goal_checks_grid_fitness_scaled_progress_and_the_hand_coded_rules():
+    from ant_evolution.transfer import goal
+
+    def matrix(grid, dome, lunar, dome_long, lunar_long):
+        return [
+            _row("grid", False, 300, grid, 1.0),
+            _row("physical:dome", False, 300, dome, None),
+            _row("physical:lunar", False, 300, lunar, None),
+            _row("physical:dome", False, 900, 0.0, dome_long),
+            _row("physical:lunar", False, 900, 0.0, lunar_long),
+        ]
+
+    hand = matrix(0.39, 0.177, 0.135, 0.2, 0.0)
+    met = goal(matrix(0.95, 0.2, 0.14, 0.85, 0.9), hand)
+    assert [c.met for c in met] == [True] * 5
+    missed = goal(matrix(0.89, 0.17, 0.14, 0.5, None), hand)
+    assert [c.met for c in missed] == [False, False, False, False, True]
+    assert "900 steps" in missed[1].criterion and missed[3].value == 0.0
+    with pytest.raises(ValueError, match="differ"):
+        goal(matrix(0.9, 0.2, 0.14, 0.8, 0.8)[:4], hand)
+
+
+def test_ant_eval_checks_a_genome_against_the_hand_coded_matrix(tmp_path, capsys):
+    from ant_evolution.cli_eval import main
+
+    args = ["--scenarios", "2", "--steps", "40"]
+    hand, mine = tmp_path / "hand.json", tmp_path / "mine.json"
+    assert main(["--hand-coded", *args, "--transfer", str(hand)]) == 0
+    capsys.readouterr()
+    assert main(["--genome", GENOME, *args, "--transfer", str(mine), "--against", str(hand)]) == 0
+    assert "the goal, against" in capsys.readouterr().out
+    checks = json.loads(mine.read_text())["goal"]
+    assert len(checks) == 5 and checks[0]["criterion"] == "grid fitness"
+    other = ["--scenarios", "2", "--steps", "30", "--transfer", str(tmp_path / "x.json")]
+    assert main(["--genome", GENOME, *other, "--against", str(hand)]) == 2
+    assert "--against" in capsys.readouterr().err

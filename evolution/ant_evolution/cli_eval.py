@@ -22,6 +22,7 @@ field and the value).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -112,6 +113,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--transfer",
         metavar="FILE",
         help="score on the grid and every physical soil; write the transfer matrix (JSON)",
+    )
+    p.add_argument(
+        "--against",
+        metavar="HAND.json",
+        help="with --transfer: the hand-coded rules' matrix of the same scenarios; print and "
+        'write the goal\'s checks (docs/results.md, "Crossing the reality gap")',
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--snapshots", metavar="DIR", help="write terrain PNGs of scenario 0 here")
@@ -278,18 +285,40 @@ def main(argv: list[str] | None = None) -> int:
 
 def _transfer(args, controller, blueprint, n_robots: int, rules) -> int:
     """``--transfer``: the matrix printed and written."""
-    from ant_evolution.transfer import about, table, title, transfer_matrix, write
+    from ant_evolution import transfer
 
     if args.soil != "grid" or args.randomise:
         flag, value = ("--soil", args.soil) if args.soil != "grid" else ("--randomise", True)
         raise ConfigError("<command line>", flag, value, "--transfer scores every soil")
-    rows = transfer_matrix(
+    header = transfer.about(controller, blueprint, n_robots, args.scenarios, args.steps, args.seed)
+    hand = None
+    if args.against:
+        try:
+            theirs, hand = transfer.read(Path(args.against))
+        except (OSError, ValueError) as exc:
+            raise ConfigError("<command line>", "--against", args.against, str(exc)) from None
+        for key in ("blueprint", "robots", "scenarios", "steps", "seed"):
+            if theirs.get(key) != header[key]:
+                raise ConfigError(
+                    "<command line>", "--against", args.against,
+                    f"scored {key} = {theirs.get(key)!r}, this matrix {header[key]!r}",
+                )  # fmt: skip
+    rows = transfer.transfer_matrix(
         controller, blueprint, n_robots, args.scenarios, args.steps, args.seed, rules
     )
-    header = about(controller, blueprint, n_robots, args.scenarios, args.steps, args.seed)
-    write(Path(args.transfer), rows, header)
-    print(title(header))
-    print(table(rows))
+    extra = {}
+    if hand is not None:
+        try:
+            checks = transfer.goal(rows, hand)
+        except ValueError as exc:
+            raise ConfigError("<command line>", "--against", args.against, str(exc)) from None
+        extra = {"goal": [dataclasses.asdict(c) for c in checks], "against": args.against}
+    transfer.write(Path(args.transfer), rows, {**header, **extra})
+    print(transfer.title(header))
+    print(transfer.table(rows))
+    if hand is not None:
+        print(f"\nthe goal, against {args.against}:")
+        print(transfer.goal_table(checks))
     return 0
 
 
