@@ -213,7 +213,7 @@ class Arming:
         self._thread.join(timeout=30.0)
 
     def _run(self) -> None:
-        from team_supervisor.operator import NoAnswer, Operator
+        from team_supervisor.client import NoAnswer, Operator
 
         operator = Operator(self.domain, timeout=self.retry)
         try:

@@ -1,0 +1,115 @@
+"""``ant-operator console``: keys to actions (pure), and one connected process against a
+running supervisor: arm, take a robot over and drive it, hand it back, e-stop."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from std_msgs.msg import Bool, Header
+
+from excavation_common.ros import LATCHED
+from team_supervisor.console import (
+    Console,
+    Drive,
+    Enable,
+    Note,
+    Quit,
+    Release,
+    Take,
+    Trigger,
+    split_keys,
+    status_lines,
+)
+from team_supervisor.supervisor_node import SupervisorNode
+
+
+def test_keys_become_actions():
+    c = Console(robots=2)
+    assert c.key(" ") == [Trigger("estop")] == c.key("e")
+    assert c.key("a") == [Trigger("arm")] and c.key("c") == [Trigger("resume")]
+    assert isinstance(c.key("up")[0], Note)  # nothing selected, nothing taken: nothing moves
+    assert isinstance(c.key("t")[0], Note)
+    assert isinstance(c.key("5")[0], Note) and c.selected is None  # no robot 5
+    c.key("1")
+    assert c.key("up") == [Note("take the robot over first (t)")]
+    assert c.key("t") == [Take(1)] and c.taken == 1
+    assert c.key("up") == [Drive(1, 0.1, 0.0)] and c.key("down") == [Drive(1, -0.1, 0.0)]
+    assert c.key("left") == [Drive(1, 0.0, 0.5)] and c.key("right") == [Drive(1, 0.0, -0.5)]
+    assert c.key(" ") == [Trigger("estop")] and c.taken == 1  # an e-stop changes no selection
+    c.key("0")
+    assert c.key("t") == [Release(1), Take(0)]  # one robot taken over at a time
+    assert c.key("d") == [Enable(0, False)] and c.key("n") == [Enable(0, True)]
+    assert c.key("h") == [Release(0)] and c.taken is None
+    assert c.key("h") == [Note("no robot is taken over")]
+    c.key("t")
+    assert c.key("q") == [Release(0), Quit()]
+
+
+def test_terminal_input_splits_into_keys_and_the_status_names_each_robot():
+    assert split_keys("a1t\x1b[A\x1b[Dh ") == ["a", "1", "t", "up", "left", "h", " "]
+    lines = status_lines(
+        2, "armed", {"/robot_1/executor": (0, "following the team")}, selected=1, taken=1
+    )
+    assert lines[0] == "team: armed"
+    assert lines[1] == "  robot 0: no diagnostics yet"
+    assert lines[2] == "> robot 1 [operator]: drive: following the team"
+
+
+def test_a_console_arms_drives_a_robot_hands_it_back_and_stops_the_team(ros):
+    """One process, keys written to its input one group at a time, each waited for."""
+    from geometry_msgs.msg import TwistStamped
+
+    ros.add(SupervisorNode(context=ros.context, parameter_overrides=[Parameter("robots", value=2)]))
+    watch = ros.add(Node("watch", context=ros.context))
+    states, estops, twists = [], [], []
+    watch.create_subscription(Header, "/team/heartbeat", lambda m: states.append(m.frame_id), 10)
+    watch.create_subscription(Bool, "/team/estop", lambda m: estops.append(m.data), LATCHED)
+    watch.create_subscription(TwistStamped, "/robot_1/drive/override", twists.append, 100)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros.domain))
+    command = [sys.executable, "-m", "team_supervisor.operator", "--timeout", "30", "console"]
+    proc = subprocess.Popen(
+        [*command, "--robots", "2"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
+    try:
+        assert ros.spin_until(lambda: states, timeout=60)
+
+        def keys(data: bytes) -> None:
+            proc.stdin.write(data)
+            proc.stdin.flush()
+
+        keys(b"a")
+        assert ros.spin_until(lambda: states[-1] == "armed", timeout=60)
+        keys(b"1t\x1b[A")
+        assert ros.spin_until(lambda: any(t.twist.linear.x > 0 for t in twists), timeout=60)
+        # it keeps sending while the robot is held: zero once the arrow's half second is over
+        assert ros.spin_until(lambda: twists[-1].twist.linear.x == 0.0, timeout=60)
+        keys(b"h")
+        time.sleep(0.5)  # no event says "nothing more was sent": look after a pause
+        ros.spin_until(lambda: False, timeout=0.5)
+        count = len(twists)
+        ros.spin_until(lambda: False, timeout=1.0)
+        assert len(twists) == count and twists[-1].twist.linear.x == 0.0  # handed back
+        sent = time.monotonic()
+        keys(b" ")
+        assert ros.spin_until(lambda: estops and estops[-1], timeout=60)
+        print(f"e-stop key to /team/estop: {1000 * (time.monotonic() - sent):.0f} ms")
+        keys(b"q")
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err.decode()
+    text = out.decode()
+    assert "arm: done" in text and "estop: done" in text, text
+    assert "robot 1: taken over" in text and "robot 1: handed back to the team" in text
+    assert "> robot 1 [operator]" in text
