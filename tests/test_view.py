@@ -126,8 +126,16 @@ def test_layout_names_the_view_channels():
         "/view/camera",
         "/view/fitness",
         "/view/diagnostics",
+        "/operator/estop",  # the operator's panels: services and the Teleop panel's topic
+        "/operator/pause",
+        "/operator/arm",
+        "/robot_0/drive/override",
     ):
         assert topic in text, topic
+    from excavation_bringup.view_control import TRIGGERS
+
+    services = {c["serviceName"] for k, c in layout["configById"].items() if "serviceName" in c}
+    assert services <= {f"/operator/{t}" for t in TRIGGERS} | {"/operator/robot_0/enable"}
 
 
 def test_the_view_checks_its_site_for_what_runs_it():
@@ -155,3 +163,95 @@ def test_ant_dome_starts_the_view_with_its_hardware():
     dep = Deployment("", site.n_robots, 4, 0, hardware="emulated", site=site, drive="continuous")
     spec = view_spec(dep, 8765)
     assert spec.args[spec.args.index("--hardware") + 1] == "emulated"
+
+
+def test_the_view_is_a_console_for_the_supervisor_and_the_robots(ros):
+    """Foxglove's service calls reach the supervisor (arm, e-stop, enable) and its client
+    publishing drives a robot; each action is counted on the view's diagnostics."""
+    import foxglove
+    from geometry_msgs.msg import TwistStamped
+    from helpers.view_client import ControlClient, free_port
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from std_msgs.msg import Bool, Header
+
+    from excavation_bringup.view_control import ControlPolicy, ViewControl
+    from excavation_common.ros import LATCHED
+    from team_supervisor.supervisor_node import SupervisorNode
+
+    ros.add(SupervisorNode(context=ros.context, parameter_overrides=[Parameter("robots", value=2)]))
+    watch = ros.add(Node("watch", context=ros.context))
+    states, estops, twists = [], [], []
+    watch.create_subscription(Header, "/team/heartbeat", lambda m: states.append(m.frame_id), 10)
+    watch.create_subscription(Bool, "/team/estop", lambda m: estops.append(m.data), LATCHED)
+    watch.create_subscription(TwistStamped, "/robot_1/drive/override", twists.append, 10)
+    v = view.ViewNode(2, 0.05, period=0.2, context=ros.context)
+    ros.add(v.node)
+    v.control = control = ViewControl(v.node, 2, ControlPolicy("127.0.0.1"))
+    server = foxglove.start_server(
+        name="test", port=free_port(),
+        capabilities=[foxglove.Capability.Services, foxglove.Capability.ClientPublish],
+        supported_encodings=["json"], server_listener=control.listener(),
+        services=control.services(),
+    )  # fmt: skip
+    client = ControlClient(server.port, pump=lambda: ros.executor.spin_once(timeout_sec=0.01))
+    try:
+        ready = control.triggers.values()
+        assert ros.spin_until(lambda: states and all(c.service_is_ready() for c in ready), 30)
+        ok, reply = client.call("/operator/arm", {})
+        assert ok and reply["success"] and "armed" in reply["message"], reply
+        assert ros.spin_until(lambda: states[-1] == "armed", 30)
+        ok, reply = client.call("/operator/robot_1/enable", {"data": "yes"})
+        assert ok and not reply["success"] and "true or false" in reply["message"], reply
+        ok, reply = client.call("/operator/robot_1/enable", {"data": False})
+        assert ok and reply["success"], reply
+        channel = client.advertise("/robot_1/drive/override", "geometry_msgs/Twist")
+        client.wait(lambda: 1 in [k for k, _ in control.channels.values()], 30)
+        client.publish(channel, {"linear": {"x": 0.1}, "angular": {"z": -0.2}})
+        assert ros.spin_until(lambda: twists, 30)
+        assert (twists[-1].twist.linear.x, twists[-1].twist.angular.z) == (0.1, -0.2)
+        ok, reply = client.call("/operator/estop", {})
+        assert ok and reply["success"] and ros.spin_until(lambda: estops and estops[-1], 30)
+        assert control.count == 5 and "estop from view client" in control.last
+        assert "controls" in control.diagnostic_values()
+    finally:
+        client.close()
+        server.stop()
+
+
+def test_off_loopback_only_an_estop_goes_without_the_operators_token():
+    from excavation_bringup.view_control import ControlPolicy
+
+    open_, closed = ControlPolicy("127.0.0.1"), ControlPolicy("198.18.0.1")
+    keyed = ControlPolicy("198.18.0.1", token="s3cret")
+    assert open_.refusal("arm", {}) is None and open_.publish_refusal() is None
+    assert closed.refusal("estop", {}) is None
+    assert "--operator-token" in closed.refusal("arm", {})
+    assert keyed.refusal("arm", {"token": "s3cret"}) is None
+    assert keyed.refusal("reset", {"token": "guess"}) == "wrong or missing operator token"
+    assert "loopback only" in keyed.publish_refusal()
+
+
+def test_bad_control_messages_are_refused_with_their_reason():
+    from excavation_bringup.view_control import (
+        ControlError,
+        blade_of,
+        parse_request,
+        robot_topic,
+        twist_of,
+    )
+
+    assert parse_request(b"") == {}
+    assert robot_topic("/robot_1/blade/commands", 2) == (1, "blade/commands")
+    for bad, what in (
+        (lambda: parse_request(b"[1]"), "JSON object"),
+        (lambda: parse_request(b"{"), "not JSON"),
+        (lambda: robot_topic("/robot_2/drive/override", 2), "no robot 2"),
+        (lambda: robot_topic("/cmd_vel", 2), "/robot_K/drive/override"),
+        (lambda: twist_of({"linear": {"x": float("nan")}}), "finite"),
+        (lambda: twist_of({"linear": 3}), "objects"),
+        (lambda: blade_of({"data": [0.1, 0.2]}), "one value"),
+    ):
+        with pytest.raises(ControlError, match=what):
+            bad()
+    assert twist_of({"angular": {"z": 1}}) == (0.0, 1.0) and blade_of({"data": [0.05]}) == 0.05

@@ -25,6 +25,12 @@ channel                     schema                           from
                                                              common.tf`)
 ==========================  ===============================  =================================
 
+The view is also a console (:mod:`excavation_bringup.view_control`): Foxglove's Call
+Service panels reach the supervisor (``/operator/estop``, ``reset``, ``arm``, ``pause``,
+``resume``, ``/operator/robot_K/enable``) and its Teleop panel drives a robot
+(``/robot_K/drive/override``); off loopback only an e-stop is accepted without the
+operator's token (``--operator-token``).
+
 The latest robots, grids and transforms are sent again every ``--period`` seconds, so a
 client that connects late sees the site at once (transforms only then: ``/tf`` comes in
 bursts). ``--site`` gives the robots and the soil
@@ -204,6 +210,7 @@ class ViewNode:
         self.sim_fitness: float | None = None
         self.statuses: dict[str, tuple[int, str]] = {}
         self.sent = 0
+        self.control = None  # the console's side (view_control.ViewControl), when served
         self.robots_ch = ch.SceneUpdateChannel("/view/robots")
         self.height_ch = ch.GridChannel("/view/height_map")
         self.goal_ch = ch.GridChannel("/view/blueprint")
@@ -364,9 +371,10 @@ class ViewNode:
         message = f"serving {len(self.poses)} robots" + (
             ", height map" if self.heights is not None else ""
         )
-        self.diag_pub.publish(
-            diagnostics(self.node, DiagnosticStatus.OK, message, {"updates": self.sent})
-        )
+        values = {"updates": self.sent}
+        if self.control is not None:
+            values |= self.control.diagnostic_values()
+        self.diag_pub.publish(diagnostics(self.node, DiagnosticStatus.OK, message, values))
 
 
 FITNESS_SCHEMA = {
@@ -394,6 +402,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--port", type=int, default=8765)
     p.add_argument("--period", type=float, default=0.5, help="s between repeats of the state")
     p.add_argument(
+        "--operator-token",
+        default=None,
+        help='served off loopback: the token a client gives ("token" in the request) to '
+        "call any service but the e-stop",
+    )
+    p.add_argument("--supervisor", default="/supervisor", help="the supervisor node's name")
+    p.add_argument(
         "--hardware",
         choices=("sim", "dome", "emulated"),
         default=None,
@@ -410,14 +425,26 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     robots = args.robots or (site.n_robots if site is not None else 4)
     unit = site.worksite.soil_unit if site is not None else 0.05
-    server = foxglove.start_server(name="ant-view", host=args.host, port=args.port)
-    print(
-        f"ant-view: serving ws://{args.host}:{server.port} (Foxglove: open connection)", flush=True
-    )
+    from excavation_bringup.view_control import ControlPolicy, ViewControl
     from excavation_common.ros import init_rclpy
 
     init_rclpy(args=["ant-view", *argv])
     view = ViewNode(robots, unit, args.period)
+    view.control = ViewControl(
+        view.node, robots, ControlPolicy(args.host, args.operator_token), args.supervisor
+    )
+    server = foxglove.start_server(
+        name="ant-view",
+        host=args.host,
+        port=args.port,
+        capabilities=[foxglove.Capability.Services, foxglove.Capability.ClientPublish],
+        supported_encodings=["json"],
+        server_listener=view.control.listener(),
+        services=view.control.services(),
+    )
+    print(
+        f"ant-view: serving ws://{args.host}:{server.port} (Foxglove: open connection)", flush=True
+    )
     try:
         rclpy.spin(view.node)
     except (KeyboardInterrupt, ExternalShutdownException):
