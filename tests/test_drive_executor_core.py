@@ -396,9 +396,11 @@ def test_override_wins_while_fresh_clamped_and_the_estop_still_wins():
     pose = Pose2D(*robot_center(4, 4, CELL), 0.0)
     core.submit(DriveGoal(0, 1 << MOVE_FORWARD), 0.0)
     core.on_pose(pose, 0.0, 0.0)
+    assert not core.operator
     core.on_override(Twist2D(5.0, -9.0), 0.1)
     twist = core.check(0.1)
     assert twist == Twist2D(params.throttle_speed, -params.throttle_turn_rate)
+    assert core.operator
     assert core.on_pose(pose, 0.2, 0.2) == twist
     assert not core.busy  # the goal gave way to the operator
     gate.on_heartbeat(ARMED, 0.3)
@@ -408,6 +410,10 @@ def test_override_wins_while_fresh_clamped_and_the_estop_still_wins():
     gate.on_heartbeat(ARMED, 0.7)
     assert core.on_pose(pose, 0.7, 0.7) == Twist2D()  # the override is 0.6 s old
     assert core.check(0.7) is None
+    assert not core.operator  # handed back: the team's goals drive it again
+    core.on_override(Twist2D(0.1, 0.0), 0.8)
+    core.check(0.8)
+    assert core.operator
 
 
 def test_throttle_up_raises_the_limits():

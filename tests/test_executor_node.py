@@ -196,6 +196,11 @@ def test_override_wins_while_fresh_clamped_estop_wins_over_it(rig):
     node.trigger_configure()
     node.trigger_activate()
     wait_matched(ros, base, node)
+    operator: list[bool] = []  # drive/operator: latched, false until the override drives
+    base.create_subscription(
+        Bool, "/robot_0/drive/operator", lambda m: operator.append(m.data), LATCHED
+    )
+    assert ros.spin_until(lambda: operator == [False], 5)
     override = TwistStamped()
     override.twist.linear.x, override.twist.angular.z = 9.0, 0.0
     base.override_pub.publish(override)
@@ -203,8 +208,10 @@ def test_override_wins_while_fresh_clamped_estop_wins_over_it(rig):
     assert ros.spin_until(
         lambda: base.twists and base.twists[-1][1].twist.linear.x == pytest.approx(limit), 3
     )
+    assert ros.spin_until(lambda: operator[-1] is True, 5)
     # Stale (no new override within override_timeout): back to zero, and it stays there.
     assert ros.spin_until(lambda: base.twists[-1][1].twist.linear.x == 0.0, 5)
+    assert ros.spin_until(lambda: operator == [False, True, False], 5)  # handed back
     count = len(base.twists)
     assert ros.spin_until(lambda: len(base.twists) >= count + 5, 5)
     assert all(m.twist.linear.x == 0.0 for _, m in base.twists[count - 1 :])

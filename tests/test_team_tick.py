@@ -376,6 +376,26 @@ def test_the_summary_is_a_record_that_goes_through_json_and_back():
         TickSummary.from_json(summary.to_json() | {"commands": "words"})
 
 
+def test_the_ticks_the_operator_drove_a_robot_are_in_the_summary():
+    """A robot taken over before a tick counts for it; one taken over during a tick and
+    handed back counts for that tick alone; a result without the field (older) still reads."""
+    tt = make(robots=2, steps=3)
+    tt.on_operator(1, True)  # before tick 0: the operator holds robot 1
+    tt.start(0.0)
+    feed_snapshot(tt, 0.2, [(2, 2, 0), (8, 8, 0)])
+    tt.step(0.3, 0.0)
+    tt.on_operator(1, False)
+    assert tt.records[-1].operated == {1}
+    tt.on_operator(0, True)
+    tt.on_operator(0, False)
+    summary = tt.summary()
+    assert summary.operator_ticks == {0: [0], 1: [0]}
+    assert TickSummary.from_json(json.loads(json.dumps(summary.to_json()))) == summary
+    older = summary.to_json()
+    del older["operator_ticks"]
+    assert TickSummary.from_json(older).operator_ticks == {}
+
+
 ACTIONS = typing.get_args(TickAction)
 
 

@@ -68,6 +68,8 @@ from excavation_common.behaviour import (
 from excavation_common.safety import MotionGate
 
 MOTION_BITS = sum(1 << b for b in (MOVE_FORWARD, MOVE_BACKWARD, RANDOM_TURN, TURN_RIGHT, TURN_LEFT))
+OVERRIDE_IN_CHARGE = "drive override in charge"
+"""The stop reason while the operator's drive override drives the robot."""
 """The behaviours the executor carries out (Table 2, 2-6)."""
 
 
@@ -219,6 +221,8 @@ class DriveExecutorCore:
         self.counters: Counters = Counters()
         """What the executor has done."""
         self.stop_reason: str | None = "no goal yet"
+        self.operator = False
+        """The operator's override is in charge (the last :meth:`check` forced it)."""
         """Why the robot is held still (``None``: the control loop may act)."""
         self.free_ticks: int = 0
         """Goals started from free-mode words (their tick numbers)."""
@@ -342,6 +346,7 @@ class DriveExecutorCore:
         forced = self._forced(now)
         if forced is not None:
             self.sent = forced
+        self.operator = self.stop_reason == OVERRIDE_IN_CHARGE
         return forced
 
     def _forced(self, now: float) -> Twist2D | None:
@@ -354,8 +359,8 @@ class DriveExecutorCore:
             self.resume(now)
         if self.override is not None and now - self.override[1] <= self.params.override_timeout:
             if self.goal is not None:
-                self.abort("drive override in charge")
-            self.stop_reason = "drive override in charge"
+                self.abort(OVERRIDE_IN_CHARGE)
+            self.stop_reason = OVERRIDE_IN_CHARGE
             return self.clamp(self.override[0])
         if self.goal is not None:
             stale = self.stale(now)

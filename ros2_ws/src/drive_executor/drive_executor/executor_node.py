@@ -20,9 +20,11 @@ stamped with the node clock when it is sent (``cmd_vel_stamp: now``: a base's
 continuous simulator's lockstep takes ``pose``, the stamp of the pose answered),
 ``drive/status`` (action_msgs/GoalStatus, the goal's tick stamp), ``stuck`` (std_msgs/Bool,
 U1, once per goal), ``drive/throttle`` (Bool, latched: the power mode of the running goal,
-for the base) and ``/diagnostics`` (every wall second, also while a simulator's clock stands
-still; WARN when poses come stamped more than ``clock_offset_limit`` ahead of the node's
-clock, naming the offset, or when every pose of the last second was older than
+for the base), ``drive/operator`` (Bool, latched: the operator's override drives the
+robot; the team tick records the ticks it spent so) and ``/diagnostics`` (every wall
+second, also while a simulator's clock stands still; WARN when poses come stamped more
+than ``clock_offset_limit`` ahead of the node's clock, naming the offset, or when every
+pose of the last second was older than
 ``pose_timeout``, naming the youngest: a lagging localiser or a clock that runs ahead).
 
 Lifecycle (ros2/demos ``lifecycle_py``): ``on_configure`` builds the core, publishers,
@@ -116,10 +118,13 @@ class ExecutorNode(LifecycleNode):
         self.status_pub = lp(GoalStatus, "drive/status", 10)
         self.stuck_pub = lp(Bool, "stuck", 10)
         self.throttle_pub = lp(Bool, "drive/throttle", LATCHED)
+        self.operator_pub = self.create_publisher(Bool, "drive/operator", LATCHED)
+        self._operator_sent: bool | None = None
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         sub = self.create_subscription
         self._entities = [
             self.diag_pub,
+            self.operator_pub,
             sub(PoseWithCovarianceStamped, self.params.pose_topic, self.on_pose, 10),
             sub(GoalInfo, "drive/goal", self.on_goal, 10),
             sub(UInt16, "behaviour", self.on_behaviour, 10),
@@ -275,6 +280,9 @@ class ExecutorNode(LifecycleNode):
         twist = self.core.check(self._now())
         if twist is not None:
             self.publish_twist(twist, self.get_clock().now().to_msg())
+        if self.core.operator != self._operator_sent:
+            self._operator_sent = self.core.operator
+            self.operator_pub.publish(Bool(data=self.core.operator))
         self.publish_events()
 
     def publish_twist(self, twist: Twist2D, stamp) -> None:

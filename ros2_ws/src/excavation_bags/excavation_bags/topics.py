@@ -42,6 +42,7 @@ SUITE_TOPICS: tuple[str, ...] = (
     "/robot_*/drive/status",
     "/robot_*/drive/throttle",
     "/robot_*/drive/override",
+    "/robot_*/drive/operator",
     "/robot_*/enabled",
     "/team/*",
     "/tick/*",

@@ -80,6 +80,7 @@ class TrialResult:
     robots_late: int = 0
     soil_volume: int | None = None
     slips: int = 0
+    operator_ticks: dict[int, list[int]] = field(default_factory=dict)
 
 
 def continuous_result(
@@ -109,6 +110,7 @@ def continuous_result(
         robots_late=ticks.robots_late,
         soil_volume=world.volume,
         slips=world.slips,
+        operator_ticks=dict(ticks.operator_ticks),
     )
 
 
@@ -563,6 +565,7 @@ def main(argv: list[str] | None = None) -> int:
             "stuck_events": result.stuck_events,
             "sim_seconds": result.sim_seconds,
             "robots_late": result.robots_late,
+            "operator_ticks": {str(k): t for k, t in result.operator_ticks.items()},
         }
         if result.soil_volume is not None:
             extra |= {"soil_volume": result.soil_volume, "slips": result.slips}
@@ -583,6 +586,8 @@ def main(argv: list[str] | None = None) -> int:
             f"trial through the nodes: fitness {result.fitness:.4f} after {args.steps} ticks "
             f"({result.seconds:.1f} s, missed commands: {sum(result.missed.values())})"
         )
+        for k, ticks in sorted(result.operator_ticks.items()):
+            print(f"robot {k}: driven by the operator in ticks {ticks}")
     return 0
 
 

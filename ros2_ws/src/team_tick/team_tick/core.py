@@ -161,6 +161,8 @@ class TickSummary:
         robots_late: Robot-ticks left out for not finishing.
         holds: Times the team was held (paused, e-stopped, disarmed or its heartbeat lost)
             while the ticks ran.
+        operator_ticks: Per robot that spent any, the ticks during which the operator's
+            override drove it (its executor's ``drive/operator``).
     """
 
     ticks: int
@@ -170,6 +172,7 @@ class TickSummary:
     missed: dict[int, int]
     robots_late: int
     holds: int
+    operator_ticks: dict[int, list[int]] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         """JSON-ready values (``missed`` keyed by the robot's index as a string)."""
@@ -181,6 +184,7 @@ class TickSummary:
             "missed": {str(k): n for k, n in self.missed.items()},
             "robots_late": self.robots_late,
             "holds": self.holds,
+            "operator_ticks": {str(k): t for k, t in self.operator_ticks.items()},
         }
 
     @classmethod
@@ -199,6 +203,10 @@ class TickSummary:
                 missed={int(k): int(n) for k, n in data["missed"].items()},
                 robots_late=int(data["robots_late"]),
                 holds=int(data["holds"]),
+                operator_ticks={  # absent from results written before it was recorded
+                    int(k): [int(t) for t in ticks]
+                    for k, ticks in data.get("operator_ticks", {}).items()
+                },
             )
         except KeyError as exc:
             raise ValueError(
@@ -270,6 +278,8 @@ class TickRecord:
     started_wall: float
     motion_wall: float = 0.0
     ended_wall: float = 0.0
+    operated: set[int] = field(default_factory=set)
+    """Robots the operator's override drove at some time during the tick."""
 
 
 def reach_box(row: int, col: int, reach: int) -> tuple[int, int, int, int]:
@@ -354,6 +364,8 @@ class TeamTick:
     """Per robot: ticks it idled for want of a word."""
     holds: int = field(default=0, init=False)
     """Times the team was held (armed turned false) while the ticks ran."""
+    operator: list[bool] = field(default_factory=list, init=False)
+    """Per robot: the operator's override drives it now (its executor's ``drive/operator``)."""
 
     # --- the snapshot request ---------------------------------------------------------------
     _after: float = field(default=0.0, init=False)
@@ -408,6 +420,7 @@ class TeamTick:
         self.stuck = [False] * n
         self.late = [0] * n
         self.missed = [0] * n
+        self.operator = [False] * n
         self._expected = [None] * n
 
     # --- inputs -----------------------------------------------------------------------------
@@ -441,6 +454,12 @@ class TeamTick:
         """Robot k's controller answered (the first word of a tick counts)."""
         if self.phase is Phase.WORDS and k not in self.words:
             self.words[k] = int(word) & 0xFFF
+
+    def on_operator(self, k: int, active: bool) -> None:
+        """Robot k's executor says whether the operator's override drives it."""
+        self.operator[k] = active
+        if active and self.records:
+            self.records[-1].operated.add(k)
 
     def on_status(self, k: int, tick: int, terminal: bool, aborted: bool, now: float) -> None:
         """Robot k's executor reported on its goal of ``tick``."""
@@ -481,6 +500,11 @@ class TeamTick:
             missed=dict(enumerate(self.missed)),
             robots_late=sum(self.late),
             holds=self.holds,
+            operator_ticks={
+                k: ticks
+                for k in range(self.params.robots)
+                if (ticks := [r.tick for r in records if k in r.operated])
+            },
         )
 
     def start(self, now: float, wall: float = 0.0) -> list[TickAction]:
@@ -592,7 +616,10 @@ class TeamTick:
         self.phase = Phase.WORDS
         self.words = {}
         self._wall = wall
-        self.records.append(TickRecord(self.tick, [], [], [], [], started_wall=wall))
+        operated = {k for k, on in enumerate(self.operator) if on}
+        self.records.append(
+            TickRecord(self.tick, [], [], [], [], started_wall=wall, operated=operated)
+        )
         return out + [PublishTick(self.tick, self.tick * self.params.tick_period, snapshot)]
 
     def _has_everything(self) -> bool:

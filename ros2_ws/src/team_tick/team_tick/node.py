@@ -2,11 +2,12 @@
 
 Reads, per robot k: ``/robot_k/pose`` (the localiser's, or the simulator's truth),
 ``/robot_k/{blade_in}`` (JointState: the measured blade; ``blade/plant_state`` from
-``dynamics``), ``/robot_k/behaviour`` (the controller's word) and ``/robot_k/drive/status``;
-``/worksite/height_map`` (the mapper's, or the simulator's); the supervisor's
-``/team/heartbeat``, ``/team/estop`` and ``/robot_k/enabled``: the tick runs only while the
-team is armed (a heartbeat saying ``armed`` younger than the 0.5 s deadman, no e-stop), and a
-robot disabled or lost is absent (:class:`~team_tick.core.TeamTick`).
+``dynamics``), ``/robot_k/behaviour`` (the controller's word), ``/robot_k/drive/status`` and
+``/robot_k/drive/operator`` (the ticks the operator's override drove the robot are in the
+summary's ``operator_ticks``); ``/worksite/height_map`` (the mapper's, or the simulator's);
+the supervisor's ``/team/heartbeat``, ``/team/estop`` and ``/robot_k/enabled``: the tick
+runs only while the team is armed (a heartbeat saying ``armed`` younger than the 0.5 s
+deadman, no e-stop), and a robot disabled or lost is absent (:class:`~team_tick.core.TeamTick`).
 
 With ``wait_for_ready`` (set by every trial and dome table) tick 0 also waits for every
 controller's latched ``/robot_k/ready`` (std_msgs/Bool: its inputs are connected); with
@@ -158,6 +159,7 @@ class TeamTickNode(Node):
             self.inputs.append(
                 sub(GoalStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
             )
+            sub(Bool, f"{ns}/drive/operator", lambda m, k=k: self.on_operator(k, m), LATCHED)
             sub(Bool, f"{ns}/{ENABLED_TOPIC}", lambda m, k=k: self.on_enabled(k, m), LATCHED)
         sub(Image, "/worksite/height_map", self.on_heights, LATCHED)
         sub(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
@@ -225,6 +227,10 @@ class TeamTickNode(Node):
             self.core.on_status(
                 k, goal.tick, msg.status in TERMINAL, msg.status == ABORTED, self._now()
             )
+
+    def on_operator(self, k: int, msg: Bool) -> None:
+        """Robot k's executor: the operator's override drives it, or no longer."""
+        self.core.on_operator(k, bool(msg.data))
 
     def on_heartbeat(self, msg: Header) -> None:
         """The team state: the tick runs only while armed."""
