@@ -126,6 +126,7 @@ def test_layout_names_the_view_channels():
         "/view/camera",
         "/view/fitness",
         "/view/diagnostics",
+        "/view/team",
         "/operator/estop",  # the operator's panels: services and the Teleop panel's topic
         "/operator/pause",
         "/operator/arm",
@@ -214,6 +215,13 @@ def test_the_view_is_a_console_for_the_supervisor_and_the_robots(ros):
         assert ok and reply["success"] and ros.spin_until(lambda: estops and estops[-1], 30)
         assert control.count == 5 and "estop from view client" in control.last
         assert "controls" in control.diagnostic_values()
+        # /view/team: the team's state, robot 1 disabled, the operator's twist in charge of
+        # nothing (no executor here), no word yet
+        assert ros.spin_until(lambda: v.team_state == "estop", 30)
+        assert ros.spin_until(lambda: v.robot_state[1].enabled is False, 30)
+        team = view.team_message(v.team_state, v.robot_state)
+        assert team["team"] == "estop" and team["robots"][1]["enabled"] is False
+        assert team["robots"][0]["word"] is None
     finally:
         client.close()
         server.stop()
@@ -255,3 +263,11 @@ def test_bad_control_messages_are_refused_with_their_reason():
         with pytest.raises(ControlError, match=what):
             bad()
     assert twist_of({"angular": {"z": 1}}) == (0.0, 1.0) and blade_of({"data": [0.05]}) == 0.05
+
+
+def test_the_team_channel_names_each_robots_word():
+    pushing = view.RobotState(enabled=True, operator=False, stuck=True, word=1 | 1 << 8)
+    state = [pushing, view.RobotState(word=0)]
+    msg = view.team_message("armed", state)
+    assert msg["team"] == "armed" and msg["robots"][0]["stuck"] is True
+    assert msg["robots"][0]["word"].count("+") == 1 and msg["robots"][1]["word"] == "idle"

@@ -18,6 +18,9 @@ channel                     schema                           from
                                                              and the fitness of the mapped
                                                              heights against the blueprint
 ``/view/diagnostics``       foxglove.Log                     ``/diagnostics`` (changes only)
+``/view/team``              JSON ``{team, robots: [...]}``   the team's state and, per robot,
+                                                             enabled, driven by the operator,
+                                                             stuck, its last word's behaviours
 ``/tf``                     foxglove.FrameTransforms         ``/tf`` and ``/tf_static``
                                                              (tf2_msgs/TFMessage): the
                                                              suite's frame tree as the nodes
@@ -46,6 +49,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -193,7 +197,7 @@ class ViewNode:
         from nav_msgs.msg import MapMetaData
         from rclpy.node import Node
         from sensor_msgs.msg import CompressedImage, Image
-        from std_msgs.msg import Float32
+        from std_msgs.msg import Bool, Float32, Header, UInt16
         from tf2_msgs.msg import TFMessage
 
         from excavation_common.ros import LATCHED, LATEST_FRAME
@@ -219,6 +223,26 @@ class ViewNode:
         self.diag_ch = ch.LogChannel("/view/diagnostics")
         self.tf_ch = ch.FrameTransformsChannel("/tf")
         self.fitness_ch = Channel("/view/fitness", schema=FITNESS_SCHEMA)
+        self.team_ch = Channel("/view/team", schema=TEAM_SCHEMA)
+        self.team_state: str | None = None
+        self.robot_state = [RobotState() for _ in range(robots)]
+        for k in range(robots):
+            state = self.robot_state[k]
+            ns = f"/robot_{k}"
+            node.create_subscription(
+                Bool, f"{ns}/enabled", lambda m, s=state: setattr(s, "enabled", m.data), LATCHED
+            )
+            node.create_subscription(
+                Bool, f"{ns}/drive/operator", lambda m, s=state: setattr(s, "operator", m.data),
+                LATCHED,
+            )  # fmt: skip
+            node.create_subscription(
+                Bool, f"{ns}/stuck", lambda m, s=state: setattr(s, "stuck", m.data), 10
+            )
+            node.create_subscription(
+                UInt16, f"{ns}/behaviour", lambda m, s=state: setattr(s, "word", m.data), 10
+            )
+        node.create_subscription(Header, "/team/heartbeat", self.on_heartbeat, 10)
         for k in range(robots):
             node.create_subscription(
                 PoseWithCovarianceStamped, f"/robot_{k}/pose", lambda m, k=k: self.on_pose(k, m), 10
@@ -246,6 +270,10 @@ class ViewNode:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         self.poses[k] = (p.x, p.y, yaw_of(q), msg.header.stamp.sec, msg.header.stamp.nanosec)
         self.publish_robots()
+
+    def on_heartbeat(self, msg) -> None:
+        """The team's state (the supervisor's heartbeat)."""
+        self.team_state = msg.frame_id
 
     def on_tf(self, msg) -> None:
         """Transforms from ``/tf`` or ``/tf_static``: the newest of each frame, kept.
@@ -356,9 +384,14 @@ class ViewNode:
             mapped = mapped_fitness(self.heights, self.goal, self.height_unit)
         self.fitness_ch.log({"fitness": self.sim_fitness, "mapped": mapped})
 
+    def publish_team(self) -> None:
+        """The team's state and each robot's (``/view/team``)."""
+        self.team_ch.log(team_message(self.team_state, self.robot_state))
+
     def republish(self) -> None:
         """The latest state again, for clients that joined since."""
         self.publish_robots()
+        self.publish_team()
         self.publish_frames()
         self.publish_grids()
 
@@ -376,6 +409,44 @@ class ViewNode:
             values |= self.control.diagnostic_values()
         self.diag_pub.publish(diagnostics(self.node, DiagnosticStatus.OK, message, values))
 
+
+@dataclass
+class RobotState:
+    """What the view last heard of one robot (``None``: nothing yet)."""
+
+    enabled: bool | None = None
+    operator: bool | None = None
+    stuck: bool | None = None
+    word: int | None = None
+
+
+def team_message(team: str | None, robots: list[RobotState]) -> dict:
+    """``/view/team``: the team's state and one row per robot."""
+    from excavation_common.behaviour import behaviour_names
+
+    return {
+        "team": team or "no heartbeat",
+        "robots": [
+            {
+                "robot": k,
+                "enabled": r.enabled,
+                "operator": r.operator,
+                "stuck": r.stuck,
+                "word": None if r.word is None else " + ".join(behaviour_names(r.word)) or "idle",
+            }
+            for k, r in enumerate(robots)
+        ],
+    }
+
+
+TEAM_SCHEMA = {
+    "type": "object",
+    "properties": {
+        "team": {"type": "string", "description": "the supervisor's team state"},
+        "robots": {"type": "array", "items": {"type": "object"}},
+    },
+}
+"""JSON schema of ``/view/team``."""
 
 FITNESS_SCHEMA = {
     "type": "object",

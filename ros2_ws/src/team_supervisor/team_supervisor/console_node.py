@@ -60,6 +60,9 @@ class ConsoleNode:
         self.enables = {k: node.create_client(SetBool, f"/robot_{k}/enable") for k in range(robots)}
         self.drives: dict[int, object] = {}
         self.pending: list[tuple[str, object]] = []
+        self.controls = 0
+        self.last = ""
+        self.diag_pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         node.create_subscription(Header, "/team/heartbeat", self.on_heartbeat, 10)
         node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 50)
 
@@ -84,6 +87,21 @@ class ConsoleNode:
             level = s.level[0] if isinstance(s.level, bytes) else int(s.level)
             self.statuses[s.name] = (level, s.message)
 
+    def control(self, what: str) -> None:
+        """Count and remember an action (the console's ``/diagnostics``: its origin)."""
+        self.controls += 1
+        self.last = f"{what} from the console"
+
+    def publish_diagnostics(self) -> None:
+        """The console's status: its actions, named after it (the origin of each)."""
+        from diagnostic_msgs.msg import DiagnosticStatus
+
+        from excavation_common.ros import diagnostics
+
+        values = {"controls": self.controls, "last_control": self.last}
+        message = f"operator console: {self.controls} actions"
+        self.diag_pub.publish(diagnostics(self.op.node, DiagnosticStatus.OK, message, values))
+
     def say(self, text: str) -> None:
         """One line to the operator."""
         self.out.write(text + "\n")
@@ -93,6 +111,7 @@ class ConsoleNode:
         """Call ``~/NAME`` without waiting (the answer is printed when it comes)."""
         from std_srvs.srv import Trigger as TriggerSrv
 
+        self.control(name)
         self.pending.append((name, self.triggers[name].call_async(TriggerSrv.Request())))
 
     def enable(self, robot: int, on: bool) -> None:
@@ -100,6 +119,7 @@ class ConsoleNode:
         from std_srvs.srv import SetBool
 
         what = f"{'enable' if on else 'disable'} robot {robot}"
+        self.control(what)
         self.pending.append((what, self.enables[robot].call_async(SetBool.Request(data=on))))
 
     def answers(self) -> None:
@@ -157,6 +177,7 @@ def run_console(op: Operator, robots: int, fd: int, out: TextIO) -> int:
                 elif isinstance(action, Enable):
                     ros.enable(action.robot, action.on)
                 elif isinstance(action, Take):
+                    ros.control(f"take robot {action.robot} over")
                     drive = (0.0, 0.0, 0.0)
                     ros.twist(action.robot, 0.0, 0.0)
                     ros.say(f"robot {action.robot}: taken over (zero until an arrow key)")
@@ -164,6 +185,7 @@ def run_console(op: Operator, robots: int, fd: int, out: TextIO) -> int:
                     drive = (action.vx, action.wz, time.monotonic() + HOLD)
                     ros.twist(action.robot, action.vx, action.wz)
                 elif isinstance(action, Release):
+                    ros.control(f"hand robot {action.robot} back")
                     ros.twist(action.robot, 0.0, 0.0)
                     ros.say(f"robot {action.robot}: handed back to the team")
                 elif isinstance(action, Note):
@@ -184,6 +206,7 @@ def run_console(op: Operator, robots: int, fd: int, out: TextIO) -> int:
             if lines != shown:
                 ros.say("\n".join(lines))
                 shown = lines
+            ros.publish_diagnostics()
             next_status = now + REDRAW
         if ended and not ros.pending:
             if console.taken is not None:
