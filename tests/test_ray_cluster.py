@@ -110,3 +110,69 @@ def test_the_documented_recipe_spreads_a_run_over_two_hosts(tmp_path):
     assert (tmp_path / "cluster" / "best.json").read_text() == (
         tmp_path / "one" / "best.json"
     ).read_text()
+
+
+@pytest.mark.system
+@pytest.mark.serial
+def test_a_campaign_spread_over_two_hosts_survives_a_lost_node(tmp_path):
+    """``ant-experiment training --cluster``: runs in chunks on both nodes, each node in a
+    private temporary directory; the worker's node is killed once it has run a chunk; the
+    campaign finishes on the head with the histories of the same runs trained here."""
+    import json
+    import time
+
+    env = dict(os.environ, RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(32))
+    env["RAY_USAGE_STATS_ENABLED"] = "0"
+    hosts = VirtualHosts([("head", HEAD), ("worker", WORKER)], "tcam")
+    short = Path(tempfile.mkdtemp(prefix="ray", dir="/tmp"))
+    campaign = ["training", "--scale", "quick", "--method", "ant", "--setting", "n2"]
+    runs = tmp_path / "cluster" / "runs" / "quick"
+    with hosts:
+        try:
+            common = ["--num-cpus", "1", "--disable-usage-stats"]
+            _run(
+                [*hosts.prefix("head"), str(BIN / "ray"), "start", "--head", "--port", "6379"]
+                + ["--node-ip-address", HEAD, "--include-dashboard=false", *common]
+                + ["--temp-dir", str(short / "h")],
+                env,
+            )
+            _run(
+                [*hosts.prefix("worker"), str(BIN / "ray"), "start", "--address", f"{HEAD}:6379"]
+                + ["--node-ip-address", WORKER, *common, "--temp-dir", str(short / "w")],
+                env,
+            )
+            driver = subprocess.Popen(
+                [*hosts.prefix("head"), str(BIN / "ant-experiment"), *campaign]
+                + ["--cluster", f"{HEAD}:6379", "--chunk", "1", "--out", str(tmp_path / "cluster")],
+                env=env,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT,
+                text=True,
+            )
+
+            def nodes() -> set[str]:
+                seen = set()
+                for f in runs.glob("*/cluster.json"):
+                    try:
+                        seen |= {c["node_id"] for c in json.loads(f.read_text())["chunks"]}
+                    except (OSError, ValueError, KeyError):
+                        pass
+                return seen
+
+            deadline = time.monotonic() + 600
+            while len(nodes()) < 2 and driver.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.2)
+            assert len(nodes()) == 2, driver.communicate()[0][-3000:]  # both nodes ran one
+            _kill_namespace(hosts.hosts[1].namespace)  # the worker's node is lost
+            out, _ = driver.communicate(timeout=900)
+            assert driver.returncode == 0, out[-3000:]
+            print("\n".join(line for line in out.splitlines() if "failed" in line))
+        finally:
+            for h in hosts.hosts:
+                _kill_namespace(h.namespace)
+            shutil.rmtree(short, ignore_errors=True)
+    here = [str(BIN / "ant-experiment"), *campaign, "--out", str(tmp_path / "here")]
+    _run(here, dict(os.environ))
+    for k in range(2):
+        name = f"ant-n2-r{k}"
+        assert _history(runs / name) == _history(tmp_path / "here" / "runs" / "quick" / name)

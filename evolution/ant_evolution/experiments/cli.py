@@ -62,6 +62,21 @@ def main(argv: list[str] | None = None) -> int:
         "--workers", type=int_in(1, MAX_WORKERS), default=1, help="local worker processes"
     )
     p.add_argument("--ray-address", default=None, help="Ray address ('local' for a local Ray)")
+    p.add_argument(
+        "--cluster",
+        default=None,
+        metavar="ADDRESS",
+        help="train the missing runs on this Ray cluster, one run per task ('local': a Ray "
+        'instance here); docs/experiments.md, "On a Ray cluster"',
+    )
+    p.add_argument(
+        "--chunk",
+        type=int_in(1, 100_000),
+        default=None,
+        metavar="G",
+        help="with --cluster: generations per task (default 50: a lost node costs at most "
+        "that much of one run)",
+    )
     p.add_argument("--genome", type=Path, default=None,
                    help="4-robot ANT genome for antagonism/depth/area/behaviours")  # fmt: skip
     p.add_argument(
@@ -152,6 +167,12 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--genome {args.genome}: no such file")
     if args.name == "behaviours" and (args.soil != "grid" or args.randomise):
         p.error("behaviours replays its runs on the grid: leave out --soil and --randomise")
+    if args.chunk is not None and args.cluster is None:
+        p.error("--chunk is an option of --cluster")
+    if args.chunk is not None:
+        from ant_evolution.experiments import cluster
+
+        cluster.CHUNK = args.chunk
     if args.write is not None and args.name != "status":
         p.error("--write is an option of status")
     # status needs none of the experiment modules
@@ -185,6 +206,7 @@ def main(argv: list[str] | None = None) -> int:
         args.finished,
         args.soil,
         args.randomise,
+        args.cluster,
     )
     if args.name == "status":
         from ant_evolution.experiments.status import report

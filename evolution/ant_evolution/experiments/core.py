@@ -188,6 +188,9 @@ class Context:
             soil appended (:attr:`suffix`).
         randomise: Every scenario draws its world (``--randomise``,
             :mod:`ant_evolution.randomise`); names get ``-randomised``.
+        cluster: A Ray cluster's address (``--cluster``; ``local``: a Ray instance here)
+            the missing runs train on, one run per task
+            (:mod:`ant_evolution.experiments.cluster`); ``None``: here, one after another.
     """
 
     out: Path
@@ -206,6 +209,7 @@ class Context:
     finished_only: bool = False
     soil: str = "grid"
     randomise: bool = False
+    cluster: str | None = None
 
     @property
     def suffix(self) -> str:
@@ -394,6 +398,14 @@ def train_all(ctx: Context, jobs: Sequence[tuple[str, object]], desc: str) -> di
     # Runs finished before count from the start (tqdm's rate and ETA leave them out); the
     # count is kept by hand: tqdm's iterator writes it back only when it redraws.
     done = {job for job in todo if _trained(ctx, *job)}
+    if ctx.cluster is not None and len(done) < len(todo):
+        from ant_evolution.experiments.cluster import train_on_cluster
+
+        runs = [
+            (run_dir(ctx, *job), job[0], train_config(ctx, *job)) for job in todo if job not in done
+        ]
+        nodes = train_on_cluster(runs, ctx.cluster, progress=tqdm.write)
+        tqdm.write(f"{desc}: chunks per node: {nodes}")
     with tqdm(total=len(todo), initial=len(done), desc=desc, unit="run") as bar:
         for job in todo:
             out.setdefault(job[:2], []).append(train(ctx, *job, bar))

@@ -42,6 +42,8 @@ class RunStatus:
         first_solved: First generation whose best reached :data:`SOLVED` (``None``: none).
         evaluations_solved: Scenario evaluations up to and including that generation.
         seconds: Sum of the history's generation times (each generation's evaluation).
+        node: Where its last chunk ran on a cluster (``cluster.json``: the host and the Ray
+            node id's head); empty when it was trained here.
     """
 
     method: str
@@ -55,6 +57,7 @@ class RunStatus:
     first_solved: int | None
     evaluations_solved: int | None
     seconds: float
+    node: str = ""
 
     @property
     def finished(self) -> bool:
@@ -64,11 +67,12 @@ class RunStatus:
     @property
     def state(self) -> str:
         """``finished``, ``at generation G`` (resumable or not) or ``not started``."""
+        where = f" (last chunk on {self.node})" if self.node else ""
         if self.finished:
-            return "finished"
+            return f"finished{where}"
         if self.generations or self.checkpoint:
             how = "" if self.checkpoint else ", no checkpoint: starts again"
-            return f"at generation {self.generations}{how}"
+            return f"at generation {self.generations}{how}{where}"
         return "not started"
 
 
@@ -90,7 +94,20 @@ def run_status(ctx: Context, method: str, robots, run: int) -> RunStatus:
         first_solved=None if first is None else first["generation"],
         evaluations_solved=None if first is None else first["evaluations"],
         seconds=sum(r["seconds"] for r in rows),
+        node=_last_node(d),
     )
+
+
+def _last_node(d: Path) -> str:
+    """The node of a run's last cluster chunk (``cluster.json``), or empty."""
+    import json
+
+    try:
+        chunks = json.loads((d / "cluster.json").read_text())["chunks"]
+        last = chunks[-1]
+        return f"{last['host']} {str(last['node_id'])[:8]}"
+    except (OSError, ValueError, KeyError, IndexError, TypeError):
+        return ""
 
 
 def campaign(ctx: Context) -> dict[str, list[tuple[str, object, list[RunStatus]]]]:
