@@ -62,8 +62,8 @@ def test_terminal_input_splits_into_keys_and_the_status_names_each_robot():
 
 def test_a_console_arms_drives_a_robot_hands_it_back_and_stops_the_team(ros):
     """One process, keys written to its input one group at a time, each waited for."""
-    from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import TwistStamped
+    from helpers.diagnostics import DiagnosticsProbe
 
     ros.add(SupervisorNode(context=ros.context, parameter_overrides=[Parameter("robots", value=2)]))
     watch = ros.add(Node("watch", context=ros.context))
@@ -71,13 +71,13 @@ def test_a_console_arms_drives_a_robot_hands_it_back_and_stops_the_team(ros):
     watch.create_subscription(Header, "/team/heartbeat", lambda m: states.append(m.frame_id), 10)
     watch.create_subscription(Bool, "/team/estop", lambda m: estops.append(m.data), LATCHED)
     watch.create_subscription(TwistStamped, "/robot_1/drive/override", twists.append, 100)
-    consoles = []  # the console's own /diagnostics: its actions, named after it
-    watch.create_subscription(
-        DiagnosticArray,
-        "/diagnostics",
-        lambda m: consoles.extend(s for s in m.status if s.name.startswith("/ant_operator")),
-        50,
-    )
+    probe = DiagnosticsProbe(watch)  # the console's own status: its actions, named after it
+
+    def console_said(text: str) -> bool:
+        return any(
+            s.name.startswith("/ant_operator") and text in str(s.values) for s in probe.statuses
+        )
+
     env = dict(os.environ, ROS_DOMAIN_ID=str(ros.domain))
     command = [sys.executable, "-m", "team_supervisor.operator", "--timeout", "30", "console"]
     proc = subprocess.Popen(
@@ -110,9 +110,7 @@ def test_a_console_arms_drives_a_robot_hands_it_back_and_stops_the_team(ros):
         keys(b" ")
         assert ros.spin_until(lambda: estops and estops[-1], timeout=60)
         print(f"e-stop key to /team/estop: {1000 * (time.monotonic() - sent):.0f} ms")
-        assert ros.spin_until(
-            lambda: consoles and "estop from the console" in str(consoles[-1].values), timeout=60
-        )
+        assert ros.spin_until(lambda: console_said("estop from the console"), timeout=60)
         keys(b"q")
         out, err = proc.communicate(timeout=60)
     finally:
