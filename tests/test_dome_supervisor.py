@@ -157,3 +157,26 @@ def test_every_action_is_one_frozen_dataclass_per_kind():
         assert dataclasses.is_dataclass(action)
         with pytest.raises(dataclasses.FrozenInstanceError):
             action.name = "x"
+
+
+def test_the_operators_actions_reach_the_events_log_once_each_with_their_origin():
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+    from excavation_bringup.supervise import Report, control_reports
+
+    def status(name, action):
+        values = [KeyValue(key="controls", value="1")]
+        if action is not None:
+            values.append(KeyValue(key="last_control", value=action))
+        return DiagnosticStatus(name=name, values=values)
+
+    last: dict[str, str] = {}
+    view = status("/ant_view", "estop from view client 2: done: e-stop latched")
+    assert control_reports([view, status("/robot_0/executor", None)], last) == [
+        Report("operator: estop from view client 2: done: e-stop latched (/ant_view)")
+    ]
+    assert control_reports([view], last) == []  # the same action again: once only
+    console = status("/ant_operator_7", "arm from the console")
+    assert control_reports([console], last) == [
+        Report("operator: arm from the console (/ant_operator_7)")
+    ]

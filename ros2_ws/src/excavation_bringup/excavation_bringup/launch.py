@@ -29,7 +29,15 @@ import yaml
 from excavation_bringup.graph import Graph
 from excavation_bringup.kinds import kind as node_kind
 from excavation_bringup.nodes import NodeSpec
-from excavation_bringup.supervise import Kill, Report, RestartPolicy, Start, Stop, Supervisor
+from excavation_bringup.supervise import (
+    Kill,
+    Report,
+    RestartPolicy,
+    Start,
+    Stop,
+    Supervisor,
+    control_reports,
+)
 from excavation_common.files import write_text_atomic
 from excavation_common.middleware import use_profiles
 
@@ -367,9 +375,14 @@ class ProcessLauncher:
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         seen: list[str] = []
-        node.create_subscription(
-            DiagnosticArray, "/diagnostics", lambda m: seen.extend(s.name for s in m.status), 50
-        )
+        controls: dict[str, str] = {}
+
+        def on_diagnostics(msg) -> None:
+            seen.extend(s.name for s in msg.status)
+            for report in control_reports(msg.status, controls):
+                self.report(report.text)
+
+        node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
         started = time.monotonic()
         try:
             while not sup.done:

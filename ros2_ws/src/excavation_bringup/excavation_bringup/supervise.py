@@ -99,6 +99,23 @@ Action = Start | Stop | Kill | Report
 """What the supervisor asks of the process runner."""
 
 
+def control_reports(statuses, last: dict[str, str]) -> list[Report]:
+    """The operator's actions a round of ``/diagnostics`` statuses names, each once.
+
+    A console (``ant-operator console``, the live view) names its newest action in its
+    status's ``last_control`` value; ``last`` keeps what each status said before (updated
+    here). Returns a :class:`Report` per new action, with its origin.
+    """
+    out = []
+    for s in statuses:
+        values = {v.key: v.value for v in s.values}
+        action = values.get("last_control")
+        if action and last.get(s.name) != action:
+            last[s.name] = action
+            out.append(Report(f"operator: {action} ({s.name})"))
+    return out
+
+
 @dataclass
 class Supervisor:
     """Start order, readiness, restarts with back-off and ordered shutdown, without processes.
