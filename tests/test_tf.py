@@ -115,8 +115,20 @@ class Listener:
             self.executor.spin_once(timeout_sec=0.05)
 
     def close(self) -> None:
+        """Stop spinning, then take what the readers already hold before going.
+
+        Under load the spinning thread falls behind the trial (it shares the interpreter
+        with the trial's nodes): messages delivered near the end, the latched camera
+        transform among them when discovery matched late, wait in the readers. Seen
+        failing twice under load (``KeyError: 'overhead_camera'``) before this drain.
+        """
         self.stop.set()
         self.thread.join(5)
+        quiet = 0
+        while quiet < 3:
+            heard = len(self.tf) + len(self.static) + len(self.poses)
+            self.executor.spin_once(timeout_sec=0.05)
+            quiet = quiet + 1 if len(self.tf) + len(self.static) + len(self.poses) == heard else 0
         self.node.destroy_node()
         self.context.try_shutdown()
 
