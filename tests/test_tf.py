@@ -111,8 +111,11 @@ class Listener:
         self.poses[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = msg
 
     def spin(self) -> None:
+        self.static_writers = 0  # most /tf_static writers the graph showed while spinning
         while not self.stop.is_set():
             self.executor.spin_once(timeout_sec=0.05)
+            writers = self.node.count_publishers("/tf_static")
+            self.static_writers = max(self.static_writers, writers)
 
     def close(self) -> None:
         """Stop spinning, then take what the readers already hold before going.
@@ -160,6 +163,7 @@ def test_a_running_trial_publishes_the_frame_tree(domains):
     finally:
         listener.close()
     static = {t.child_frame_id: t for t in listener.static}
+    assert "overhead_camera" in static, (sorted(static), listener.static_writers)
     assert static["overhead_camera"].header.frame_id == "map"
     assert static["overhead_camera"].transform.translation.z > 1.0
     laser = [t for t in listener.tf if t.child_frame_id == "overhead_laser"]
