@@ -1,9 +1,12 @@
-"""``ant-operator console``: keys to actions (pure), and one connected process against a
-running supervisor: arm, take a robot over and drive it, hand it back, e-stop."""
+"""``ant-operator console``: keys to actions (pure), and one connected process on a
+pseudo-terminal against a running supervisor: arm, take a robot over and drive it, hand it
+back, e-stop."""
 
 from __future__ import annotations
 
 import os
+import pty
+import select
 import subprocess
 import sys
 import time
@@ -80,45 +83,58 @@ def test_a_console_arms_drives_a_robot_hands_it_back_and_stops_the_team(ros):
 
     env = dict(os.environ, ROS_DOMAIN_ID=str(ros.domain))
     command = [sys.executable, "-m", "team_supervisor.operator", "--timeout", "30", "console"]
+    # A pseudo-terminal, as an operator's: the console reads keys in cbreak mode from it
+    master, slave = pty.openpty()
     proc = subprocess.Popen(
-        [*command, "--robots", "2"],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        env=env,
+        [*command, "--robots", "2"], stdin=slave, stdout=slave, stderr=subprocess.PIPE, env=env
     )
+    os.close(slave)
+    screen: list[bytes] = []
+
+    def read_screen() -> None:
+        while select.select([master], [], [], 0)[0]:
+            try:
+                screen.append(os.read(master, 4096))
+            except OSError:  # the console closed its end
+                return
+
+    def spin_until(condition, timeout=60) -> bool:
+        return ros.spin_until(lambda: read_screen() or condition(), timeout=timeout)
+
     try:
-        assert ros.spin_until(lambda: states, timeout=60)
+        assert spin_until(lambda: states)
 
         def keys(data: bytes) -> None:
-            proc.stdin.write(data)
-            proc.stdin.flush()
+            os.write(master, data)
 
         keys(b"a")
-        assert ros.spin_until(lambda: states[-1] == "armed", timeout=60)
+        assert spin_until(lambda: states[-1] == "armed")
         keys(b"1t\x1b[A")
-        assert ros.spin_until(lambda: any(t.twist.linear.x > 0 for t in twists), timeout=60)
+        assert spin_until(lambda: any(t.twist.linear.x > 0 for t in twists))
         # it keeps sending while the robot is held: zero once the arrow's half second is over
-        assert ros.spin_until(lambda: twists[-1].twist.linear.x == 0.0, timeout=60)
+        assert spin_until(lambda: twists[-1].twist.linear.x == 0.0)
         keys(b"h")
-        time.sleep(0.5)  # no event says "nothing more was sent": look after a pause
+        assert spin_until(lambda: b"handed back to the team" in b"".join(screen))
         ros.spin_until(lambda: False, timeout=0.5)
         count = len(twists)
         ros.spin_until(lambda: False, timeout=1.0)
         assert len(twists) == count and twists[-1].twist.linear.x == 0.0  # handed back
         sent = time.monotonic()
         keys(b" ")
-        assert ros.spin_until(lambda: estops and estops[-1], timeout=60)
+        assert spin_until(lambda: estops and estops[-1])
         print(f"e-stop key to /team/estop: {1000 * (time.monotonic() - sent):.0f} ms")
-        assert ros.spin_until(lambda: console_said("estop from the console"), timeout=60)
+        assert spin_until(lambda: console_said("estop from the console"))
         keys(b"q")
-        out, err = proc.communicate(timeout=60)
+        assert proc.wait(timeout=60) == 0, proc.stderr.read().decode()
+        read_screen()
     finally:
         if proc.poll() is None:
             proc.kill()
-            proc.communicate()
+            proc.wait()
+        os.close(master)
+    text = b"".join(screen).decode(errors="replace")
+    err = proc.stderr.read()
     assert proc.returncode == 0, err.decode()
-    text = out.decode()
     assert "arm: done" in text and "estop: done" in text, text
     assert "robot 1: taken over" in text and "robot 1: handed back to the team" in text
     assert "> robot 1 [operator]" in text

@@ -237,7 +237,9 @@ def console_main(op: Operator, robots: int) -> int:
 
     saved = termios.tcgetattr(fd)
     try:
-        tty.setcbreak(fd)
+        # TCSANOW, not setcbreak's default TCSAFLUSH: a key pressed while the console was
+        # starting (an e-stop) is kept, not discarded
+        tty.setcbreak(fd, termios.TCSANOW)
         return run_console(op, robots, fd, sys.stdout)
     finally:
         termios.tcsetattr(fd, termios.TCSADRAIN, saved)
