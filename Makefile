@@ -97,6 +97,7 @@ bench: setup
 	$(BIN)/ant-bench --write docs/benchmarks.md
 	$(BIN)/ant-perception-bench --write docs/benchmarks.md --doc docs/perception.md
 	$(BIN)/python -m excavation_field.field_bench bench --write docs/benchmarks.md
+	ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST $(BIN)/python -m excavation_bringup.estop_bench --write docs/benchmarks.md
 
 # The soak (docs/benchmarks.md, "Soak"; not part of make test): 4 robots, 10,000 ticks, full
 # perception, every node its own process; fails on memory growth or a missed tick.

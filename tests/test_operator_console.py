@@ -11,6 +11,7 @@ import subprocess
 import sys
 import time
 
+import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Bool, Header
@@ -138,3 +139,16 @@ def test_a_console_arms_drives_a_robot_hands_it_back_and_stops_the_team(ros):
     assert "arm: done" in text and "estop: done" in text, text
     assert "robot 1: taken over" in text and "robot 1: handed back to the team" in text
     assert "> robot 1 [operator]" in text
+
+
+@pytest.mark.system
+def test_the_estop_bench_times_every_console(domains, tmp_path):
+    """``estop_bench``: an e-stop from each console arrives (the table has each row)."""
+    from excavation_bringup.estop_bench import MARK, main
+
+    out = tmp_path / "bench.md"
+    assert main(["--repeats", "1", "--domain", str(domains()), "--write", str(out)]) == 0
+    text = out.read_text()
+    assert text.count(MARK) == 2
+    for name in ("ant-operator estop", "ant-operator console", "live view"):
+        assert f"| {name} | 1 |" in text
