@@ -271,3 +271,73 @@ def test_the_team_channel_names_each_robots_word():
     msg = view.team_message("armed", state)
     assert msg["team"] == "armed" and msg["robots"][0]["stuck"] is True
     assert msg["robots"][0]["word"].count("+") == 1 and msg["robots"][1]["word"] == "idle"
+
+
+_REMOTE_CLIENT = """
+import json, sys
+from helpers.view_client import ControlClient
+client = ControlClient(int(sys.argv[2]), host=sys.argv[1])
+out = {}
+for name, service, request in (
+    ("arm", "/operator/arm", {}),
+    ("reset_wrong", "/operator/reset", {"token": "guess"}),
+    ("estop", "/operator/estop", {}),
+    ("reset_token", "/operator/reset", {"token": sys.argv[3]}),
+):
+    ok, answer = client.call(service, request)
+    out[name] = answer if ok else {"failure": answer}
+client.close()
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.system
+@pytest.mark.serial  # network namespaces: alone, after the parallel part
+def test_off_loopback_the_view_takes_only_an_estop_without_the_token(tmp_path):
+    """The view and a supervisor on one host (a network namespace, 198.18.0.0/15), a
+    Foxglove client on another: arm and a reset with a wrong token are refused by the
+    view, an e-stop goes through, a reset with the operator's token too."""
+    import json
+    import os
+    import secrets
+    import subprocess
+    import sys
+
+    from excavation_bringup.virtual_hosts import VirtualHosts
+
+    dome, other, port = "198.18.9.1", "198.18.9.2", 8799
+    token = secrets.token_hex(8)
+    env = dict(os.environ, ROS_DOMAIN_ID="7", ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    env["PYTHONPATH"] = str(Path(__file__).parent) + os.pathsep + env.get("PYTHONPATH", "")
+    py = sys.executable
+    with VirtualHosts([("dome", dome), ("other", other)], "tview") as hosts:
+        procs = [
+            subprocess.Popen(
+                [*hosts.prefix("dome"), py, "-m", "team_supervisor.supervisor_node",
+                 "--ros-args", "-p", "robots:=2"],
+                env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            ),
+            subprocess.Popen(
+                [*hosts.prefix("dome"), py, "-m", "excavation_bringup.view", "--robots", "2",
+                 "--host", dome, "--port", str(port), "--operator-token", token],
+                env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+            ),
+        ]  # fmt: skip
+        try:
+            remote = subprocess.run(
+                [*hosts.prefix("other"), py, "-c", _REMOTE_CLIENT, dome, str(port), token],
+                env=env, capture_output=True, text=True, timeout=300,
+            )  # fmt: skip
+        finally:
+            for p in procs:
+                p.terminate()
+            for p in procs:
+                p.wait(timeout=30)
+    assert remote.returncode == 0, remote.stderr[-3000:]
+    out = json.loads(remote.stdout.strip().splitlines()[-1])
+    assert not out["arm"]["success"] and "--operator-token" not in out["arm"]["message"]
+    assert "wrong or missing operator token" in out["arm"]["message"]
+    assert out["reset_wrong"] == {"success": False, "message": out["reset_wrong"]["message"]}
+    assert "token" in out["reset_wrong"]["message"]
+    assert out["estop"]["success"], out
+    assert out["reset_token"]["success"], out

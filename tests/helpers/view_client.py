@@ -108,10 +108,18 @@ class ControlClient:
     need to get the supervisor's answers).
     """
 
-    def __init__(self, port: int, pump=lambda: None):
+    def __init__(self, port: int, pump=lambda: None, host: str = "127.0.0.1", within=60.0):
         from websockets.sync.client import connect
 
-        self.ws = connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"])
+        deadline = time.monotonic() + within  # a server still starting: tried again
+        while True:
+            try:
+                self.ws = connect(f"ws://{host}:{port}", subprotocols=["foxglove.sdk.v1"])
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.5)
         self.pump = pump
         self.services: dict[str, int] = {}
         self.answers: dict[int, tuple[bool, object]] = {}
