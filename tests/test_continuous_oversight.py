@@ -454,3 +454,69 @@ def test_disable_enable_and_drive_override_through_ant_operator(domain):
     assert t1 - t0 >= 1.0  # the stream kept it in charge, not one message
     assert moved > 0.02 or turned > 0.2
     assert t1 <= t_end + 0.1 + STEP  # nothing of the override after its last message
+
+
+def test_a_foxglove_client_drives_robot_1_hands_it_back_and_stops_the_team(domain):
+    """The live view's console side (``view_control``) on the operator's node: a client's
+    Teleop twists drive robot 1 while robot 0 keeps digging; the stream stops and robot 1
+    takes the team's goals again (its ticks under the operator are in the trial's result);
+    then the client's e-stop stops every executor within 100 ms of sim time."""
+    import foxglove
+    from helpers.view_client import ControlClient, free_port
+
+    from excavation_bringup.view_control import ControlPolicy, ViewControl
+
+    steps, robot = 24, 1
+    watch = Watcher(domain)
+    trial = Trial(domain, steps, time_factor=2.0)  # the client streams at 10 Hz of wall time
+    control = ViewControl(watch.node, ROBOTS, ControlPolicy("127.0.0.1"))
+    server = foxglove.start_server(
+        name="test", port=free_port(),
+        capabilities=[foxglove.Capability.Services, foxglove.Capability.ClientPublish],
+        supported_encodings=["json"], server_listener=control.listener(),
+        services=control.services(),
+    )  # fmt: skip
+    client = ControlClient(server.port, pump=lambda: watch.executor.spin_once(timeout_sec=0.01))
+    try:
+        assert watch.spin_until(lambda: watch.team_tick >= 2, 400)
+        channel = client.advertise(f"/robot_{robot}/drive/override", "geometry_msgs/Twist")
+        assert client.wait(lambda: control.channels, 60)
+        taken_at = watch.team_tick
+        first = len(watch.cmd[robot])
+        deadline = time.monotonic() + 3.0  # 3 s of wall, 6 s of sim: a few ticks
+        while time.monotonic() < deadline:
+            client.publish(channel, {"linear": {"x": 0.05}, "angular": {"z": 0.0}})
+            client.wait(lambda: False, 0.1)
+        released_at = watch.team_tick
+        driven = [(s, vx) for _, s, vx, wz in watch.cmd[robot][first:] if vx == 0.05]
+        assert watch.spin_until(lambda: watch.team_tick >= released_at + 3, 400)
+        ok, reply = client.call("/operator/estop", {})
+        assert ok and reply["success"], reply
+        sent = time.monotonic()
+        t_estop = watch.heartbeat_stamp(ESTOPPED, sent - 0.5)
+        watch.spin_for(1.0)
+        zero = stops(watch, t_estop)
+        assert watch.call("/supervisor/reset")[0].success
+        assert watch.call("/supervisor/arm")[0].success
+        assert watch.spin_until(trial.done, 600)
+        result = trial.result()
+    finally:
+        client.close()
+        server.stop()
+        trial.stop()
+        watch.close()
+    print(
+        f"robot {robot} under the client's twists from tick {taken_at} to {released_at}: "
+        f"{len(driven)} cmd_vel at 0.05 m/s; result.operator_ticks = {result.operator_ticks}; "
+        f"e-stop from the client: every executor zero {1e3 * (max(zero.values()) - t_estop):.0f}"
+        " ms sim after the e-stop heartbeat"
+    )
+    assert driven, "no cmd_vel carried the client's twist"
+    assert max(zero.values()) - t_estop <= STOP_LIMIT
+    commands = np.array(result.commands)
+    ticks = result.operator_ticks.get(robot, [])
+    assert ticks and min(ticks) >= taken_at - 1 and max(ticks) <= released_at + 1, ticks
+    assert 0 not in result.operator_ticks  # robot 0 was never taken over
+    assert commands[min(ticks) : max(ticks) + 1, 0].any()  # robot 0 kept digging meanwhile
+    assert commands[max(ticks) + 1 :, robot].any()  # robot 1 back with the team's words
+    assert sum(result.missed.values()) == 0
