@@ -72,12 +72,15 @@ from excavation_sim.soil import (
     Site,
     Soil,
     SoilParams,
+    _local,
+    _rect,
     band_ground,
     blade_load,
-    body_mask,
+    body_window,
     cut,
     dig_wheels,
     relax_local,
+    stamp_body,
     volume_above,
 )
 from excavation_sim.world import (
@@ -144,6 +147,10 @@ class SoilArrays(NamedTuple):
         touched: ``int64 [4]`` sub-cell rows and columns a robot's action changed (scratch).
         offset: ``int64 [n]`` sub-cells each body stands ahead of its footprint's centre
             (negative: short of it, after a stall).
+        near_u, near_fine, near_loose: ``float64`` / ``int64 [fine.size]``: the sub-cells
+            a blade meets, for the force control's search (scratch for :func:`_blade_force`).
+        stamped: ``float64 [n, 5]`` each robot's ``(x, y, yaw, down, active)`` as ``blocked``
+            last marked it (NaN: not marked; scratch for :func:`_mask`).
     """
 
     fine: np.ndarray
@@ -162,6 +169,10 @@ class SoilArrays(NamedTuple):
     queued: np.ndarray
     touched: np.ndarray
     offset: np.ndarray
+    stamped: np.ndarray
+    near_u: np.ndarray
+    near_fine: np.ndarray
+    near_loose: np.ndarray
 
 
 def physics_vector(
@@ -243,6 +254,10 @@ def new_soil(shape, n_robots, physics):
         np.zeros(fine.shape, dtype=np.bool_),
         np.zeros(4, dtype=np.int64),
         np.zeros(n_robots, dtype=np.int64),
+        np.full((n_robots, 5), np.nan),
+        np.zeros(fine.size),
+        np.zeros(fine.size, dtype=np.int64),
+        np.zeros(fine.size, dtype=np.int64),
     )
 
 
@@ -284,6 +299,8 @@ def reset(soil, heights, robots, active):
     for k in range(robots.shape[0]):
         _place(soil, robots, k)
         soil.down[k] = robots[k, BLADE] != BLADE_HOME
+    soil.blocked[:] = False
+    soil.stamped[:] = np.nan
     _mask(soil, active)
     _relax(soil, 0, soil.fine.shape[0], 0, soil.fine.shape[1])
     _refresh(soil, heights, 0, rows, 0, cols)
@@ -292,11 +309,75 @@ def reset(soil, heights, robots, active):
 
 
 @nb.njit(cache=True, inline="always")
+def _unchanged(soil, active, k):
+    """Whether robot k's body is where ``blocked`` last marked it."""
+    st = soil.stamped
+    b = soil.bodies
+    return (
+        st[k, 0] == b[k, 0] and st[k, 1] == b[k, 1] and st[k, 2] == b[k, 2]
+        and st[k, 3] == (1.0 if soil.down[k] else 0.0) and st[k, 4] == (1.0 if active[k] else 0.0)
+    )  # fmt: skip
+
+
+@nb.njit(cache=True)
 def _mask(soil, active):
-    """Mark the sub-cells under the bodies (and lowered blades' end plates) as blocked."""
+    """Mark the sub-cells under the bodies (and lowered blades' end plates) as blocked.
+
+    The same mask as :func:`excavation_sim.soil.body_mask` (a union of the bodies'
+    stamps), updated where bodies changed since the last call: a changed body's old window
+    is cleared, then it and every body whose window meets a cleared one are stamped again.
+    """
     ph = soil.physics
     cell = ph[X_CELL]
-    body_mask(soil.blocked, soil.bodies, active, ph[X_SUB], cell, cell, soil.down, ph[X_WING])
+    sub = ph[X_SUB]
+    wing = ph[X_WING]
+    mask = soil.blocked
+    rows, cols = mask.shape
+    st = soil.stamped
+    n = soil.bodies.shape[0]
+    changed = 0
+    for k in range(n):
+        if not _unchanged(soil, active, k):
+            changed |= 1 << k
+    if changed == 0:
+        return
+    cleared = 0
+    for k in range(n):
+        if changed >> k & 1 and st[k, 4] == 1.0:
+            i0, i1, j0, j1 = body_window(
+                st[k, 0], st[k, 1], st[k, 2], sub, cell, cell, wing, rows, cols
+            )
+            mask[i0:i1, j0:j1] = False
+            cleared |= 1 << k
+    for m in range(n):
+        if not active[m]:
+            continue
+        again = changed >> m & 1 == 1
+        if not again and cleared:
+            bodies = soil.bodies
+            a0, a1, b0, b1 = body_window(
+                bodies[m, 0], bodies[m, 1], bodies[m, 2], sub, cell, cell, wing, rows, cols
+            )  # fmt: skip
+            for k in range(n):
+                if cleared >> k & 1:
+                    i0, i1, j0, j1 = body_window(
+                        st[k, 0], st[k, 1], st[k, 2], sub, cell, cell, wing, rows, cols
+                    )  # fmt: skip
+                    if a0 < i1 and i0 < a1 and b0 < j1 and j0 < b1:
+                        again = True
+                        break
+        if again:
+            stamp_body(
+                mask, soil.bodies[m, 0], soil.bodies[m, 1], soil.bodies[m, 2], sub, cell, cell,
+                soil.down[m], wing,
+            )  # fmt: skip
+    for k in range(n):
+        if changed >> k & 1:
+            st[k, 0] = soil.bodies[k, 0]
+            st[k, 1] = soil.bodies[k, 1]
+            st[k, 2] = soil.bodies[k, 2]
+            st[k, 3] = 1.0 if soil.down[k] else 0.0
+            st[k, 4] = 1.0 if active[k] else 0.0
 
 
 @nb.njit(cache=True, inline="always")
@@ -404,6 +485,14 @@ def force_at(soil, x, y, yaw, edge):
     depth, over, beyond = blade_load(
         soil.fine, soil.loose, x, y, yaw, sub, cell, cell, ph[X_REACH], edge, ph[X_WEDGE_Q]
     )
+    return _load_force(ph, depth, over, beyond)
+
+
+@nb.njit(cache=True, inline="always")
+def _load_force(ph, depth, over, beyond):
+    """The force (N) of :func:`excavation_sim.soil.blade_load`'s ``(depth, over, beyond)``."""
+    cell = ph[X_CELL]
+    sub = ph[X_SUB]
     unit = ph[X_UNIT_Q]
     d = depth * unit
     volume = unit * sub * sub
@@ -420,6 +509,83 @@ def force_at(soil, x, y, yaw, edge):
 
 
 @nb.njit(cache=True)
+def _gather(soil, x, y, yaw, edge):
+    """Store the sub-cells :func:`excavation_sim.soil.blade_load` reads at ``edge``.
+
+    Their ``u`` (m ahead), heights and loose soil go to ``near_*``; returns how many. An
+    edge at or above ``edge`` reads a subset of them (:func:`_near_force`).
+    """
+    ph = soil.physics
+    cell = ph[X_CELL]
+    sub = ph[X_SUB]
+    reach = ph[X_REACH]
+    front = cell
+    half_width = cell
+    depth, _, _ = blade_load(
+        soil.fine, soil.loose, x, y, yaw, sub, cell, cell, reach, edge, ph[X_WEDGE_Q]
+    )
+    length = depth * ph[X_WEDGE_Q]
+    far = length if length > reach else reach
+    rows, cols = soil.fine.shape
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    i0, i1, j0, j1 = _rect(
+        x, y, cy, sy, front, front + far, -half_width, half_width, sub, rows, cols
+    )
+    m = 0
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            u, v = _local(i, j, sub, x, y, cy, sy)
+            if abs(v) >= half_width or u < front or u >= front + far:
+                continue
+            soil.near_u[m] = u
+            soil.near_fine[m] = soil.fine[i, j]
+            soil.near_loose[m] = soil.loose[i, j]
+            m += 1
+    return m
+
+
+@nb.njit(cache=True)
+def _near_force(soil, m, edge):
+    """:func:`force_at` from the ``m`` sub-cells :func:`_gather` stored (at an edge as high).
+
+    The same sums over the same sub-cells as :func:`excavation_sim.soil.blade_load`
+    (integers, so in any order), hence the same force.
+    """
+    ph = soil.physics
+    cell = ph[X_CELL]
+    sub = ph[X_SUB]
+    reach = ph[X_REACH]
+    front = cell
+    cut_total = 0
+    cut_n = 0
+    for a in range(m):
+        if soil.near_u[a] < front + sub:
+            firm = soil.near_fine[a] - soil.near_loose[a] - edge
+            if firm > 0:
+                cut_total += firm
+            cut_n += 1
+    depth = cut_total / cut_n if cut_n else 0.0
+    length = depth * ph[X_WEDGE_Q]
+    far = length if length > reach else reach
+    over = 0
+    beyond = 0
+    for a in range(m):
+        u = soil.near_u[a]
+        if u >= front + far:
+            continue
+        pile = soil.near_fine[a] - edge
+        if pile <= 0:
+            continue
+        if pile > soil.near_loose[a]:
+            pile = soil.near_loose[a]
+        if u < front + length:
+            over += pile
+        else:
+            beyond += pile
+    return _load_force(ph, depth, over, beyond)
+
+
+@nb.njit(cache=True)
 def _blade_force(soil, robots, k):
     """Robot k's blade force where it stands (0 with the blade home); force control on."""
     if robots[k, BLADE] == BLADE_HOME:
@@ -433,16 +599,26 @@ def _blade_force(soil, robots, k):
     if ph[X_FORCE_CONTROL] != 0 and limit > 0.0 and force > limit:
         # the blade's force control lifts the edge until the force is within its limit
         # (Soil.relief: bisection on whole quanta up to 8 units)
+        # (the probes read the sub-cells the blade meets at its edge, stored once)
+        base = _edge(soil, k)
+        m = _gather(soil, x, y, yaw, base) if ph[X_REACH] >= ph[X_SUB] else -1
         low = 0
         high = 8 * int(ph[X_Q])
         while high - low > 1:
             mid = (low + high) // 2
-            if force_at(soil, x, y, yaw, _edge(soil, k) + mid) <= limit:
+            if m >= 0:
+                probe = _near_force(soil, m, base + mid)
+            else:
+                probe = force_at(soil, x, y, yaw, base + mid)
+            if probe <= limit:
                 high = mid
             else:
                 low = mid
         soil.lift[k] += high
-        force = force_at(soil, x, y, yaw, _edge(soil, k))
+        if m >= 0:
+            force = _near_force(soil, m, _edge(soil, k))
+        else:
+            force = force_at(soil, x, y, yaw, _edge(soil, k))
     return force
 
 

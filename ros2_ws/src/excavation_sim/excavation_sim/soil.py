@@ -649,6 +649,38 @@ def _local(i, j, sub, x, y, cy, sy):
     return dx * cy + dy * sy, -dx * sy + dy * cy
 
 
+@nb.njit(cache=True, inline="always")
+def body_window(x, y, yaw, sub, half_length, half_width, wing, rows, cols):
+    """The window ``(i0, i1, j0, j1)`` :func:`stamp_body` visits for a body at ``(x, y, yaw)``."""
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    side = half_width + sub
+    return _rect(x, y, cy, sy, -half_length, half_length + wing, -side, side, sub, rows, cols)
+
+
+@nb.njit(cache=True, inline="always")
+def stamp_body(mask, x, y, yaw, sub, half_length, half_width, wings_on, wing):
+    """Mark the sub-cells under one body (and, ``wings_on``, its blade's end plates).
+
+    :func:`body_mask`'s marks for one robot (the same tests in the same window).
+    """
+    rows, cols = mask.shape
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    ahead = half_length + wing
+    side = half_width + sub
+    i0, i1, j0, j1 = _rect(x, y, cy, sy, -half_length, ahead, -side, side, sub, rows, cols)
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            u, v = _local(i, j, sub, x, y, cy, sy)
+            if abs(u) < half_length and abs(v) < half_width:
+                mask[i, j] = True
+            elif (
+                wings_on
+                and half_length <= u < half_length + wing
+                and half_width <= abs(v) < half_width + sub
+            ):
+                mask[i, j] = True
+
+
 @nb.njit(cache=True)
 def body_mask(mask, bodies, active, sub, half_length, half_width, wings=None, wing=0.0):
     """Mark the sub-cells whose centres lie under an active robot's body rectangle.
@@ -735,12 +767,38 @@ def relax(fine, loose, blocked, max_diff, passes):
 
 @nb.njit(cache=True, inline="always")
 def _push(stack, queued, top, i, j, cols):
-    """Queue sub-cell ``(i, j)`` on ``stack`` unless it is queued already; the new top."""
+    """Queue sub-cell ``(i, j)`` on ``stack`` unless it is queued already; the new top.
+
+    An entry holds ``i << 32 | j`` (shifts, not a division by ``cols``, to read it back).
+    """
     if not queued[i, j]:
         queued[i, j] = True
-        stack[top] = i * cols + j
+        stack[top] = (i << 32) | j
         top += 1
     return top
+
+
+@nb.njit(cache=True, inline="always")
+def _settle_pair(fine, loose, blocked, max_diff, i, j, ni, nj):
+    """One step of :func:`relax_local`: sub-cell ``(i, j)`` against its neighbour ``(ni, nj)``.
+
+    Returns the quanta moved (0: none; a move is at least one quantum). ``blocked[ni, nj]``
+    is read only where the slope is too steep (it decides nothing elsewhere).
+    """
+    diff = fine[i, j] - fine[ni, nj]
+    if diff > max_diff:
+        if blocked[ni, nj]:
+            return 0
+        t = (diff - max_diff + 1) // 2
+        _move(fine, loose, i, j, ni, nj, t)
+        return t
+    if -diff > max_diff:
+        if blocked[ni, nj]:
+            return 0
+        t = (-diff - max_diff + 1) // 2
+        _move(fine, loose, ni, nj, i, j, t)
+        return t
+    return 0
 
 
 @nb.njit(cache=True)
@@ -764,34 +822,63 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
         for j in range(j0, j1):
             top = _push(stack, queued, top, i, j, cols)
     moved = 0
+    low = 0xFFFFFFFF
+    r0 = touched[0]
+    r1 = touched[1]
+    c0 = touched[2]
+    c1 = touched[3]
     while top > 0:
         top -= 1
-        i = stack[top] // cols
-        j = stack[top] % cols
+        i = stack[top] >> 32
+        j = stack[top] & low
         queued[i, j] = False
         if blocked[i, j]:
             continue
-        for n in range(4):
-            ni = i + (1 if n == 0 else -1 if n == 1 else 0)
-            nj = j + (1 if n == 2 else -1 if n == 3 else 0)
-            if ni < 0 or nj < 0 or ni >= rows or nj >= cols or blocked[ni, nj]:
-                continue
-            diff = fine[i, j] - fine[ni, nj]
-            if diff > max_diff:
-                t = (diff - max_diff + 1) // 2
-                _move(fine, loose, i, j, ni, nj, t)
-            elif -diff > max_diff:
-                t = (-diff - max_diff + 1) // 2
-                _move(fine, loose, ni, nj, i, j, t)
-            else:
-                continue
-            moved += t
-            touched[0] = min(touched[0], i, ni)
-            touched[1] = max(touched[1], i, ni)
-            touched[2] = min(touched[2], j, nj)
-            touched[3] = max(touched[3], j, nj)
-            top = _push(stack, queued, top, i, j, cols)
-            top = _push(stack, queued, top, ni, nj, cols)
+        # the neighbours in the order below, above, right, left
+        if i + 1 < rows:
+            t = _settle_pair(fine, loose, blocked, max_diff, i, j, i + 1, j)
+            if t > 0:
+                moved += t
+                r0 = min(r0, i, i + 1)
+                r1 = max(r1, i, i + 1)
+                c0 = min(c0, j, j)
+                c1 = max(c1, j, j)
+                top = _push(stack, queued, top, i, j, cols)
+                top = _push(stack, queued, top, i + 1, j, cols)
+        if i >= 1:
+            t = _settle_pair(fine, loose, blocked, max_diff, i, j, i - 1, j)
+            if t > 0:
+                moved += t
+                r0 = min(r0, i, i - 1)
+                r1 = max(r1, i, i - 1)
+                c0 = min(c0, j, j)
+                c1 = max(c1, j, j)
+                top = _push(stack, queued, top, i, j, cols)
+                top = _push(stack, queued, top, i - 1, j, cols)
+        if j + 1 < cols:
+            t = _settle_pair(fine, loose, blocked, max_diff, i, j, i, j + 1)
+            if t > 0:
+                moved += t
+                r0 = min(r0, i, i)
+                r1 = max(r1, i, i)
+                c0 = min(c0, j, j + 1)
+                c1 = max(c1, j, j + 1)
+                top = _push(stack, queued, top, i, j, cols)
+                top = _push(stack, queued, top, i, j + 1, cols)
+        if j >= 1:
+            t = _settle_pair(fine, loose, blocked, max_diff, i, j, i, j - 1)
+            if t > 0:
+                moved += t
+                r0 = min(r0, i, i)
+                r1 = max(r1, i, i)
+                c0 = min(c0, j, j - 1)
+                c1 = max(c1, j, j - 1)
+                top = _push(stack, queued, top, i, j, cols)
+                top = _push(stack, queued, top, i, j - 1, cols)
+    touched[0] = r0
+    touched[1] = r1
+    touched[2] = c0
+    touched[3] = c1
     return moved
 
 
