@@ -92,7 +92,10 @@ def _stamp(t):
 
 
 def test_operator_against_a_running_supervisor(ros):
+    from helpers.diagnostics import DiagnosticsProbe
+
     ros.add(SupervisorNode(context=ros.context, parameter_overrides=[Parameter("robots", value=2)]))
+    probe = DiagnosticsProbe(ros.add(Node("probe", context=ros.context)))
     results = {}
 
     def run():
@@ -108,6 +111,11 @@ def test_operator_against_a_running_supervisor(ros):
     ros.spin_until(lambda: not thread.is_alive(), timeout=120)
     thread.join()
     assert results["arm"].returncode == 0 and "armed" in results["arm"].stdout
+    # each action is named on /diagnostics with its origin (ant-dome's events log takes it)
+    said = [v.value for st in probe.statuses for v in st.values if v.key == "last_control"]
+    assert any(a.startswith("arm from the command line: done") for a in said), said
+    assert any(a.startswith("disable 1 from the command line: done") for a in said), said
+    assert not any(a.startswith("status") for a in said)
     assert results["pause"].returncode == 0
     assert results["arm again"].returncode == 1
     assert "paused: resume it" in results["arm again"].stderr

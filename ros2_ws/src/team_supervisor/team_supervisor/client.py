@@ -50,6 +50,25 @@ class Operator:
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
 
+    def announce(self, action: str, wait: float = 0.5) -> None:
+        """Name ``action`` on ``/diagnostics`` (``last_control``): ``ant-dome``'s events log.
+
+        Waits up to ``wait`` s for a reader (a short-lived process: nobody may be
+        listening, which is not an error).
+        """
+        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+        from rclpy.duration import Duration
+
+        from excavation_common.ros import diagnostics
+
+        pub = self.node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        deadline = time.monotonic() + wait
+        while pub.get_subscription_count() == 0 and time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+        values = {"controls": 1, "last_control": action}
+        pub.publish(diagnostics(self.node, DiagnosticStatus.OK, action, values))
+        pub.wait_for_all_acked(Duration(seconds=wait))
+
     def _call(self, kind, name: str, request):
         client = self.node.create_client(kind, name)
         try:

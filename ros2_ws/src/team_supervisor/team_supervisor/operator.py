@@ -104,6 +104,9 @@ def main(argv: list[str] | None = None) -> int:
         else:
             n = op.blade(args.robot, args.position, args.seconds)
             ok, message = True, f"robot {args.robot}: {n} blade set-points {args.position:g} m sent"
+        if args.command != "status":  # an action: its origin goes to ant-dome's events log
+            what = " ".join([args.command, *([str(args.robot)] if hasattr(args, "robot") else [])])
+            op.announce(f"{what} from the command line: {'done' if ok else 'refused'}: {message}")
     except NoAnswer as exc:
         print(f"ant-operator: error: {exc}", file=sys.stderr)
         return EXIT_NO_ANSWER
