@@ -259,3 +259,35 @@ def test_every_method_resumes_bit_identically(tmp_path, method):
     assert strip(tmp_path / "b") == strip(tmp_path / "a")
     best = [(tmp_path / d / "best.json").read_bytes() for d in "ab"]
     assert best[0] == best[1]
+
+
+def test_ant_evolve_started_in_the_background_stops_on_sigint(tmp_path):
+    """A shell without job control starts background commands with SIGINT ignored; ant-evolve
+    still stops on it (exit 130) and says how to resume."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "ant_evolution.cli_evolve", "--out", str(out), "--population"]
+    cmd += ["6", "--generations", "100000", "--scenarios", "2", "--steps", "30", "--robots", "2"]
+    cmd += ["--depths", "1", "--workers", "1", "--quiet"]
+    proc = subprocess.Popen(
+        cmd,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+    )
+    try:
+        deadline = time.monotonic() + 300
+        while not (out / "history.csv").exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert (out / "history.csv").exists()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=120) == 130
+        assert "resume with --resume" in proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

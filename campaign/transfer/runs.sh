@@ -11,8 +11,11 @@ run() {  # run NAME SEED ARGS...
   shift 2
   [[ -f "$out/transfer.json" ]] && return 0
   local resume=()
+  # a run stopped at a session's end: its checkpoint was committed compressed
+  [[ -f "$out/checkpoint.json.gz" && ! -f "$out/checkpoint.json" ]] && gunzip -k "$out/checkpoint.json.gz"
   [[ -f "$out/checkpoint.json" ]] && resume=(--resume)
   nice -n 10 ant-evolve --out "$out" --seed "$seed" "${common[@]}" "$@" "${resume[@]}"
+  rm -f "$out/checkpoint.json.gz"  # finished: the matrix is written, no checkpoint is kept
 }
 case "${1:?queue a, b or c}" in
   a)

@@ -204,6 +204,9 @@ def resolve_config(args: argparse.Namespace) -> EvolveConfig:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ant-evolve``."""
+    from excavation_common.signals import interrupt_on_sigint
+
+    interrupt_on_sigint()  # Ctrl-C stops it even when a script started it in the background
     args = build_parser().parse_args(argv)
     try:
         config = resolve_config(args)

@@ -101,7 +101,7 @@ def transfer_matrix(
                 result.mean,
                 float(result.scores.std()),
                 start,
-                gain / grid_gain if grid_gain else None,
+                gain / grid_gain if grid_gain > 0 else None,  # no grid gain: no progress
                 stalls,
             )
         )

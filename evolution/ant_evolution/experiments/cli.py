@@ -54,6 +54,9 @@ NAMES = (
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``ant-experiment``."""
+    from excavation_common.signals import interrupt_on_sigint
+
+    interrupt_on_sigint()  # Ctrl-C stops it even when a script started it in the background
     p = argparse.ArgumentParser(prog="ant-experiment", description=__doc__.split("\n\n")[0])
     p.add_argument("name", choices=NAMES)
     p.add_argument("--scale", choices=sorted(SCALES), default="medium")

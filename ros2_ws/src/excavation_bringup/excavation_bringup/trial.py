@@ -526,7 +526,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     from excavation_common.errors import FieldError
-    from excavation_common.ros import interrupt_on_sigint
+    from excavation_common.signals import interrupt_on_sigint
 
     interrupt_on_sigint()  # Ctrl-C stops it even when a script started it in the background
 

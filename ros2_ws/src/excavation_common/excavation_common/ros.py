@@ -10,7 +10,6 @@ frozen parameter dataclass declared with descriptors and kept valid at runtime) 
 from __future__ import annotations
 
 import re
-import signal
 import sys
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -209,18 +208,6 @@ def init_rclpy(**kwargs: Any) -> None:
     """
     use_profiles()
     rclpy.init(**kwargs)
-
-
-def interrupt_on_sigint() -> None:
-    """Make SIGINT (Ctrl-C, ``kill -INT``) raise :class:`KeyboardInterrupt` in this process.
-
-    A shell without job control (a script, ``bash -c '... &'``) starts its background
-    commands with SIGINT ignored, and Python keeps an inherited ignore; rclpy's own handler,
-    which every node on the default context installs, does not. A command that composes
-    nodes on a context of its own (``ant-trial`` and the runs built on it) calls this first,
-    so that it stops on the same signal as a ``ros2 run`` node would.
-    """
-    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def spin_node(

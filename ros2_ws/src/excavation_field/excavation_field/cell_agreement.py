@@ -219,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--domain", type=int_in(0, 101), default=100, help="ROS domain id")
     p.add_argument("--write", type=Path, metavar="MD", help="put every soil's table into MD")
     args = p.parse_args(argv)
-    from excavation_common.ros import interrupt_on_sigint
+    from excavation_common.signals import interrupt_on_sigint
 
     interrupt_on_sigint()
     if args.what == "run":

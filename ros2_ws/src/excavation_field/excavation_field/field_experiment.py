@@ -757,7 +757,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
-    from excavation_common.ros import interrupt_on_sigint
+    from excavation_common.signals import interrupt_on_sigint
 
     interrupt_on_sigint()  # Ctrl-C stops it even when a script started it in the background
     if not args.hand_coded and not args.genome.is_file():

@@ -319,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
         "--report", action="store_true", help="rewrite DIR/attribution.md from its trials only"
     )
     args = p.parse_args(argv)
-    from excavation_common.ros import interrupt_on_sigint
+    from excavation_common.signals import interrupt_on_sigint
 
     interrupt_on_sigint()  # Ctrl-C stops it even when a script started it in the background
     if args.report:
