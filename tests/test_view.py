@@ -136,7 +136,9 @@ def test_layout_names_the_view_channels():
     from excavation_bringup.view_control import TRIGGERS
 
     services = {c["serviceName"] for k, c in layout["configById"].items() if "serviceName" in c}
-    assert services <= {f"/operator/{t}" for t in TRIGGERS} | {"/operator/robot_0/enable"}
+    enables = {f"/operator/robot_{k}/enable" for k in range(4)}
+    assert services == {f"/operator/{t}" for t in ("estop", "pause", "resume", "arm")} | enables
+    assert set(TRIGGERS) >= {"estop", "pause", "resume", "arm"}
 
 
 def test_the_view_checks_its_site_for_what_runs_it():
