@@ -28,6 +28,7 @@ setup(
         "team_tick",
         "excavation_bags",
         "numpy",
+        "websockets",
         "libfaketime",
         "pyyaml",
         "foxglove-sdk",
