@@ -127,6 +127,39 @@ def test_the_progress_fitness_weighs_each_soil_by_the_references_gain():
         dataclasses.replace(cfg, combine="max")
 
 
+def test_the_floor_fitness_holds_the_runs_own_soil_plain_and_scores_the_other():
+    from ant_evolution.evolve import EvolveConfig, blueprints_of, scenario_sets
+
+    cfg = EvolveConfig(
+        population=4, generations=1, scenarios=3, robots=2, depths=(1,), steps=60, seed=4,
+        also_soil="physical:dome", combine="floor", randomise=True,
+    )  # fmt: skip
+    sets = scenario_sets(cfg, 0, blueprints_of(cfg))
+    held = [s for s in sets if s.soil == "grid"]
+    scored = [s for s in sets if s.soil == "physical:dome"]
+    assert held and scored
+    assert all(s.floor == 0.9 and not s.randomised for s in held)  # held plain
+    assert all(s.floor is None and s.randomised for s in scored)
+    genome = Controller.from_file(GENOME)
+    grid = np.concatenate([s.score(genome) for s in held]).mean()
+    dome = np.concatenate([s.score(genome) for s in scored]).mean()
+    kept = [dataclasses.replace(s, floor=grid - 0.01) for s in held]
+    assert program_fitness(genome, kept + scored) == pytest.approx(dome)  # floor kept
+    lost = [dataclasses.replace(s, floor=grid + 0.05) for s in held]
+    assert program_fitness(genome, lost + scored) == pytest.approx(-0.05)  # the shortfall
+    assert program_fitness(genome, lost + scored) < 0 <= program_fitness(genome, kept + scored)
+    assert cfg.run_key() != dataclasses.replace(cfg, floor=0.8).run_key()
+    # the default floor keys nothing: test_paper_profile pins the default config's key
+    for bad, field_name in (
+        ({"floor": 0.0}, "floor"),
+        ({"floor": 1.5}, "floor"),
+        ({"combine": "mean", "floor": 0.8}, "floor"),
+        ({"also_soil": ""}, "combine"),
+    ):
+        with pytest.raises(Exception, match=field_name):
+            dataclasses.replace(cfg, **bad)
+
+
 def test_a_randomised_run_resumes_bit_for_bit_on_other_workers_and_writes_its_matrix(
     tmp_path, capsys
 ):

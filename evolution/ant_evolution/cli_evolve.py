@@ -143,8 +143,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--combine",
         choices=COMBINES,
-        help="with --also-soil: mean (default: the lower soil's mean fitness) or progress "
-        "(the lower soil's gain over the start in units of the hand-coded rules' gain)",
+        help="with --also-soil: mean (default: the lower soil's mean fitness), progress "
+        "(the lower soil's gain over the start in units of the hand-coded rules' gain) or "
+        "floor (the --also-soil mean while the run's own soil, not randomised, keeps at least "
+        "--floor)",
+    )
+    p.add_argument(
+        "--floor",
+        type=float,
+        help="with --combine floor: the mean fitness a genome must keep on the run's own "
+        "soil (default 0.9; below it the fitness is the shortfall)",
     )
     p.add_argument(
         "--transfer-scenarios",
@@ -184,6 +192,7 @@ def resolve_config(args: argparse.Namespace) -> EvolveConfig:
         "start": args.start,
         "randomise": args.randomise,
         "combine": args.combine,
+        "floor": args.floor,
     }
     values = {k: v for k, v in overrides.items() if v is not None}
     if args.robots is not None:

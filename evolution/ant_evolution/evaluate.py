@@ -72,6 +72,8 @@ class ScenarioSet:
         start_fitness, reference: ``float64 [S]``, set by :meth:`with_reference` (else
             empty): each scenario's fitness at the start and a reference program's at the
             end, the units of the combined fitness ``progress``.
+        floor: The mean fitness a program must keep on this set's soil (the combined
+            fitness ``floor``); ``None``: the soil is scored, not held.
     """
 
     heights: np.ndarray
@@ -90,6 +92,7 @@ class ScenarioSet:
     randomised: bool = False
     start_fitness: np.ndarray = field(default_factory=lambda: np.zeros(0))
     reference: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    floor: float | None = None
 
     @classmethod
     def create(
@@ -304,21 +307,29 @@ def program_fitness(program: DecisionProgram, sets: Sequence[ScenarioSet]) -> fl
     reference (:meth:`ScenarioSet.with_reference`, a run with ``combine: progress``) give
     each soil's **progress** instead, its mean gain over the start in units of the
     reference's mean gain (at least :data:`MIN_REFERENCE_GAIN`), then the lowest: the soils
-    weigh alike however much soil each lets a robot move.
+    weigh alike however much soil each lets a robot move. A soil whose sets carry a
+    ``floor`` (a run with ``combine: floor``) is held, not scored: while its mean is at
+    least the floor the fitness is the other soils', below it the (negative) shortfall, so
+    every program that keeps the floor ranks above every program that does not.
     """
     n_robots = program.robots or 0
     by_soil: dict[str, list[tuple[np.ndarray, ScenarioSet]]] = {}
     for s in sets:
         by_soil.setdefault(s.soil, []).append((s.score(program, n_robots), s))
     values = []
+    shortfall = 0.0
     for pairs in by_soil.values():
         mean = float(np.concatenate([scores for scores, _ in pairs]).mean())
+        floor = pairs[0][1].floor
+        if floor is not None:
+            shortfall = min(shortfall, mean - floor)
+            continue
         if all(s.reference.size for _, s in pairs):
             start = float(np.concatenate([s.start_fitness for _, s in pairs]).mean())
             ref = float(np.concatenate([s.reference for _, s in pairs]).mean())
             mean = (mean - start) / max(ref - start, MIN_REFERENCE_GAIN)
         values.append(mean)
-    return min(values)
+    return shortfall if shortfall < 0 else min(values)
 
 
 def advance(

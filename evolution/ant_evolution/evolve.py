@@ -55,7 +55,7 @@ from excavation_sim.rules import WorldRules
 from excavation_sim.soil import SoilError, check_soil
 
 CHECKPOINT_FORMAT = "ant-checkpoint/1"
-COMBINES = ("mean", "progress")
+COMBINES = ("mean", "progress", "floor")
 """How a run's soils combine into one fitness (``EvolveConfig.combine``)."""
 
 
@@ -100,9 +100,12 @@ class EvolveConfig:
         randomise: Each scenario draws its world (rules, sensor noise, soil) over the
             documented ranges (:mod:`ant_evolution.randomise`).
         combine: How the soils of a run with ``also_soil`` combine: ``mean`` (the lowest
-            soil's mean fitness) or ``progress`` (the lowest soil's gain over the start in
-            units of the hand-coded rules' gain on the same scenarios,
+            soil's mean fitness), ``progress`` (the lowest soil's gain over the start in
+            units of the hand-coded rules' gain on the same scenarios) or ``floor`` (the
+            ``also_soil`` mean while the run's own soil, never randomised, keeps a mean of
+            at least ``floor``; below it the shortfall, a negative fitness;
             :func:`ant_evolution.evaluate.program_fitness`).
+        floor: The run's own soil's mean fitness a genome must keep (``combine: floor``).
     """
 
     population: int = 100
@@ -144,6 +147,7 @@ class EvolveConfig:
     start: str = ""
     randomise: bool = False
     combine: str = "mean"
+    floor: float = 0.9
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -162,6 +166,7 @@ class EvolveConfig:
             "mutation_prob": 0.0 <= self.mutation_prob <= 1.0,
             "elitism": 0 <= self.elitism < self.population,
             "checkpoint_every": self.checkpoint_every >= 1,
+            "floor": 0.0 < self.floor <= 1.0,
         }
         for name, ok in checks.items():
             if not ok:
@@ -182,6 +187,10 @@ class EvolveConfig:
                 raise ConfigError("<config>", key, value, str(exc)) from None
         if self.combine not in COMBINES:
             raise ConfigError("<config>", "combine", self.combine, f"must be one of {COMBINES}")
+        if self.combine != "mean" and not self.also_soil:
+            raise ConfigError("<config>", "combine", self.combine, "needs also_soil")
+        if self.floor != 0.9 and self.combine != "floor":
+            raise ConfigError("<config>", "floor", self.floor, "applies only with combine: floor")
         if self.also_soil == self.soil:
             raise ConfigError("<config>", "also_soil", self.also_soil, "is the run's soil")
         profile_switches(self.profile, "<config>")  # a known profile name
@@ -265,6 +274,7 @@ _KEYED_WHERE_SET = {
     "start": "",
     "randomise": False,
     "combine": "mean",
+    "floor": 0.9,
 }
 """Keys added after the first runs: keyed in ``run_key`` only where not their default."""
 _KEYED_SINCE_PROFILES = ("profile", *(k for k in SWITCHES if k != "elitism"))
@@ -362,12 +372,17 @@ def scenario_sets(
     sizes = [config.scenarios // n + (i < config.scenarios % n) for i in range(n)]
     rules = config.world_rules
     soils = [config.soil, *([config.also_soil] if config.also_soil else [])]
+    held = config.soil if config.combine == "floor" else None  # scored plain, held at floor
     sets = [
-        ScenarioSet.create(bp, robots, size, config.steps, seed + i, rules, soil, config.randomise)
+        ScenarioSet.create(
+            bp, robots, size, config.steps, seed + i, rules, soil, config.randomise and soil != held
+        )
         for soil in soils
         for i, (bp, size) in enumerate(zip(blueprints, sizes, strict=True))
         if size > 0
     ]
+    if held is not None:
+        sets = [dataclasses.replace(s, floor=config.floor) if s.soil == held else s for s in sets]
     if config.combine == "progress":
         reference = Controller.hand_coded(config.hand_coded)
         sets = [s.with_reference(reference) for s in sets]
