@@ -462,8 +462,9 @@ def test_a_foxglove_client_drives_robot_1_hands_it_back_and_stops_the_team(domai
     takes the team's goals again (its ticks under the operator are in the trial's result);
     then the client's e-stop stops every executor within 100 ms of sim time."""
     import foxglove
-    from helpers.view_client import ControlClient, free_port
+    from helpers.view_client import free_port
 
+    from excavation_bringup.view_client import ControlClient
     from excavation_bringup.view_control import ControlPolicy, ViewControl
 
     steps, robot = 24, 1

@@ -173,11 +173,12 @@ def test_the_view_is_a_console_for_the_supervisor_and_the_robots(ros):
     publishing drives a robot; each action is counted on the view's diagnostics."""
     import foxglove
     from geometry_msgs.msg import TwistStamped
-    from helpers.view_client import ControlClient, free_port
+    from helpers.view_client import free_port
     from rclpy.node import Node
     from rclpy.parameter import Parameter
     from std_msgs.msg import Bool, Header
 
+    from excavation_bringup.view_client import ControlClient
     from excavation_bringup.view_control import ControlPolicy, ViewControl
     from excavation_common.ros import LATCHED
     from team_supervisor.supervisor_node import SupervisorNode
@@ -277,7 +278,7 @@ def test_the_team_channel_names_each_robots_word():
 
 _REMOTE_CLIENT = """
 import json, sys
-from helpers.view_client import ControlClient
+from excavation_bringup.view_client import ControlClient
 client = ControlClient(int(sys.argv[2]), host=sys.argv[1])
 out = {}
 for name, service, request in (

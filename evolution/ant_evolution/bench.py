@@ -27,7 +27,6 @@ import argparse
 import json
 import os
 import platform
-import re
 import subprocess
 import sys
 import tempfile
@@ -43,6 +42,7 @@ from ant_evolution.backends import Evaluator, genome_fitness
 from ant_evolution.breakdown import phase_times
 from ant_evolution.evaluate import ScenarioSet
 from blueprint_server.blueprint import default_blueprint
+from excavation_common.files import replace_marked
 
 ROBOTS = 4
 STEPS = 300
@@ -244,23 +244,6 @@ def soil_table(costs: list[tuple], n_scenarios: int) -> list[str]:
     return lines
 
 
-def replace_section(path: Path, section: str) -> None:
-    """Put ``section`` between the markers of ``path``.
-
-    A file without the markers (the layout before them, where this section was the whole
-    top of the file) gets its text up to the first other section replaced.
-    """
-    text = path.read_text() if path.exists() else ""
-    pattern = re.compile(re.escape(MARK) + ".*?" + re.escape(MARK), re.S)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: section, text)
-    else:
-        first = text.find("<!--")
-        rest = text[first:] if first >= 0 else ""
-        text = "# Benchmarks\n\n" + section + ("\n\n" + rest if rest else "\n")
-    path.write_text(text)
-
-
 def _ns(x: float) -> str:
     return f"{x * 1e9:,.0f}"
 
@@ -424,8 +407,7 @@ def main(argv: list[str] | None = None) -> int:
     text = "\n".join(lines)
     print(text)
     if args.write:
-        section = MARK + "\n" + NOTES.replace("{results}", text).rstrip() + "\n" + MARK
-        replace_section(Path(args.write), section)
+        replace_marked(args.write, NOTES.replace("{results}", text), MARK)
     return 0
 
 

@@ -27,7 +27,6 @@ import argparse
 import math
 import os
 import platform
-import re
 import sys
 import time
 from dataclasses import dataclass
@@ -38,6 +37,7 @@ import numpy as np
 from ant_controller.controller import Controller
 from ant_evolution.evaluate import advance
 from blueprint_server.blueprint import default_blueprint
+from excavation_common.files import replace_marked
 from excavation_common.frames import yaw_to_heading
 from excavation_common.progress import tqdm
 from excavation_sim.camera import (
@@ -204,7 +204,6 @@ def report(loc: LocalizerFigures, mapper: MapperFigures) -> str:
     cpu = platform.processor() or platform.machine()
     return "\n".join(
         [
-            MARK,
             "## Perception (`ant-perception-bench`)",
             "",
             f"Measured against simulator truth on this machine ({cpu}, one core, Python "
@@ -230,20 +229,8 @@ def report(loc: LocalizerFigures, mapper: MapperFigures) -> str:
             f"| cells measured (the rest are under robots) | {mapper.measured:.1%} | |",
             f"| scans per second, one core | {mapper.scans_per_second:.0f} | sweep rate x "
             f"{LaserParams().sweep_scans} |",
-            MARK,
         ]
     )
-
-
-def replace_section(path: Path, section: str) -> None:
-    """Put ``section`` between the markers of ``path`` (appended when it has none)."""
-    text = path.read_text() if path.exists() else ""
-    pattern = re.compile(re.escape(MARK) + ".*?" + re.escape(MARK), re.S)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: section, text)
-    else:
-        text = text.rstrip("\n") + "\n\n" + section + "\n"
-    path.write_text(text)
 
 
 def laser_survey(
@@ -374,7 +361,7 @@ def main(argv: list[str] | None = None) -> int:
     print(section)
     for target in (args.write, args.doc):
         if target:
-            replace_section(Path(target), section)
+            replace_marked(target, section, MARK)
     return 0
 
 

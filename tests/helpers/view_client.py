@@ -1,5 +1,6 @@
 """A Foxglove WebSocket client for tests: subscribes to the live view's channels and keeps
-the last message of each, decoded (protobuf from the advertised schema, or JSON)."""
+the last message of each, decoded (protobuf from the advertised schema, or JSON). The
+control surface's client is the package's own (``excavation_bringup.view_client``)."""
 
 from __future__ import annotations
 
@@ -98,79 +99,3 @@ class Client(threading.Thread):
                 if time.monotonic() > deadline or self.stop.is_set():
                     raise
                 time.sleep(0.5)
-
-
-class ControlClient:
-    """A Foxglove WebSocket client that calls the view's services and publishes on it.
-
-    Synchronous: each call sends and reads frames until its answer comes (``pump`` runs the
-    caller's event loop meanwhile, e.g. the test's ROS executor, which the view's services
-    need to get the supervisor's answers).
-    """
-
-    def __init__(self, port: int, pump=lambda: None, host: str = "127.0.0.1", within=60.0):
-        from websockets.sync.client import connect
-
-        deadline = time.monotonic() + within  # a server still starting: tried again
-        while True:
-            try:
-                self.ws = connect(f"ws://{host}:{port}", subprotocols=["foxglove.sdk.v1"])
-                break
-            except OSError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.5)
-        self.pump = pump
-        self.services: dict[str, int] = {}
-        self.answers: dict[int, tuple[bool, object]] = {}
-        self.capabilities: list[str] = []
-        self.next_id = 1
-
-    def close(self) -> None:
-        self.ws.close()
-
-    def _read(self, timeout: float = 0.05) -> None:
-        try:
-            frame = self.ws.recv(timeout=timeout)
-        except TimeoutError:
-            return
-        if isinstance(frame, str):
-            msg = json.loads(frame)
-            if msg.get("op") == "serverInfo":
-                self.capabilities = msg.get("capabilities", [])
-            elif msg.get("op") == "advertiseServices":
-                self.services.update({s["name"]: s["id"] for s in msg["services"]})
-            elif msg.get("op") == "serviceCallFailure":
-                self.answers[msg["callId"]] = (False, msg["message"])
-            return
-        if frame[0] == 3:  # service call response
-            _, _, call, n = struct.unpack_from("<BIII", frame)
-            self.answers[call] = (True, json.loads(frame[13 + n :]))
-
-    def wait(self, condition, timeout: float = 30.0) -> bool:
-        deadline = time.monotonic() + timeout
-        while not condition():
-            if time.monotonic() > deadline:
-                return False
-            self._read()
-            self.pump()
-        return True
-
-    def call(self, service: str, request: dict, timeout: float = 30.0):
-        """``(True, answer)`` or ``(False, failure message)``; raises on no answer."""
-        assert self.wait(lambda: service in self.services, timeout), self.services
-        call, self.next_id = self.next_id, self.next_id + 1
-        payload = json.dumps(request).encode()
-        head = struct.pack("<BIII", 2, self.services[service], call, 4) + b"json"
-        self.ws.send(head + payload)
-        assert self.wait(lambda: call in self.answers, timeout), f"{service}: no answer"
-        return self.answers.pop(call)
-
-    def advertise(self, topic: str, schema_name: str) -> int:
-        channel, self.next_id = self.next_id, self.next_id + 1
-        spec = {"id": channel, "topic": topic, "encoding": "json", "schemaName": schema_name}
-        self.ws.send(json.dumps({"op": "advertise", "channels": [spec]}))
-        return channel
-
-    def publish(self, channel: int, message: dict) -> None:
-        self.ws.send(struct.pack("<BI", 1, channel) + json.dumps(message).encode())

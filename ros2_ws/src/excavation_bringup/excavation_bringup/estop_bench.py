@@ -20,13 +20,15 @@ from __future__ import annotations
 import argparse
 import os
 import pty
-import re
 import select
 import statistics
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from excavation_bringup.view_client import ControlClient
+from excavation_common.files import replace_marked
 
 MARK = "<!-- estop-bench -->"
 
@@ -159,10 +161,11 @@ def run(domain: int, repeats: int) -> dict[str, list[float]]:
                 )
             )
             out["ant-operator console"].append(watcher.time_estop(lambda: os.write(master, b" ")))
-            client = _ws_client(port, watcher)
+            client = ControlClient(port, pump=lambda: watcher.spin_until(lambda: False, 0.05))
             try:
+                client.wait(lambda c=client: "/operator/estop" in c.services, 60)
                 out["live view"].append(
-                    watcher.time_estop(lambda c=client: c.send_call("/operator/estop"))
+                    watcher.time_estop(lambda c=client: c.send("/operator/estop", {}))
                 )
             finally:
                 client.close()
@@ -179,50 +182,6 @@ def run(domain: int, repeats: int) -> dict[str, list[float]]:
     return out
 
 
-class _WsClient:
-    """The least of a Foxglove WebSocket client: connect, learn the services, call one."""
-
-    def __init__(self, port: int) -> None:
-        import json
-
-        from websockets.sync.client import connect
-
-        self.ws = connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"])
-        self.services: dict[str, int] = {}
-        deadline = time.monotonic() + 60
-        while "/operator/estop" not in self.services and time.monotonic() < deadline:
-            try:
-                frame = self.ws.recv(timeout=0.5)
-            except TimeoutError:
-                continue
-            if isinstance(frame, str):
-                msg = json.loads(frame)
-                if msg.get("op") == "advertiseServices":
-                    self.services.update({s["name"]: s["id"] for s in msg["services"]})
-        if "/operator/estop" not in self.services:
-            raise RuntimeError("the view advertises no /operator/estop")
-
-    def send_call(self, service: str) -> None:
-        import struct
-
-        self.ws.send(struct.pack("<BIII", 2, self.services[service], 1, 4) + b"json{}")
-
-    def close(self) -> None:
-        self.ws.close()
-
-
-def _ws_client(port: int, watcher: Watcher) -> _WsClient:
-    """A connected client (the view may still be starting: tried for a minute)."""
-    deadline = time.monotonic() + 60
-    while True:
-        try:
-            return _WsClient(port)
-        except OSError:
-            if time.monotonic() > deadline:
-                raise
-            watcher.spin_until(lambda: False, timeout=0.5)
-
-
 def table(times: dict[str, list[float]]) -> str:
     """The Markdown table of :func:`run`'s times."""
     reference = statistics.median(times["ant-operator estop"])
@@ -237,18 +196,6 @@ def table(times: dict[str, list[float]]) -> str:
             f"{reference / median:.0f} x |"
         )
     return "\n".join(lines)
-
-
-def replace_marked(path: Path, section: str) -> None:
-    """Put ``section`` between the two :data:`MARK` lines of ``path`` (appended if none)."""
-    text = path.read_text() if path.exists() else ""
-    pattern = re.compile(re.escape(MARK) + ".*?" + re.escape(MARK), re.S)
-    block = f"{MARK}\n{section}\n{MARK}"
-    if pattern.search(text):
-        text = pattern.sub(lambda _: block, text)
-    else:
-        text = text.rstrip("\n") + "\n\n" + block + "\n"
-    path.write_text(text)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -269,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(text)
     if args.write is not None:
-        replace_marked(args.write, text)
+        replace_marked(args.write, text, MARK)
     return 0
 
 

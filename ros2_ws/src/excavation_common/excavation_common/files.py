@@ -37,3 +37,25 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return p
+
+
+def replace_marked(path: str | Path, body: str, mark: str, end: str | None = None) -> Path:
+    """Put ``body`` between the markers ``mark`` and ``end`` (default ``mark``) of a file.
+
+    The rest of the file is left alone; a file without the markers (or none at all) gets
+    the body appended with them. Written atomically (:func:`write_text_atomic`).
+
+    This is how the benchmarks and studies keep their tables in docs/benchmarks.md and
+    docs/world-model.md beside the hand-written text.
+    """
+    p = Path(path)
+    end = end or mark
+    text = p.read_text(encoding="utf-8") if p.exists() else ""
+    block = f"{mark}\n{body.strip(chr(10))}\n{end}"
+    start = text.find(mark)
+    stop = text.find(end, start + len(mark)) if start >= 0 else -1
+    if stop >= 0:
+        text = text[:start] + block + text[stop + len(end) :]
+    else:
+        text = (text.rstrip("\n") + "\n\n" if text.strip() else "") + block + "\n"
+    return write_text_atomic(p, text)

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from excavation_common.files import write_text_atomic
+from excavation_common.files import replace_marked, write_text_atomic
 from excavation_common.limits import int_in
 from excavation_sim.soil import soil_arg
 
@@ -195,9 +195,7 @@ def combined(rows: list[dict]) -> str:
 
 def write_section(path: Path, table: str) -> None:
     """Put ``table`` between the markers of ``path`` (the rest is left alone)."""
-    text = path.read_text()
-    start, end = text.index(MARK) + len(MARK), text.index(END)
-    write_text_atomic(path, text[:start] + "\n" + table + "\n" + text[end:])
+    replace_marked(path, table, MARK, END)
 
 
 def load_rows(out: Path) -> list[dict]:

@@ -22,6 +22,8 @@ import os
 import statistics
 import time
 
+from excavation_common.files import replace_marked
+
 GENOME = "genomes/best.json"
 
 
@@ -192,12 +194,9 @@ def bench() -> list[str]:
 def write_section(path: str, rows: list[str]) -> None:
     """Put the table between the ``<!-- field-bench -->`` markers of ``path``."""
     import platform
-    from pathlib import Path
 
-    text = Path(path).read_text()
     section = "\n".join(
         [
-            MARK,
             "## Field execution (`python -m excavation_field.field_bench bench`)",
             "",
             f"Machine: {platform.machine()}, {os.cpu_count()} cores (shared), Python "
@@ -217,16 +216,9 @@ def write_section(path: str, rows: list[str]) -> None:
             "message to the zero `cmd_vel` (printed by tests/test_executor_node.py): e-stop, "
             "disable and deactivate 0.4-1.2 ms; heartbeat loss 0.50-0.55 s (the 0.5 s deadman "
             "plus at most one 50 ms safety-loop period).",
-            MARK,
         ]
     )
-    if MARK in text:
-        head, _, rest = text.partition(MARK)
-        _, _, tail = rest.partition(MARK)
-        text = head + section + tail
-    else:
-        text = text.rstrip("\n") + "\n\n" + section + "\n"
-    Path(path).write_text(text)
+    replace_marked(path, section, MARK)
 
 
 def results(seeds: int = 5, specs: tuple[str, ...] = ("hand-coded", GENOME)) -> None:
