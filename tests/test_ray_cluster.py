@@ -8,6 +8,7 @@ spread over both nodes gives the history and best genome of a one-worker run.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import os
 import secrets
@@ -16,6 +17,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -51,12 +53,14 @@ def _history(run: Path) -> list[dict]:
         return [{k: v for k, v in row.items() if k != "seconds"} for row in csv.DictReader(f)]
 
 
-@pytest.mark.system
-@pytest.mark.serial  # Ray nodes and a compiling driver: alone, after the parallel part
-def test_the_documented_recipe_spreads_a_run_over_two_hosts(tmp_path):
+@contextlib.contextmanager
+def _two_node_cluster(name: str) -> Iterator[tuple[VirtualHosts, dict]]:
+    """A Ray head on ``HEAD`` and a worker node on ``WORKER``, one token, one CPU each, each in
+    a private temporary directory: ``(hosts, env)``; every process in both namespaces is
+    killed and the namespaces removed at the end."""
     env = dict(os.environ, RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(32))
     env["RAY_USAGE_STATS_ENABLED"] = "0"
-    hosts = VirtualHosts([("head", HEAD), ("worker", WORKER)], "tray")
+    hosts = VirtualHosts([("head", HEAD), ("worker", WORKER)], name)
     # Ray's session sockets must fit AF_UNIX's 107 bytes: a short directory, not tmp_path
     short = Path(tempfile.mkdtemp(prefix="ray", dir="/tmp"))
     with hosts:
@@ -73,34 +77,41 @@ def test_the_documented_recipe_spreads_a_run_over_two_hosts(tmp_path):
                 + ["--node-ip-address", WORKER, *common, "--temp-dir", str(short / "w")],
                 env,
             )
-            nodes = _run(
-                [*hosts.prefix("head"), str(BIN / "python"), "-c"]
-                + [
-                    f"import ray; ray.init(address='{HEAD}:6379'); "
-                    "print(sorted(n['NodeManagerAddress'] for n in ray.nodes() if n['Alive']))"
-                ],
-                env,
-            )
-            assert nodes.stdout.strip().splitlines()[-1] == str([HEAD, WORKER])
-            wrong = subprocess.run(
-                [*hosts.prefix("worker"), str(BIN / "python"), "-c"]
-                + [f"import ray; ray.init(address='{HEAD}:6379')"],
-                env=env | {"RAY_AUTH_TOKEN": "not-the-token"},
-                capture_output=True,
-                text=True,
-                timeout=120,
-            )
-            assert wrong.returncode != 0 and "InvalidAuthToken" in wrong.stdout + wrong.stderr
-            _run(
-                [*hosts.prefix("head"), str(BIN / "ant-evolve"), *ARGS]
-                + ["--ray-address", f"{HEAD}:6379", "--out", str(tmp_path / "cluster")],
-                env,
-                timeout=600,
-            )
+            yield hosts, env
         finally:
             for h in hosts.hosts:
                 _kill_namespace(h.namespace)
             shutil.rmtree(short, ignore_errors=True)
+
+
+@pytest.mark.system
+@pytest.mark.serial  # Ray nodes and a compiling driver: alone, after the parallel part
+def test_the_documented_recipe_spreads_a_run_over_two_hosts(tmp_path):
+    with _two_node_cluster("tray") as (hosts, env):
+        nodes = _run(
+            [*hosts.prefix("head"), str(BIN / "python"), "-c"]
+            + [
+                f"import ray; ray.init(address='{HEAD}:6379'); "
+                "print(sorted(n['NodeManagerAddress'] for n in ray.nodes() if n['Alive']))"
+            ],
+            env,
+        )
+        assert nodes.stdout.strip().splitlines()[-1] == str([HEAD, WORKER])
+        wrong = subprocess.run(
+            [*hosts.prefix("worker"), str(BIN / "python"), "-c"]
+            + [f"import ray; ray.init(address='{HEAD}:6379')"],
+            env=env | {"RAY_AUTH_TOKEN": "not-the-token"},
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert wrong.returncode != 0 and "InvalidAuthToken" in wrong.stdout + wrong.stderr
+        _run(
+            [*hosts.prefix("head"), str(BIN / "ant-evolve"), *ARGS]
+            + ["--ray-address", f"{HEAD}:6379", "--out", str(tmp_path / "cluster")],
+            env,
+            timeout=600,
+        )
     _run(
         [str(BIN / "ant-evolve"), *ARGS, "--workers", "1", "--out", str(tmp_path / "one")],
         dict(os.environ),
@@ -121,56 +132,35 @@ def test_a_campaign_spread_over_two_hosts_survives_a_lost_node(tmp_path):
     import json
     import time
 
-    env = dict(os.environ, RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(32))
-    env["RAY_USAGE_STATS_ENABLED"] = "0"
-    hosts = VirtualHosts([("head", HEAD), ("worker", WORKER)], "tcam")
-    short = Path(tempfile.mkdtemp(prefix="ray", dir="/tmp"))
     campaign = ["training", "--scale", "quick", "--method", "ant", "--setting", "n2"]
     runs = tmp_path / "cluster" / "runs" / "quick"
-    with hosts:
-        try:
-            common = ["--num-cpus", "1", "--disable-usage-stats"]
-            _run(
-                [*hosts.prefix("head"), str(BIN / "ray"), "start", "--head", "--port", "6379"]
-                + ["--node-ip-address", HEAD, "--include-dashboard=false", *common]
-                + ["--temp-dir", str(short / "h")],
-                env,
-            )
-            _run(
-                [*hosts.prefix("worker"), str(BIN / "ray"), "start", "--address", f"{HEAD}:6379"]
-                + ["--node-ip-address", WORKER, *common, "--temp-dir", str(short / "w")],
-                env,
-            )
-            driver = subprocess.Popen(
-                [*hosts.prefix("head"), str(BIN / "ant-experiment"), *campaign]
-                + ["--cluster", f"{HEAD}:6379", "--chunk", "1", "--out", str(tmp_path / "cluster")],
-                env=env,
-                stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT,
-                text=True,
-            )
+    with _two_node_cluster("tcam") as (hosts, env):
+        driver = subprocess.Popen(
+            [*hosts.prefix("head"), str(BIN / "ant-experiment"), *campaign]
+            + ["--cluster", f"{HEAD}:6379", "--chunk", "1", "--out", str(tmp_path / "cluster")],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
 
-            def nodes() -> set[str]:
-                seen = set()
-                for f in runs.glob("*/cluster.json"):
-                    try:
-                        seen |= {c["node_id"] for c in json.loads(f.read_text())["chunks"]}
-                    except (OSError, ValueError, KeyError):
-                        pass
-                return seen
+        def nodes() -> set[str]:
+            seen = set()
+            for f in runs.glob("*/cluster.json"):
+                try:
+                    seen |= {c["node_id"] for c in json.loads(f.read_text())["chunks"]}
+                except (OSError, ValueError, KeyError):
+                    pass
+            return seen
 
-            deadline = time.monotonic() + 600
-            while len(nodes()) < 2 and driver.poll() is None and time.monotonic() < deadline:
-                time.sleep(0.2)
-            assert len(nodes()) == 2, driver.communicate()[0][-3000:]  # both nodes ran one
-            _kill_namespace(hosts.hosts[1].namespace)  # the worker's node is lost
-            out, _ = driver.communicate(timeout=900)
-            assert driver.returncode == 0, out[-3000:]
-            print("\n".join(line for line in out.splitlines() if "failed" in line))
-        finally:
-            for h in hosts.hosts:
-                _kill_namespace(h.namespace)
-            shutil.rmtree(short, ignore_errors=True)
+        deadline = time.monotonic() + 600
+        while len(nodes()) < 2 and driver.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert len(nodes()) == 2, driver.communicate()[0][-3000:]  # both nodes ran one
+        _kill_namespace(hosts.hosts[1].namespace)  # the worker's node is lost
+        out, _ = driver.communicate(timeout=900)
+        assert driver.returncode == 0, out[-3000:]
+        print("\n".join(line for line in out.splitlines() if "failed" in line))
     here = [str(BIN / "ant-experiment"), *campaign, "--out", str(tmp_path / "here")]
     _run(here, dict(os.environ))
     for k in range(2):
