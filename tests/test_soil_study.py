@@ -35,7 +35,16 @@ def test_each_switch_is_a_soil_spec_that_changes_one_thing_from_the_soil_as_ship
         }
     assert changed["shipped"] == set()
     assert changed["fixed"] == {"refusals", "epsilon"}
-    assert all(len(v) == 1 for k, v in changed.items() if k not in ("shipped", "fixed"))
+    assert changed["grid-rules"] == {
+        "refusals",
+        "epsilon",
+        "fill",
+        "load",
+        "fitness_heights",
+        "repose",
+    }
+    singles = {k: v for k, v in changed.items() if k not in ("shipped", "fixed", "grid-rules")}
+    assert all(len(v) == 1 for v in singles.values())
 
 
 def test_the_interval_is_students_t():
@@ -86,3 +95,29 @@ def test_a_tiny_study_runs_records_and_resumes(tmp_path, domains):
     assert main(argv) == 0
     assert files[0].stat().st_mtime_ns == stamp
     assert "| physical soil as shipped" in (tmp_path / "attribution.md").read_text()
+
+
+def test_the_offline_world_study_scores_as_the_evaluator_and_finds_first_differences(tmp_path):
+    """``--world offline``: each physical trial ends where the evaluator's compiled kernel
+    ends on the same scenario and soil; the first differing word is found from every trial."""
+    from ant_evolution.evaluate import evaluate
+    from blueprint_server.blueprint import default_blueprint
+
+    argv = ["--out", str(tmp_path), "--steps", "40", "--robots", "2", "--scenarios", "2"]
+    argv += ["--switches", "shipped", "fixed", "--world", "offline", "--seed", "5"]
+    assert main(argv) == 0
+    rows = [json.loads(f.read_text()) for f in sorted((tmp_path / "trials").glob("*.json"))]
+    assert len(rows) == 2 * 2 * 2 and all(r["world"] == "offline" for r in rows)
+    for r in rows:
+        ctl = (
+            Controller.hand_coded()
+            if r["controller"] == "hand-coded"
+            else Controller.from_file(GENOME)
+        )
+        batch = evaluate(ctl, default_blueprint(1), 2, 2, 40, 5, soil=r["soil"])
+        assert r["physical"] == batch.scores[r["scenario"]]
+        assert r["grid"] == evaluate(ctl, default_blueprint(1), 2, 2, 40, 5).scores[r["scenario"]]
+    assert any(r["first_difference"] for r in rows)  # the soils differ somewhere
+    for fd in filter(None, (r["first_difference"] for r in rows)):
+        assert fd["grid_word"] != fd["physical_word"] and fd["inputs_differ"] is not None
+    assert "fixed default" in (tmp_path / "attribution.md").read_text()

@@ -63,6 +63,11 @@ SWITCHES = (
     Switch("fitness-rounded", AS_SHIPPED + ",fitness_heights=rounded", "fitness of whole units"),
     Switch("no-repose", AS_SHIPPED + ",repose=false", "- repose (no slumping)"),
     Switch("fixed", "physical", "the fixed default (refusals and epsilon on)"),
+    Switch(
+        "grid-rules",
+        "physical,fill=false,load=volume,fitness_heights=rounded,repose=false",
+        "every rule back to the grid's (left: the pile's shape and the push)",
+    ),
 )
 T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262}
 """Student's t, two-sided 95 %, by degrees of freedom (10 or more: 2.228 down to 1.96)."""
@@ -206,6 +211,87 @@ def run_one(switch: Switch, controller: str, robots: int, scenario: int, args) -
     }
 
 
+def physical_decisions(
+    soil: str, controller: str, robots: int, steps: int, seed: int, scenario: int
+):
+    """The scenario's trial in the offline physical world (:mod:`excavation_sim.cell_soil`).
+
+    The same loop as the evaluator's compiled one (``ant_evolution.kernel``), stepped here
+    so that every decision is kept with its inputs.
+
+    Returns:
+        ``(trace, decisions, counters)`` as :func:`grid_decisions`, with the soil's
+        counters (moves, refusals, stalls, quanta cut) at the end.
+    """
+    from ant_controller.controller import Controller
+    from ant_evolution.evaluate import ScenarioSet
+    from blueprint_server.blueprint import default_blueprint
+    from excavation_sim import cell_soil
+    from excavation_sim.world import occupancy
+
+    ctl = (
+        Controller.hand_coded() if controller == "hand-coded" else Controller.from_file(controller)
+    )
+    batch = ScenarioSet.create(default_blueprint(1), robots, scenario + 1, steps, seed, soil=soil)
+    world = batch.world(scenario)
+    ground = batch.soil_of(world, scenario)
+    occ = np.zeros(world.heights.shape, dtype=np.int16)
+    occupancy(world.robots, world.active, occ)
+    codes = np.zeros((robots, 14), dtype=np.int64)
+    trace = [cell_soil.soil_fitness(ground, world.heights, world.zones, world.goal)]
+    decisions = []
+    for _ in range(steps):
+        for k in range(robots):
+            cell_soil.sense_robot(
+                world.heights, world.zones, world.goal, world.robots, world.active, k,
+                codes[k], world.params, ground,
+            )  # fmt: skip
+        words = np.array([ctl.decide(codes[k]) for k in range(robots)], dtype=np.int64)
+        decisions.append([(int(words[k]), codes[k].tolist()) for k in range(robots)])
+        cell_soil.step_robots(
+            world.heights, world.robots, world.active, occ, words, world.rng, ground
+        )
+        trace.append(cell_soil.soil_fitness(ground, world.heights, world.zones, world.goal))
+    return trace, decisions, ground.counters.copy()
+
+
+def run_offline(switch: Switch, controller: str, robots: int, scenario: int, args) -> dict:
+    """:func:`run_one` in the offline physical world (``--world offline``).
+
+    Milliseconds a trial; every trial's decisions are compared with the grid's.
+    """
+    import time
+
+    from excavation_sim.cell_soil import C_CUT, C_REFUSED, C_STALLS
+
+    began = time.monotonic()
+    trace, decisions = grid_decisions(controller, robots, args.steps, args.seed, scenario)
+    ptrace, pdecisions, counters = physical_decisions(
+        switch.soil, controller, robots, args.steps, args.seed, scenario
+    )
+    per_robot = [[row[k] for row in pdecisions] for k in range(robots)]
+    f0, f_grid, f = trace[0], trace[-1], float(ptrace[-1])
+    return {
+        "switch": switch.key,
+        "soil": switch.soil,
+        "world": "offline",
+        "controller": controller,
+        "robots": robots,
+        "seed": args.seed,
+        "scenario": scenario,
+        "steps": args.steps,
+        "f0": f0,
+        "grid": f_grid,
+        "physical": f,
+        "progress": (f - f0) / (f_grid - f0) if f_grid != f0 else None,
+        "slips": int(counters[C_STALLS]),
+        "refused": int(counters[C_REFUSED]),
+        "cut": int(counters[C_CUT]),
+        "wall_seconds": time.monotonic() - began,
+        "first_difference": first_difference(decisions, per_robot),
+    }
+
+
 def trial_name(switch: Switch, controller: str, robots: int, scenario: int) -> str:
     """The trial's file name under ``DIR/trials``."""
     ctl = "hand" if controller == "hand-coded" else "genome"
@@ -313,6 +399,13 @@ def main(argv: list[str] | None = None) -> int:
         choices=[s.key for s in SWITCHES],
         default=[s.key for s in SWITCHES],
     )
+    p.add_argument(
+        "--world",
+        choices=("dynamics", "offline"),
+        default="dynamics",
+        help="where the physical trials run: dynamics (the node suite, about a minute a "
+        "trial) or the offline physical world (the evaluator's, milliseconds a trial)",
+    )
     p.add_argument("--domain", type=int_in(0, 101), default=101, help="ROS domain id")
     p.add_argument("--limit", type=int_in(1, 100_000), default=None, help="trials this run")
     p.add_argument(
@@ -344,9 +437,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.limit is not None:
         todo = todo[: args.limit]
     robots = tuple(args.robots)
+    trial = run_offline if args.world == "offline" else run_one
     with tqdm(total=done + len(todo), initial=done, unit="trial") as bar:
         for job in todo:
-            row = run_one(*job, args)
+            row = trial(*job, args)
             write_text_atomic(args.out / "trials" / trial_name(*job), json.dumps(row, indent=1))
             write_text_atomic(args.out / "attribution.md", table(load_rows(args.out), robots))
             bar.update(1)
