@@ -661,7 +661,7 @@ def body_window(x, y, yaw, sub, half_length, half_width, wing, rows, cols):
 def stamp_body(mask, x, y, yaw, sub, half_length, half_width, wings_on, wing):
     """Mark the sub-cells under one body (and, ``wings_on``, its blade's end plates).
 
-    :func:`body_mask`'s marks for one robot (the same tests in the same window).
+    :func:`body_mask` stamps each active robot with it.
     """
     rows, cols = mask.shape
     cy, sy = math.cos(yaw), math.sin(yaw)
@@ -689,27 +689,16 @@ def body_mask(mask, bodies, active, sub, half_length, half_width, wings=None, wi
     sub-cell wide just beyond the blade's ends, ``wing`` m ahead of the edge.
     """
     mask[:] = False
-    rows, cols = mask.shape
     for k in range(bodies.shape[0]):
         if not active[k]:
             continue
-        x, y, yaw = bodies[k, 0], bodies[k, 1], bodies[k, 2]
-        cy, sy = math.cos(yaw), math.sin(yaw)
-        ahead = half_length + wing
-        side = half_width + sub
-        i0, i1, j0, j1 = _rect(x, y, cy, sy, -half_length, ahead, -side, side, sub, rows, cols)
-        for i in range(i0, i1):
-            for j in range(j0, j1):
-                u, v = _local(i, j, sub, x, y, cy, sy)
-                if abs(u) < half_length and abs(v) < half_width:
-                    mask[i, j] = True
-                elif (
-                    wings is not None
-                    and wings[k]
-                    and half_length <= u < half_length + wing
-                    and half_width <= abs(v) < half_width + sub
-                ):
-                    mask[i, j] = True
+        wings_on = False
+        if wings is not None:
+            wings_on = bool(wings[k])
+        stamp_body(
+            mask, bodies[k, 0], bodies[k, 1], bodies[k, 2], sub, half_length, half_width,
+            wings_on, wing,
+        )  # fmt: skip
 
 
 @nb.njit(cache=True, inline="always")
