@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
+from helpers.diagnostics import DiagnosticsProbe
 from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -20,11 +21,11 @@ from excavation_common.ros import LATCHED
 
 def listener(ros):
     node = ros.add(Node("listener", context=ros.context))
-    got = {"goal": [], "zones": [], "info": [], "diag": []}
+    got = {"goal": [], "zones": [], "info": []}
     node.create_subscription(Image, "/blueprint/goal", got["goal"].append, LATCHED)
     node.create_subscription(Image, "/blueprint/zones", got["zones"].append, LATCHED)
     node.create_subscription(MapMetaData, "/worksite/map_info", got["info"].append, LATCHED)
-    node.create_subscription(DiagnosticArray, "/diagnostics", got["diag"].append, 10)
+    got["diag"] = DiagnosticsProbe(node).arrays
     return node, got
 
 

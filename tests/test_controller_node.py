@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
+from helpers.diagnostics import DiagnosticsProbe
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image, Imu, JointState
@@ -66,16 +67,11 @@ def start(ros, **params):
         )
     )
     fake = ros.add(FakeRobots(ros.context))
-    seen = {"behaviour": [], "diag": []}
+    seen = {"behaviour": []}
     fake.create_subscription(
         UInt16, "/robot_0/behaviour", lambda m: seen["behaviour"].append(m.data), 10
     )
-    fake.create_subscription(
-        DiagnosticArray,
-        "/diagnostics",
-        lambda m: seen["diag"].extend(s for s in m.status if s.name == "/robot_0/controller"),
-        10,
-    )
+    seen["diag"] = DiagnosticsProbe(fake).named("/robot_0/controller")
     return node, fake, seen
 
 

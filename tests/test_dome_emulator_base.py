@@ -18,6 +18,7 @@ from dome_emulator.base import (
     PublishLimited,
     PublishOdometry,
 )
+from helpers.diagnostics import DiagnosticsProbe
 
 from excavation_common.params import ParameterError, validate
 
@@ -210,7 +211,6 @@ def test_actions_are_frozen_and_parameters_checked():
 
 
 def test_base_node_between_an_executor_and_the_world(ros):
-    from diagnostic_msgs.msg import DiagnosticArray
     from dome_emulator.base_node import BaseNode
     from geometry_msgs.msg import TwistStamped
     from nav_msgs.msg import Odometry
@@ -229,16 +229,11 @@ def test_base_node_between_an_executor_and_the_world(ros):
         )
     )
     probe = ros.add(Node("probe", context=ros.context))
-    world, odom, imu, diags = [], [], [], []
+    world, odom, imu = [], [], []
     probe.create_subscription(TwistStamped, "/robot_0/world/cmd_vel", world.append, 10)
     probe.create_subscription(Odometry, "/robot_0/odom", odom.append, 10)
     probe.create_subscription(Imu, "/robot_0/imu", imu.append, 10)
-    probe.create_subscription(
-        DiagnosticArray,
-        "/diagnostics",
-        lambda m: diags.extend(s for s in m.status if s.name == "/robot_0/base"),
-        10,
-    )
+    diags = DiagnosticsProbe(probe).named("/robot_0/base")
     cmd = probe.create_publisher(TwistStamped, "/robot_0/cmd_vel", 10)
     world_imu = probe.create_publisher(Imu, "/robot_0/world/imu", 10)
 

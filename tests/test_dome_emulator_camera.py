@@ -19,6 +19,7 @@ from dome_emulator.camera import (
     yuv422_message,
 )
 from dome_emulator.errors import TruthError
+from helpers.diagnostics import DiagnosticsProbe
 
 from excavation_common.params import ParameterError, validate
 
@@ -126,7 +127,6 @@ def test_parameters_are_checked():
 
 @pytest.mark.parametrize("encoding", ["jpeg", "yuv422"])
 def test_camera_node_publishes_late_stamped_frames_of_the_world(ros, encoding):
-    from diagnostic_msgs.msg import DiagnosticArray
     from dome_emulator.camera_node import CameraNode
     from geometry_msgs.msg import PoseWithCovarianceStamped
     from rclpy.node import Node
@@ -156,7 +156,7 @@ def test_camera_node_publishes_late_stamped_frames_of_the_world(ros, encoding):
         )
     )
     probe = ros.add(Node("probe", context=ros.context))
-    images, infos, diags = [], [], []
+    images, infos = [], []
     kind, topic = (
         (CompressedImage, "/overhead/image_raw/compressed")
         if encoding == "jpeg"
@@ -168,12 +168,7 @@ def test_camera_node_publishes_late_stamped_frames_of_the_world(ros, encoding):
 
     probe.create_subscription(kind, topic, on_image, SENSOR_DATA)
     probe.create_subscription(CameraInfo, "/overhead/camera_info", infos.append, SENSOR_DATA)
-    probe.create_subscription(
-        DiagnosticArray,
-        "/diagnostics",
-        lambda m: diags.extend(s for s in m.status if s.name == "/overhead/camera"),
-        10,
-    )
+    diags = DiagnosticsProbe(probe).named("/overhead/camera")
     assert ros.spin_until(lambda: any("no pose yet" in s.message for s in diags))
     assert not images
     poses = [

@@ -9,6 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 from dome_emulator.laser import LaserCore, LaserEmulatorParams, MountState, Scan
+from helpers.diagnostics import DiagnosticsProbe
 
 from excavation_common.params import ParameterError, validate
 from terrain_mapper.geometry import beam_rays
@@ -133,7 +134,6 @@ def test_parameters_are_checked():
 
 
 def test_the_mapper_builds_the_worlds_heights_from_the_laser_node(ros):
-    from diagnostic_msgs.msg import DiagnosticArray
     from dome_emulator.laser_node import LaserNode
     from rclpy.node import Node
     from rclpy.parameter import Parameter
@@ -170,16 +170,11 @@ def test_the_mapper_builds_the_worlds_heights_from_the_laser_node(ros):
         )
     )
     probe = ros.add(Node("probe", context=ros.context))
-    scans, mounts, maps, diags = [], [], [], []
+    scans, mounts, maps = [], [], []
     probe.create_subscription(LaserScan, "/worksite/scan", scans.append, deep)
     probe.create_subscription(JointState, "/worksite/laser_mount/joint_states", mounts.append, deep)
     probe.create_subscription(Image, "/worksite/height_map", maps.append, LATCHED)
-    probe.create_subscription(
-        DiagnosticArray,
-        "/diagnostics",
-        lambda m: diags.extend(s for s in m.status if s.name == "/worksite/laser"),
-        10,
-    )
+    diags = DiagnosticsProbe(probe).named("/worksite/laser")
     # Before the world's heights: the mount nods, no scans, a WARN says why.
     assert ros.spin_until(lambda: any("no height map" in s.message for s in diags))
     assert mounts and not scans

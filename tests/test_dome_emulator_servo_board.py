@@ -15,6 +15,7 @@ from dome_emulator.servo_board import (
     ServoBoard,
     ServoBoardParams,
 )
+from helpers.diagnostics import DiagnosticsProbe
 
 from blade_driver.errors import BoardError
 from blade_driver.fake_board import FakeBoard
@@ -150,7 +151,6 @@ def test_parameters_are_checked():
 
 
 def test_the_serial_blade_driver_moves_the_world_blade_through_the_board(ros, tmp_path):
-    from diagnostic_msgs.msg import DiagnosticArray
     from dome_emulator.servo_board_node import ServoBoardNode
     from helpers.blades import blade_driver_node, blade_probe, word
     from rclpy.node import Node
@@ -173,14 +173,9 @@ def test_the_serial_blade_driver_moves_the_world_blade_through_the_board(ros, tm
     assert port == board_node.port and port.startswith("/dev/pts/")
     assert os.path.realpath(link) == os.path.realpath(port)
     world = ros.add(Node("world", context=ros.context))
-    commands, diags = [], []
+    commands = []
     world.create_subscription(JointState, "/robot_0/world/servo_command", commands.append, 10)
-    world.create_subscription(
-        DiagnosticArray,
-        "/diagnostics",
-        lambda m: diags.extend(s for s in m.status if s.name == "/robot_0/servo_board"),
-        10,
-    )
+    diags = DiagnosticsProbe(world).named("/robot_0/servo_board")
     plant = world.create_publisher(JointState, "/robot_0/world/plant_state", 10)
 
     # The port survives a host that closes it and opens it again (the driver's reconnect).

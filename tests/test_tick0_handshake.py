@@ -35,17 +35,11 @@ def reports_from(ros, node: Node, count: int = 2) -> None:
     second or more often) came twice, its fast timers ran many times too. A fixed wait
     would pass trivially on a machine too slow to run the node at all.
     """
-    from diagnostic_msgs.msg import DiagnosticArray
+    from helpers.diagnostics import DiagnosticsProbe
 
     name = node.get_fully_qualified_name()
-    heard: list[str] = []
     probe = ros.add(Node(f"probe_{time.monotonic_ns()}", context=ros.context))
-    probe.create_subscription(
-        DiagnosticArray,
-        "/diagnostics",
-        lambda m: heard.extend(s.name for s in m.status if s.name == name),
-        50,
-    )
+    heard = DiagnosticsProbe(probe).named(name)
     assert ros.spin_until(lambda: len(heard) >= count, timeout=60), f"{name} reported {heard}"
     ros.executor.remove_node(probe)
     probe.destroy_node()

@@ -12,7 +12,7 @@ that the test sees several idled ticks quickly.
 from __future__ import annotations
 
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray
+from helpers.diagnostics import DiagnosticsProbe
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import UInt16
@@ -69,15 +69,10 @@ def test_killed_controller_idles_then_rejoins(ros, drivers):
     if drivers:
         for k in range(2):
             ros.add(BladeDriverNode(context=ros.context, namespace=f"/robot_{k}"))
-    reports, words = [], []
+    words = []
     watcher = ros.add(Node("watcher", context=ros.context))
     watcher.create_subscription(UInt16, "/robot_1/behaviour", words.append, 10)
-    watcher.create_subscription(
-        DiagnosticArray,
-        "/diagnostics",
-        lambda m: reports.extend(s.message for s in m.status if s.name == "/sim"),
-        10,
-    )
+    reports = DiagnosticsProbe(watcher).named("/sim")
     controller(ros, 0)
     victim = controller(ros, 1)
     assert ros.spin_until(lambda: sim.tick >= 5, timeout=30)
@@ -90,7 +85,7 @@ def test_killed_controller_idles_then_rejoins(ros, drivers):
     # The others keep stepping: robot 0 answered the ticks robot 1 missed (on a loaded
     # machine the 0.3 s timeout may take one of its words too, never most of them).
     assert sim.tick > killed_at and sim.missed[0] - missed_0 < sim.missed[1]
-    assert any("no command from robots [1]" in r for r in reports)
+    assert any("no command from robots [1]" in r.message for r in reports)
     if drivers:
         assert sim.world.robots[1, BLADE] == BLADE_HOME
         assert sim.missed_servo[0] == 0 and sim.missed_servo[1] >= 1
