@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from helpers.figures import assert_figure
 from helpers.view_client import free_port
+from helpers.waits import poll_until
 
 from excavation_bringup.dome import sim_result
 from excavation_bringup.trial import run_trial
@@ -72,15 +73,6 @@ def divergence(a: list, b: list) -> str:
     """Where two runs' words first differ."""
     t = next((i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y), min(len(a), len(b)))
     return f"words first differ at tick {t}: {a[t : t + 1]} != {b[t : t + 1]}"
-
-
-def wait_for(condition, timeout):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.2)
-    return condition()
 
 
 @pytest.fixture(scope="module")
@@ -166,7 +158,7 @@ def test_a_supervisor_that_stalls_every_second_leaves_the_run_unchanged(tmp_path
     proc = dome(tmp_path, domain, ticks=20)
     stalls = 0
     try:
-        assert wait_for(lambda: "all 13 nodes are up" in events(tmp_path), 600)
+        assert poll_until(lambda: "all 13 nodes are up" in events(tmp_path), 600)
         while proc.poll() is None:
             pid = state(tmp_path).get("supervisor", {}).get("pid")
             try:
@@ -194,8 +186,8 @@ def test_a_supervisor_that_stalls_every_second_leaves_the_run_unchanged(tmp_path
 def test_a_killed_controller_is_restarted_and_the_run_completes(tmp_path, domain):
     proc = dome(tmp_path, domain, ticks=12)
     try:
-        assert wait_for(lambda: "all 13 nodes are up" in events(tmp_path), 600)
-        assert wait_for(lambda: snapshots(tmp_path) >= 3, 600)  # a few ticks
+        assert poll_until(lambda: "all 13 nodes are up" in events(tmp_path), 600)
+        assert poll_until(lambda: snapshots(tmp_path) >= 3, 600)  # a few ticks
         victim = state(tmp_path)["controller_1"]["pid"]
         os.kill(victim, signal.SIGKILL)
         out, err = proc.communicate(timeout=900)
@@ -223,8 +215,8 @@ def test_ctrl_c_stops_in_reverse_order_and_finishes_the_bag_which_replays(tmp_pa
         tmp_path, domain, "--record", str(bag), "--view", "--view-port", str(port), ticks=300
     )
     try:
-        assert wait_for(lambda: "all 15 nodes are up" in events(tmp_path), 600)
-        assert wait_for(lambda: snapshots(tmp_path) >= 3, 300)  # two ticks done
+        assert poll_until(lambda: "all 15 nodes are up" in events(tmp_path), 600)
+        assert poll_until(lambda: snapshots(tmp_path) >= 3, 300)  # two ticks done
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=300)
     finally:

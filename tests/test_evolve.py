@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers.figures import assert_figure
+from helpers.waits import poll_until
 
 from ant_controller.genome import random_genome
 from ant_controller.genome_io import load_genome
@@ -267,7 +268,6 @@ def test_ant_evolve_started_in_the_background_stops_on_sigint(tmp_path):
     import signal
     import subprocess
     import sys
-    import time
 
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "ant_evolution.cli_evolve", "--out", str(out), "--population"]
@@ -280,10 +280,7 @@ def test_ant_evolve_started_in_the_background_stops_on_sigint(tmp_path):
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
     )
     try:
-        deadline = time.monotonic() + 300
-        while not (out / "history.csv").exists() and time.monotonic() < deadline:
-            time.sleep(0.2)
-        assert (out / "history.csv").exists()
+        assert poll_until((out / "history.csv").exists, 300)
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=120) == 130
         assert "resume with --resume" in proc.stderr.read()
