@@ -212,3 +212,60 @@ def test_bag_with_an_unknown_type_topic(tmp_path):
     assert any("unknown type 'my_pkg/msg/Odd'" in w for w in bag.warnings)
     report, summary = report_of(path, tmp_path / "r")
     assert "no /worksite/height_map" in report.skipped["snapshots"]
+
+
+def test_the_field_figures_read_drive_statuses_of_either_type(tmp_path):
+    """A bag recorded before the suite's own drive types (``action_msgs/GoalStatus`` with the
+    goal packed in its uuid) and one after (``excavation_interfaces/DriveStatus``) give the
+    same goals ended and aborted."""
+    from excavation_bags.field_report import field_figures
+    from excavation_bags.topics import typestore
+
+    store = typestore()
+    types = store.types
+    Time = types["builtin_interfaces/msg/Time"]
+    ends = [(1, 4), (2, 6), (2, 6), (3, 4)]  # (tick, status): tick 2's abort heard twice
+
+    def pose(t: int):
+        pwc = store.types["geometry_msgs/msg/PoseWithCovarianceStamped"]
+        header = types["std_msgs/msg/Header"](stamp=Time(sec=t, nanosec=0), frame_id="map")
+        p = types["geometry_msgs/msg/Pose"](
+            position=types["geometry_msgs/msg/Point"](x=0.1 * t, y=0.0, z=0.0),
+            orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        )
+        inner = types["geometry_msgs/msg/PoseWithCovariance"](
+            pose=p, covariance=np.zeros(36, dtype=np.float64)
+        )
+        return pwc(header=header, pose=inner)
+
+    def old(tick: int, status: int):
+        uuid = np.frombuffer(tick.to_bytes(8, "little") + bytes(4) + b"ANT1", dtype=np.uint8)
+        info = types["action_msgs/msg/GoalInfo"](
+            goal_id=types["unique_identifier_msgs/msg/UUID"](uuid=uuid),
+            stamp=Time(sec=tick, nanosec=0),
+        )
+        return types["action_msgs/msg/GoalStatus"](goal_info=info, status=status)
+
+    def new(tick: int, status: int):
+        goal = types["excavation_interfaces/msg/DriveGoal"](
+            stamp=Time(sec=tick, nanosec=0), tick=tick, word=0, turn=0, robot=0
+        )
+        return types["excavation_interfaces/msg/DriveStatus"](goal=goal, status=status)
+
+    figures = []
+    for name, make, msgtype in (
+        ("old", old, "action_msgs/msg/GoalStatus"),
+        ("new", new, "excavation_interfaces/msg/DriveStatus"),
+    ):
+        with BagWriter(tmp_path / name) as w:
+            w.add_topic("/robot_0/pose", "geometry_msgs/msg/PoseWithCovarianceStamped")
+            w.add_topic("/robot_0/drive/status", msgtype)
+            for t in range(5):
+                raw = store.serialize_cdr(pose(t), "geometry_msgs/msg/PoseWithCovarianceStamped")
+                w.write("/robot_0/pose", t * 10**9 + 1, raw)
+            for i, (tick, status) in enumerate(ends):
+                raw = store.serialize_cdr(make(tick, status), msgtype)
+                w.write("/robot_0/drive/status", tick * 10**9 + i, raw)
+        robot = field_figures(open_bag(tmp_path / name), 0.1)["robots"]["0"]
+        figures.append((robot["goals_ended"], robot["goals_aborted"]))
+    assert figures == [(3, 1), (3, 1)]

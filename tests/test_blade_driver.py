@@ -184,17 +184,17 @@ def test_sim_driver_gives_a_late_reader_the_ticks_joint_state(ros):
 
 def _drive_status(probe, tick, status):
     """Publish what the drive executor says about its goal of ``tick`` (sec)."""
-    from action_msgs.msg import GoalStatus
+    from excavation_interfaces.msg import DriveStatus
 
-    msg = GoalStatus(status=status)
-    msg.goal_info.stamp.sec = tick
+    msg = DriveStatus(status=status)
+    msg.goal.stamp.sec = tick
     probe.status.publish(msg)
 
 
 def test_sim_driver_waits_for_the_ticks_drive_before_moving_the_blade(ros):
     """``blade_after_motion``: a fake executor's ``drive/status`` releases each tick's blade."""
-    from action_msgs.msg import GoalStatus
     from builtin_interfaces.msg import Time
+    from excavation_interfaces.msg import DriveStatus as GoalStatus
     from std_msgs.msg import UInt16
 
     from blade_driver.hardware import joint_state
@@ -261,8 +261,8 @@ def test_sim_driver_waits_for_the_ticks_drive_before_moving_the_blade(ros):
 
 
 def test_serial_driver_waits_for_the_team_ticks_drive(ros, board):
-    from action_msgs.msg import GoalStatus
     from builtin_interfaces.msg import Time
+    from excavation_interfaces.msg import DriveStatus as GoalStatus
     from std_msgs.msg import Header, UInt16
 
     fake, path = board
@@ -297,8 +297,8 @@ def test_serial_driver_watchdog_counts_team_ticks(ros, board):
     watchdog counted wall time) and no word's setting outlived its drive. On tick time the
     watchdog trips only after two ticks without a word.
     """
-    from action_msgs.msg import GoalStatus
     from builtin_interfaces.msg import Time
+    from excavation_interfaces.msg import DriveStatus as GoalStatus
     from std_msgs.msg import Header, UInt16
 
     fake, path = board

@@ -112,8 +112,8 @@ class Watcher(OperatorWatcher):
     topics)."""
 
     def __init__(self, domain: int):
-        from action_msgs.msg import GoalInfo
         from diagnostic_msgs.msg import DiagnosticArray
+        from excavation_interfaces.msg import DriveGoal
         from geometry_msgs.msg import TwistStamped
         from std_msgs.msg import Header
 
@@ -157,7 +157,7 @@ class Watcher(OperatorWatcher):
                 200,
             )
             sub(
-                GoalInfo,
+                DriveGoal,
                 f"{ns}/drive/goal",
                 lambda m, k=k: self.goals[k].append(time.monotonic()),
                 50,

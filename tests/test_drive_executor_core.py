@@ -146,8 +146,12 @@ def test_bad_words_and_goals_are_refused():
     with pytest.raises(GoalError, match="direction"):
         plan(1 << RANDOM_TURN, 0)
     msg = goal_message(DriveGoal(3, 5))
-    msg.goal_id.uuid = [0] * 16
-    with pytest.raises(GoalError, match="not a drive goal"):
+    msg.word = 0x1000
+    with pytest.raises(GoalError, match="beyond the 12 behaviours"):
+        goal_from_message(msg)
+    msg = goal_message(DriveGoal(3, 5))
+    msg.turn = 2
+    with pytest.raises(GoalError, match="turn"):
         goal_from_message(msg)
     good = goal_message(DriveGoal(12345, 0xABC, LEFT, 2, (12, 5)))
     assert goal_from_message(good) == DriveGoal(12345, 0xABC, LEFT, 2, (12, 5))

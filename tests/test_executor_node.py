@@ -11,8 +11,9 @@ import sys
 import time
 
 import pytest
-from action_msgs.msg import GoalInfo, GoalStatus
 from diagnostic_msgs.msg import DiagnosticStatus
+from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
+from excavation_interfaces.msg import DriveStatus as GoalStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
 from helpers.diagnostics import DiagnosticsProbe
 from rclpy.node import Node
@@ -39,7 +40,7 @@ class Base(Node):
         self.twists: list[tuple[float, TwistStamped]] = []
         self.statuses: list[int] = []
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "/robot_0/pose", 10)
-        self.goal_pub = self.create_publisher(GoalInfo, "/robot_0/drive/goal", 10)
+        self.goal_pub = self.create_publisher(DriveGoalMsg, "/robot_0/drive/goal", 10)
         self.override_pub = self.create_publisher(TwistStamped, "/robot_0/drive/override", 10)
         self.estop_pub = self.create_publisher(Bool, "/team/estop", LATCHED)
         self.enabled_pub = self.create_publisher(Bool, "/robot_0/enabled", LATCHED)

@@ -42,7 +42,7 @@ def test_no_export_of_the_venv_names_a_missing_python_or_numpy_include():
 
 
 def test_the_interface_packages_are_found_by_their_build_type():
-    assert build_interfaces.interface_packages() == ["tf2_msgs"]
+    assert build_interfaces.interface_packages() == ["excavation_interfaces", "tf2_msgs"]
 
 
 def test_tf_messages_serialise_as_ros2_jazzys_tf2_msgs():
@@ -83,3 +83,34 @@ def test_a_tf_message_goes_through_rclpy(ros):
     pub.publish(msg)
     assert ros.spin_until(lambda: got, timeout=10)
     assert got[0].transforms[0].child_frame_id == "overhead_camera"
+
+
+def test_drive_messages_serialise_as_the_bag_layer_defines_them():
+    """rclpy's bytes of a DriveStatus read back with the bag layer's type store (taught the
+    suite's types from the installed ``.msg`` files), whose RIHS01 hash is rosidl's own."""
+    import json
+    import sys
+    from pathlib import Path
+
+    from excavation_interfaces.msg import DriveGoal, DriveStatus
+    from rclpy.serialization import deserialize_message, serialize_message
+
+    from excavation_bags.topics import type_hash, typestore
+
+    goal = DriveGoal(tick=2**40 + 3, word=0xABC, turn=DriveGoal.TURN_LEFT, robot=7)
+    goal.stamp.sec, goal.stamp.nanosec = 12, 500
+    ours = serialize_message(DriveStatus(goal=goal, status=DriveStatus.STATUS_ABORTED))
+    theirs = typestore().deserialize_cdr(ours, "excavation_interfaces/msg/DriveStatus")
+    assert (theirs.goal.tick, theirs.goal.word, theirs.goal.turn, theirs.goal.robot) == (
+        2**40 + 3, 0xABC, -1, 7,
+    )  # fmt: skip
+    assert (theirs.goal.stamp.sec, theirs.goal.stamp.nanosec, theirs.status) == (12, 500, 6)
+    again = bytes(typestore().serialize_cdr(theirs, "excavation_interfaces/msg/DriveStatus"))
+    assert deserialize_message(again, DriveStatus) == deserialize_message(ours, DriveStatus)
+    for name in ("DriveGoal", "DriveStatus"):
+        generated = json.loads(
+            (Path(sys.prefix) / "share/excavation_interfaces/msg" / f"{name}.json").read_text()
+        )
+        rosidl = {h["type_name"]: h["hash_string"] for h in generated["type_hashes"]}
+        msgtype = f"excavation_interfaces/msg/{name}"
+        assert type_hash(msgtype) == rosidl[msgtype]

@@ -30,9 +30,7 @@ THIRD_PARTY = {
     "websockets": ("python3-websockets", "websockets"),
     "libfaketime": ("python3-libfaketime-pip", "libfaketime"),
 }
-ROS_PACKAGES = re.compile(
-    r"^(rclpy|rcl_interfaces|builtin_interfaces|std_srvs|ament_index_python|\w+_msgs)$"
-)
+ROS_PACKAGES = re.compile(r"^(rclpy|std_srvs|ament_index_python|\w+_msgs|\w+_interfaces)$")
 
 
 def imports_of(package: str) -> set[str]:

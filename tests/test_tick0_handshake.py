@@ -210,7 +210,7 @@ def test_team_tick_waits_for_every_controller_to_be_ready(ros):
     """The continuous trial's tick 0 as the lockstep simulator's: a recorder (or any other
     node) subscribed to the tick topics must not stand in for a controller that is not yet
     connected (seen: robot 1 missed tick 0 of a recorded process trial)."""
-    from action_msgs.msg import GoalInfo, GoalStatus
+    from excavation_interfaces.msg import DriveGoal, DriveStatus
     from team_tick.core import Phase
     from team_tick.node import TeamTickNode
 
@@ -227,11 +227,11 @@ def test_team_tick_waits_for_every_controller_to_be_ready(ros):
     )
     ready = unready_controller(
         ros,
-        [(UInt16, "/robot_0/behaviour"), (GoalStatus, "/robot_0/drive/status")],
+        [(UInt16, "/robot_0/behaviour"), (DriveStatus, "/robot_0/drive/status")],
         [
             (PoseWithCovarianceStamped, "/tick/robot_0/pose"),
             (Bool, "/tick/robot_0/stuck"),
-            (GoalInfo, "/robot_0/drive/goal"),
+            (DriveGoal, "/robot_0/drive/goal"),
             (JointState, "/robot_0/blade/servo_state"),
         ],
     )
@@ -245,7 +245,7 @@ def test_team_tick_node_sends_each_action_as_its_message(ros, tmp_path):
     """The node's dispatch on the core's action classes: each becomes its message."""
     import json
 
-    from action_msgs.msg import GoalInfo
+    from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
     from std_msgs.msg import Header
     from team_tick.core import (
         Finished,
@@ -279,7 +279,7 @@ def test_team_tick_node_sends_each_action_as_its_message(ros, tmp_path):
         (Bool, "/tick/robot_0/stuck", 10),
         (Image, "/tick/worksite/height_map", LATCHED),
         (JointState, "/robot_0/blade/servo_state", 10),
-        (GoalInfo, "/robot_0/drive/goal", 10),
+        (DriveGoalMsg, "/robot_0/drive/goal", 10),
     ]:
         heard[topic] = []
         probe.create_subscription(msg_type, topic, heard[topic].append, qos)

@@ -43,7 +43,7 @@ On either backend the core restarts when the time it is given goes back
 In the field (``blade_after_motion: true``: continuous trials, the dome) a tick's blade bits
 wait until the tick's drive has ended, as the world model runs a word's moves before its
 blade behaviours (:class:`blade_driver.core.AfterDrive` says why): the driver subscribes
-``drive/status`` (action_msgs/GoalStatus from the drive executor, ``goal_info.stamp`` = the
+``drive/status`` (excavation_interfaces/DriveStatus from the drive executor, ``goal.stamp`` = the
 tick) and applies a word's blade bits once a terminal status (succeeded, aborted, canceled)
 of its tick or a later one has come. The word's tick is the stamp of ``blade/servo_state``
 (sim backend) or of ``/team/tick`` (std_msgs/Header from the team tick; serial backend);
@@ -55,8 +55,8 @@ from __future__ import annotations
 
 import sys
 
-from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from excavation_interfaces.msg import DriveStatus
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
@@ -78,7 +78,11 @@ from excavation_common.safety import (
 from excavation_common.tf import TfBroadcaster, blade_transform, robot_name
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
-DRIVE_ENDED = (GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_ABORTED, GoalStatus.STATUS_CANCELED)
+DRIVE_ENDED = (
+    DriveStatus.STATUS_SUCCEEDED,
+    DriveStatus.STATUS_ABORTED,
+    DriveStatus.STATUS_CANCELED,
+)
 
 
 class BladeDriverNode(LifecycleNode):
@@ -126,7 +130,7 @@ class BladeDriverNode(LifecycleNode):
         ]
         if self.after is not None:
             self._io.append(
-                self.create_subscription(GoalStatus, "drive/status", self.on_drive_status, 10)
+                self.create_subscription(DriveStatus, "drive/status", self.on_drive_status, 10)
             )
         self.last_joint = None
         self.joint_pub = self.create_publisher(
@@ -241,11 +245,11 @@ class BladeDriverNode(LifecycleNode):
                 self.core.apply_blade(released)
         self.hw.on_word()
 
-    def on_drive_status(self, msg: GoalStatus) -> None:
+    def on_drive_status(self, msg: DriveStatus) -> None:
         """The executor's status: a terminal one releases the blade bits of its tick."""
         if msg.status not in DRIVE_ENDED:
             return
-        stamp = msg.goal_info.stamp
+        stamp = msg.goal.stamp
         released = self.after.drive_ended((stamp.sec, stamp.nanosec))
         for word in released:
             self.core.apply_blade(word)

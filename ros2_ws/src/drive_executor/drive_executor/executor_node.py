@@ -8,7 +8,7 @@ Run one per robot in its namespace, then configure and activate it (nothing move
 Subscribes (relative names resolve in the robot's namespace): ``pose``
 (PoseWithCovarianceStamped in ``map``; parameter ``pose_topic``) which closes the loop: each
 pose runs one control step and is answered by one ``cmd_vel``; ``drive/goal``
-(action_msgs/GoalInfo, :mod:`drive_executor.goals`: the team tick's word for a tick);
+(excavation_interfaces/DriveGoal, :mod:`drive_executor.goals`: the team tick's word for a tick);
 ``behaviour`` (std_msgs/UInt16, ``mode: free`` only); ``drive/override`` (TwistStamped, the
 operator's drive); ``/team/estop`` (Bool, latched), ``/team/heartbeat`` (Header, team state in
 ``frame_id``), ``enabled`` (Bool, latched).
@@ -18,7 +18,7 @@ Publishes: ``cmd_vel`` (parameter ``drive_type``: geometry_msgs/TwistStamped, fr
 stamped with the node clock when it is sent (``cmd_vel_stamp: now``: a base's
 ``cmd_vel_timeout`` then counts from the command, not from the camera frame behind it; the
 continuous simulator's lockstep takes ``pose``, the stamp of the pose answered),
-``drive/status`` (action_msgs/GoalStatus, the goal's tick stamp), ``stuck`` (std_msgs/Bool,
+``drive/status`` (excavation_interfaces/DriveStatus, with the goal), ``stuck`` (std_msgs/Bool,
 U1, once per goal), ``drive/throttle`` (Bool, latched: the power mode of the running goal,
 for the base), ``drive/operator`` (Bool, latched: the operator's override drives the
 robot; the team tick records the ticks it spent so) and ``/diagnostics`` (every wall
@@ -45,8 +45,9 @@ import sys
 from typing import assert_never
 
 import rclpy
-from action_msgs.msg import GoalInfo, GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
+from excavation_interfaces.msg import DriveStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
@@ -115,7 +116,7 @@ class ExecutorNode(LifecycleNode):
         self.core = DriveExecutorCore(self.params, self.gate)
         lp = self.create_lifecycle_publisher
         self.cmd_pub = lp(TwistStamped if self.stamped else Twist, "cmd_vel", 10)
-        self.status_pub = lp(GoalStatus, "drive/status", 10)
+        self.status_pub = lp(DriveStatus, "drive/status", 10)
         self.stuck_pub = lp(Bool, "stuck", 10)
         self.throttle_pub = lp(Bool, "drive/throttle", LATCHED)
         self.operator_pub = self.create_publisher(Bool, "drive/operator", LATCHED)
@@ -126,7 +127,7 @@ class ExecutorNode(LifecycleNode):
             self.diag_pub,
             self.operator_pub,
             sub(PoseWithCovarianceStamped, self.params.pose_topic, self.on_pose, 10),
-            sub(GoalInfo, "drive/goal", self.on_goal, 10),
+            sub(DriveGoalMsg, "drive/goal", self.on_goal, 10),
             sub(UInt16, "behaviour", self.on_behaviour, 10),
             sub(TwistStamped, "drive/override", self.on_override, 10),
             sub(Bool, ESTOP_TOPIC, self.on_estop, LATCHED),
@@ -225,14 +226,14 @@ class ExecutorNode(LifecycleNode):
             self.publish_twist(twist, self.get_clock().now().to_msg())
         self.publish_events()
 
-    def on_goal(self, msg: GoalInfo) -> None:
+    def on_goal(self, msg: DriveGoalMsg) -> None:
         """The team tick's word for this robot."""
         try:
             goal = goal_from_message(msg)
         except GoalError as exc:
             self.errors["drive/goal"] = str(exc)
             self.get_logger().error(str(exc))
-            self.status_pub.publish(GoalStatus(goal_info=msg, status=GoalStatus.STATUS_ABORTED))
+            self.status_pub.publish(DriveStatus(goal=msg, status=DriveStatus.STATUS_ABORTED))
             self.stuck_pub.publish(Bool(data=True))
             return
         self.errors.pop("drive/goal", None)

@@ -1,41 +1,28 @@
-"""The team tick's drive goal and the executor's status, as common_interfaces messages.
+"""The team tick's drive goal and the executor's status of it, as ROS messages.
 
-A goal is an ``action_msgs/GoalInfo`` on ``/robot_k/drive/goal``: ``stamp`` is the tick's
-stamp and the 16-byte ``goal_id.uuid`` carries what the executor needs:
-
-=======  ===========================================================================
-bytes    meaning
-=======  ===========================================================================
-0..7     tick number (uint64, little endian)
-8..9     the behaviour word (uint16, little endian; bit i = behaviour i+1 of Table 2)
-10       random-turn direction: 0 = draw from the executor's own generator, 1 = right, 2 = left
-11       robot index
-12..15   ``b"ANT1"``: the encoding's tag
-=======  ===========================================================================
-
-The executor answers on ``drive/status`` (``action_msgs/GoalStatus``) with the same
-``goal_info``: ``STATUS_EXECUTING`` when it starts, then ``STATUS_SUCCEEDED`` or
-``STATUS_ABORTED``.
+A goal is an ``excavation_interfaces/DriveGoal`` on ``/robot_k/drive/goal``: the tick's
+stamp and number, the behaviour word (bit i = behaviour i+1 of Table 2), the random turn's
+direction and the robot. The executor answers on ``drive/status``
+(``excavation_interfaces/DriveStatus``) with the goal: ``STATUS_EXECUTING`` when it starts,
+then ``STATUS_SUCCEEDED`` or ``STATUS_ABORTED`` (the codes are ``action_msgs/GoalStatus``'s).
 """
 
 from __future__ import annotations
 
-import struct
 from dataclasses import dataclass
 
-from action_msgs.msg import GoalInfo, GoalStatus
+from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
+from excavation_interfaces.msg import DriveStatus
 
 from drive_executor.errors import GoalError
 
-TAG = b"ANT1"
-RIGHT, LEFT = 1, -1
-_DIRECTION_CODE = {0: 0, RIGHT: 1, LEFT: 2}
-_CODE_DIRECTION = {v: k for k, v in _DIRECTION_CODE.items()}
+RIGHT, LEFT = DriveGoalMsg.TURN_RIGHT, DriveGoalMsg.TURN_LEFT
+TURNS = (DriveGoalMsg.TURN_DRAW, RIGHT, LEFT)
 
-EXECUTING = GoalStatus.STATUS_EXECUTING
-SUCCEEDED = GoalStatus.STATUS_SUCCEEDED
-ABORTED = GoalStatus.STATUS_ABORTED
-TERMINAL = (SUCCEEDED, ABORTED, GoalStatus.STATUS_CANCELED)
+EXECUTING = DriveStatus.STATUS_EXECUTING
+SUCCEEDED = DriveStatus.STATUS_SUCCEEDED
+ABORTED = DriveStatus.STATUS_ABORTED
+TERMINAL = (SUCCEEDED, ABORTED, DriveStatus.STATUS_CANCELED)
 
 
 @dataclass(frozen=True)
@@ -57,33 +44,29 @@ class DriveGoal:
     stamp: tuple[int, int] = (0, 0)
 
 
-def goal_message(goal: DriveGoal) -> GoalInfo:
-    """``GoalInfo`` of a goal."""
-    msg = GoalInfo()
-    msg.goal_id.uuid = list(
-        struct.pack("<QHBB", goal.tick, goal.word, _DIRECTION_CODE[goal.turn], goal.robot) + TAG
-    )
+def goal_message(goal: DriveGoal) -> DriveGoalMsg:
+    """The ``DriveGoal`` message of a goal."""
+    msg = DriveGoalMsg(tick=goal.tick, word=goal.word, turn=goal.turn, robot=goal.robot)
     msg.stamp.sec, msg.stamp.nanosec = goal.stamp
     return msg
 
 
-def goal_from_message(msg: GoalInfo, topic: str = "drive/goal") -> DriveGoal:
-    """Decode a goal.
+def goal_from_message(msg: DriveGoalMsg, topic: str = "drive/goal") -> DriveGoal:
+    """Read a goal.
 
     Raises:
-        GoalError: Not this encoding, a word beyond 12 bits, or an unknown direction code.
+        GoalError: A word beyond 12 bits, or an unknown turn direction.
     """
-    raw = bytes(bytearray(msg.goal_id.uuid))
-    if len(raw) != 16 or raw[12:] != TAG:
-        raise GoalError(topic, "goal_id.uuid", raw.hex(), f"not a drive goal (tag {TAG!r})")
-    tick, word, code, robot = struct.unpack("<QHBB", raw[:12])
-    if word > 0xFFF:
-        raise GoalError(topic, "word", word, "has bits beyond the 12 behaviours")
-    if code not in _CODE_DIRECTION:
-        raise GoalError(topic, "turn", code, "must be 0, 1 (right) or 2 (left)")
-    return DriveGoal(tick, word, _CODE_DIRECTION[code], robot, (msg.stamp.sec, msg.stamp.nanosec))
+    if msg.word > 0xFFF:
+        raise GoalError(topic, "word", msg.word, "has bits beyond the 12 behaviours")
+    if msg.turn not in TURNS:
+        raise GoalError(topic, "turn", msg.turn, "must be 0 (draw), 1 (right) or -1 (left)")
+    return DriveGoal(
+        int(msg.tick), int(msg.word), int(msg.turn), int(msg.robot),
+        (msg.stamp.sec, msg.stamp.nanosec),
+    )  # fmt: skip
 
 
-def status_message(goal: DriveGoal, status: int) -> GoalStatus:
-    """``GoalStatus`` of a goal (stamped with its tick)."""
-    return GoalStatus(goal_info=goal_message(goal), status=status)
+def status_message(goal: DriveGoal, status: int) -> DriveStatus:
+    """The ``DriveStatus`` of a goal (it carries the goal, so the tick's stamp)."""
+    return DriveStatus(goal=goal_message(goal), status=status)

@@ -88,7 +88,10 @@ def _robot(bag, k: int, cell_size: float, frames: list[int], tracks: dict | None
     ends, aborted, seen = [], 0, set()
     for _, t, raw in bag.messages([f"{ns}/drive/status"]):
         msg = bag.decode(f"{ns}/drive/status", raw)
-        key = (bytes(msg.goal_info.goal_id.uuid), int(msg.status))
+        # excavation_interfaces/DriveStatus, or a bag from before it: action_msgs/GoalStatus
+        goal = getattr(msg, "goal", None)
+        which = int(goal.tick) if goal is not None else bytes(msg.goal_info.goal_id.uuid)
+        key = (which, int(msg.status))
         if int(msg.status) in TERMINAL and key not in seen:
             seen.add(key)
             ends.append(t * 1e-9)

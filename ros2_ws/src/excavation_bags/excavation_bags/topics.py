@@ -1,16 +1,22 @@
 """What a bag's topics are: the suite's topic names, message types and their definitions.
 
 Message definitions come from ROS 2 Jazzy's common_interfaces as the ``rosbags`` type store
-holds them (:func:`typestore`); only those types are recorded. A bag from elsewhere may
-carry other types with their definitions, which :func:`ensure_type` registers for
-decoding. Pure module: no ``rclpy``.
+holds them (:func:`typestore`), and from the suite's own interface packages
+(``excavation_interfaces``, ``tf2_msgs``: their ``.msg`` files as ``make setup`` installs
+them, :data:`PROJECT_INTERFACES`); only those types are recorded, each with its definition,
+so any reader decodes them without the packages. A bag from elsewhere may carry other types
+with their definitions, which :func:`ensure_type` registers for decoding. Pure module: no
+``rclpy``.
 """
 
 from __future__ import annotations
 
 import fnmatch
+import os
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from rosbags.interfaces import Qos
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -59,6 +65,31 @@ SUITE_TOPICS: tuple[str, ...] = (
 :mod:`excavation_bags.recorder_node`)."""
 
 _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+
+PROJECT_INTERFACES = ("excavation_interfaces",)
+"""The suite's interface packages whose types the type store learns from their ``.msg``
+files (``tf2_msgs``' TFMessage is in the Jazzy store already)."""
+
+
+def _interface_dirs(package: str) -> list[Path]:
+    """Where ``package``'s ``.msg`` files are installed: this prefix, then the ament path."""
+    prefixes = [sys.prefix, *os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)]
+    return [Path(p, "share", package, "msg") for p in prefixes if p]
+
+
+def _register_project_types() -> None:
+    """Teach the type store the suite's own messages (nested ones first: in one call)."""
+    for package in PROJECT_INTERFACES:
+        folder = next((d for d in _interface_dirs(package) if d.is_dir()), None)
+        if folder is None:
+            continue  # not built (make setup builds it): its topics are not recorded
+        types = {}
+        for msg in sorted(folder.glob("*.msg")):
+            types.update(get_types_from_msg(msg.read_text(), f"{package}/msg/{msg.stem}"))
+        _TYPESTORE.register(types)
+
+
+_register_project_types()
 
 
 def typestore():

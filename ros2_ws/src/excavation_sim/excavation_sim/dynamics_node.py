@@ -25,13 +25,13 @@ and the steps stop waiting for it until it sends again),
 ``/robot_k/drive/throttle``
 (Bool, latched: high-power mode), ``/robot_k/blade/servo_command`` (JointState, a blade
 set-point stamped with its tick, from the ``blade_driver`` sim backend) and
-``/robot_k/drive/status`` (GoalStatus): with ``blade_after_motion`` a set-point takes effect
-once the robot's drive goal of the same tick has ended (Table 2 order: blade behaviours run
-after the moves). ``/team/snapshot`` (Header): the team tick asks for a perception
-snapshot taken at ``stamp`` or later (published with the first step that reaches it). Each
-request (``frame_id`` and ``stamp``) is taken once: the same request again (the team tick
-sends it again while it has no acknowledgement) is only acknowledged again, so that a late
-acknowledgement never renders a second frame and sweep of the tick.
+``/robot_k/drive/status`` (excavation_interfaces/DriveStatus): with ``blade_after_motion``
+a set-point takes effect once the robot's drive goal of the same tick has ended (Table 2
+order: blade behaviours run after the moves). ``/team/snapshot`` (Header): the team tick
+asks for a perception snapshot taken at ``stamp`` or later (published with the first step
+that reaches it). Each request (``frame_id`` and ``stamp``) is taken once: the same request
+again (the team tick sends it again while it has no acknowledgement) is only acknowledged
+again, so that a late acknowledgement never renders a second frame and sweep of the tick.
 
 Publishes: ``/clock``; ``{pose_prefix}/robot_k/pose`` every step (PoseWithCovarianceStamped,
 with ``pose_noise``) and, without ``pose_prefix``, the same as ``map`` ->
@@ -72,9 +72,9 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from action_msgs.msg import GoalStatus
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from excavation_interfaces.msg import DriveStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -94,7 +94,7 @@ from excavation_sim.soil import SoilParams
 from excavation_sim.step_clock import Next, StepClock
 from excavation_sim.world import BLADE
 
-TERMINAL = (GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_ABORTED, GoalStatus.STATUS_CANCELED)
+TERMINAL = (DriveStatus.STATUS_SUCCEEDED, DriveStatus.STATUS_ABORTED, DriveStatus.STATUS_CANCELED)
 
 
 @dataclass(frozen=True)
@@ -230,7 +230,7 @@ class DynamicsNode(Node):
             )
             sub(Bool, f"{ns}/drive/throttle", lambda m, k=k: self.on_throttle(k, m), LATCHED)
             sub(JointState, f"{ns}/blade/servo_command", lambda m, k=k: self.on_blade(k, m), 10)
-            sub(GoalStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
+            sub(DriveStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
         self.create_subscription(Header, "/team/snapshot", self.on_snapshot_request, 10)
         self.ack_pub = self.create_publisher(Header, "/team/snapshot_ack", LATCHED)
         self.heights_pub = self.create_publisher(
@@ -269,10 +269,10 @@ class DynamicsNode(Node):
         self.pending[k] = (_key(msg.header.stamp), self.geometry.nearest(value))
         self.apply_blade(k)
 
-    def on_status(self, k: int, msg: GoalStatus) -> None:
+    def on_status(self, k: int, msg: DriveStatus) -> None:
         """Robot k's drive status: a terminal one releases that tick's blade set-point."""
         if msg.status in TERMINAL:
-            self.done_tick[k] = max(self.done_tick[k], _key(msg.goal_info.stamp))
+            self.done_tick[k] = max(self.done_tick[k], _key(msg.goal.stamp))
             self.apply_blade(k)
 
     def apply_blade(self, k: int) -> None:

@@ -15,7 +15,7 @@ Every change goes out at once, not at the next heartbeat. Services (std_srvs/Tri
 ``~/estop``, ``~/reset``, ``~/arm``, ``~/pause``, ``~/resume`` and ``~/status`` (the state
 in words); per robot ``/robot_k/enable`` (std_srvs/SetBool). With ``watch_poses`` it
 subscribes every ``/robot_k/pose`` (best effort, newest only) and ``/robot_k/drive/status``
-(action_msgs/GoalStatus: a robot whose executor runs a goal is not lost for a late frame)
+(excavation_interfaces/DriveStatus: a robot whose executor runs a goal is not lost for a late frame)
 and applies the lost-robot policy of :class:`team_supervisor.team.Team`.
 
 The logic is :class:`team_supervisor.team.Team`; this node moves messages.
@@ -26,8 +26,8 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass
 
-from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from excavation_interfaces.msg import DriveStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from std_msgs.msg import Bool, Header
@@ -117,7 +117,7 @@ class SupervisorNode(Node):
                     NEWEST_POSE,
                 )
                 self.create_subscription(
-                    GoalStatus,
+                    DriveStatus,
                     f"/robot_{k}/drive/status",
                     lambda m, k=k: self.on_drive(k, m),
                     10,
@@ -209,9 +209,9 @@ class SupervisorNode(Node):
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         self.report_lost(self.team.on_pose(k, stamp))
 
-    def on_drive(self, k: int, msg: GoalStatus) -> None:
+    def on_drive(self, k: int, msg: DriveStatus) -> None:
         """A robot's executor status: a goal executing keeps it from being lost."""
-        self.report_lost(self.team.on_drive(k, msg.status == GoalStatus.STATUS_EXECUTING))
+        self.report_lost(self.team.on_drive(k, msg.status == DriveStatus.STATUS_EXECUTING))
 
     def report_lost(self, changed: list[int]) -> None:
         """Log and announce the robots the lost-robot policy stopped or let rejoin."""

@@ -19,12 +19,12 @@ Publishes for each tick t, stamped ``t * tick_period``: ``{output_prefix}/robot_
 height_map`` (latched) and ``/robot_k/{blade_out}`` (the blade driver's ``servo_state``), so
 that a controller run with ``lockstep: true`` and remapped onto ``{output_prefix}`` decides
 once per tick, unchanged; ``/team/tick`` (Header: the tick's stamp, ``frame_id`` = t);
-``/robot_k/drive/goal`` (action_msgs/GoalInfo, :mod:`drive_executor.goals`) when robot k may
-move; ``/team/snapshot`` (Header: ``stamp`` = the earliest time the snapshot may be taken,
-``settle`` after the motion ended, ``frame_id`` = ``tick t``) to ask for a snapshot;
-``/diagnostics``. With ``snapshot_ack`` it reads ``/team/snapshot_ack`` (Header, latched:
-the simulator's ``dynamics`` took the snapshot ``frame_id`` at ``stamp``) and sends a
-request again only while it is not acknowledged.
+``/robot_k/drive/goal`` (excavation_interfaces/DriveGoal, :mod:`drive_executor.goals`)
+when robot k may move; ``/team/snapshot`` (Header: ``stamp`` = the earliest time the
+snapshot may be taken, ``settle`` after the motion ended, ``frame_id`` = ``tick t``) to
+ask for a snapshot; ``/diagnostics``. With ``snapshot_ack`` it reads ``/team/snapshot_ack``
+(Header, latched: the simulator's ``dynamics`` took the snapshot ``frame_id`` at
+``stamp``) and sends a request again only while it is not acknowledged.
 
 A robot whose executor is replaced while its goal runs (a new writer on its
 ``drive/status``: the old one crashed and ``ant-dome`` restarted it) is done for the tick
@@ -46,9 +46,10 @@ from dataclasses import dataclass
 from typing import assert_never
 
 import numpy as np
-from action_msgs.msg import GoalInfo, GoalStatus
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
+from excavation_interfaces.msg import DriveStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from sensor_msgs.msg import Image, JointState
@@ -150,14 +151,14 @@ class TeamTickNode(Node):
             )
             self.stuck_pubs.append(self.create_publisher(Bool, f"{out}{ns}/stuck", 10))
             self.blade_pubs.append(self.create_publisher(JointState, f"{ns}/{t.blade_out}", 10))
-            self.goal_pubs.append(self.create_publisher(GoalInfo, f"{ns}/drive/goal", 10))
+            self.goal_pubs.append(self.create_publisher(DriveGoalMsg, f"{ns}/drive/goal", 10))
             sub(PoseWithCovarianceStamped, f"{ns}/pose", lambda m, k=k: self.on_pose(k, m), 10)
             sub(JointState, f"{ns}/{t.blade_in}", lambda m, k=k: self.on_blade(k, m), 10)
             self.inputs.append(
                 sub(UInt16, f"{ns}/behaviour", lambda m, k=k: self.core.on_word(k, m.data), 10)
             )
             self.inputs.append(
-                sub(GoalStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
+                sub(DriveStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
             )
             sub(Bool, f"{ns}/drive/operator", lambda m, k=k: self.on_operator(k, m), LATCHED)
             sub(Bool, f"{ns}/{ENABLED_TOPIC}", lambda m, k=k: self.on_enabled(k, m), LATCHED)
@@ -220,9 +221,9 @@ class TeamTickNode(Node):
         """A height map."""
         self.core.on_heights(_seconds(msg.header.stamp), msg)
 
-    def on_status(self, k: int, msg: GoalStatus) -> None:
+    def on_status(self, k: int, msg: DriveStatus) -> None:
         """Robot k's executor status."""
-        goal = self._decode(f"/robot_{k}/drive/status", lambda: goal_from_message(msg.goal_info))
+        goal = self._decode(f"/robot_{k}/drive/status", lambda: goal_from_message(msg.goal))
         if goal is not None:
             self.core.on_status(
                 k, goal.tick, msg.status in TERMINAL, msg.status == ABORTED, self._now()
