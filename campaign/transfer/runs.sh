@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The transfer runs of docs/results.md, "Crossing the reality gap": one queue of runs, each
 # resumed where it stopped and skipped once its transfer matrix is written.
-#   bash campaign/transfer/runs.sh QUEUE      (QUEUE: a, b, c or d; run two queues on two cores)
+#   bash campaign/transfer/runs.sh QUEUE      (QUEUE: a to e; run two queues on two cores)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 common=(--population 40 --scenarios 12 --generations 300 --checkpoint-every 5 --quiet)
@@ -17,7 +17,7 @@ run() {  # run NAME SEED ARGS...
   nice -n 10 ant-evolve --out "$out" --seed "$seed" "${common[@]}" "$@" "${resume[@]}"
   rm -f "$out/checkpoint.json.gz"  # finished: the matrix is written, no checkpoint is kept
 }
-case "${1:?queue a, b, c or d}" in
+case "${1:?queue a, b, c, d or e}" in
   a)
     for s in 1 2 3; do run "finetune-dome-rand-$s" "$s" --soil physical:dome --randomise "${start[@]}"; done
     for s in 1 2 3; do run "scratch-dome-rand-$s" "$s" --soil physical:dome --randomise; done
@@ -34,5 +34,10 @@ case "${1:?queue a, b, c or d}" in
     ;;
   d)
     for s in 2 3; do run "finetune-dome-$s" "$s" --soil physical:dome "${start[@]}"; done
+    ;;
+  e)
+    for s in 1 2 3; do
+      run "floor-dome-$s" "$s" --also-soil physical:dome --combine floor "${start[@]}"
+    done
     ;;
 esac
