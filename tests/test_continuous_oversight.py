@@ -113,7 +113,7 @@ class Watcher(OperatorWatcher):
 
     def __init__(self, domain: int):
         from diagnostic_msgs.msg import DiagnosticArray
-        from excavation_interfaces.msg import DriveGoal
+        from excavation_interfaces.msg import DriveGoal, TeamState
         from geometry_msgs.msg import TwistStamped
         from std_msgs.msg import Header
 
@@ -140,9 +140,9 @@ class Watcher(OperatorWatcher):
 
         sub(Header, "/team/tick", on_tick, 10)
         sub(
-            Header,
+            TeamState,
             "/team/heartbeat",
-            lambda m: self.heartbeats.append((time.monotonic(), stamp(m), m.frame_id)),
+            lambda m: self.heartbeats.append((time.monotonic(), stamp(m), m.state)),
             50,
         )
         sub(DiagnosticArray, "/diagnostics", on_diag, 50)

@@ -282,8 +282,9 @@ def test_ant_evolve_started_in_the_background_stops_on_sigint(tmp_path):
     try:
         assert poll_until((out / "history.csv").exists, 300)
         proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=120) == 130
-        assert "resume with --resume" in proc.stderr.read()
+        code, err = proc.wait(timeout=120), proc.stderr.read()
+        assert code == 130, err[-3000:]  # once -6 (SIGABRT) under load: docs/reliability.md
+        assert "resume with --resume" in err
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -14,13 +14,14 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
 from excavation_interfaces.msg import DriveStatus as GoalStatus
+from excavation_interfaces.msg import TeamArmed, TeamState
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
 from helpers.diagnostics import DiagnosticsProbe
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Bool, Header
+from std_msgs.msg import Bool
 
 from ant_controller.layout import MOVE_FORWARD
 from drive_executor.executor_node import ExecutorNode
@@ -44,7 +45,7 @@ class Base(Node):
         self.override_pub = self.create_publisher(TwistStamped, "/robot_0/drive/override", 10)
         self.estop_pub = self.create_publisher(Bool, "/team/estop", LATCHED)
         self.enabled_pub = self.create_publisher(Bool, "/robot_0/enabled", LATCHED)
-        self.heart_pub = self.create_publisher(Header, "/team/heartbeat", 10)
+        self.heart_pub = self.create_publisher(TeamState, "/team/heartbeat", 10)
         self.create_subscription(TwistStamped, "/robot_0/cmd_vel", self.on_twist, 10)
         self.create_subscription(
             GoalStatus, "/robot_0/drive/status", lambda m: self.statuses.append(m.status), 10
@@ -78,7 +79,7 @@ class Base(Node):
         if self.posing:
             self.pose_pub.publish(msg)
         if self.beating:
-            self.heart_pub.publish(Header(stamp=msg.header.stamp, frame_id=self.state))
+            self.heart_pub.publish(TeamState(stamp=msg.header.stamp, state=self.state))
 
     def moving(self) -> bool:
         return bool(self.twists) and abs(self.twists[-1][1].twist.linear.x) > 1e-6
@@ -390,8 +391,8 @@ def test_poses_all_older_than_the_timeout_are_reported_as_a_lag_or_a_clock_ahead
 def test_on_a_robot_host_a_returning_link_moves_nothing_until_a_re_arm(ros):
     """``rearm_after_loss``: the heartbeat stops (the link dropped) and comes back armed."""
     _, base, node = make_rig(ros, rearm_after_loss=True)
-    armed_pub = base.create_publisher(Header, "/team/armed", LATCHED)
-    armed_pub.publish(Header(stamp=Time(seconds=100).to_msg(), frame_id="1"))
+    armed_pub = base.create_publisher(TeamArmed, "/team/armed", LATCHED)
+    armed_pub.publish(TeamArmed(stamp=Time(seconds=100).to_msg(), armings=1))
     node.trigger_configure()
     node.trigger_activate()
     wait_matched(ros, base, node)
@@ -411,7 +412,7 @@ def test_on_a_robot_host_a_returning_link_moves_nothing_until_a_re_arm(ros):
     assert all(m.twist.linear.x == 0.0 for _, m in base.twists[first:])
     now = node.get_clock().now().nanoseconds * 1e-9
     assert node.gate.reason(now) == "heartbeat lost earlier: waiting for the operator to re-arm"
-    armed_pub.publish(Header(stamp=Time(seconds=200).to_msg(), frame_id="2"))  # re-armed
+    armed_pub.publish(TeamArmed(stamp=Time(seconds=200).to_msg(), armings=2))  # re-armed
     assert ros.spin_until(lambda: not node.gate.link_lost, 5)
     send_goal(base, 2)
     assert ros.spin_until(base.moving, 5)

@@ -12,9 +12,10 @@ import sys
 import time
 
 import pytest
+from excavation_interfaces.msg import TeamState
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from std_msgs.msg import Bool, Header
+from std_msgs.msg import Bool
 
 from excavation_common.ros import LATCHED
 from team_supervisor.console import (
@@ -72,7 +73,7 @@ def test_a_console_arms_drives_a_robot_hands_it_back_and_stops_the_team(ros):
     ros.add(SupervisorNode(context=ros.context, parameter_overrides=[Parameter("robots", value=2)]))
     watch = ros.add(Node("watch", context=ros.context))
     states, estops, twists = [], [], []
-    watch.create_subscription(Header, "/team/heartbeat", lambda m: states.append(m.frame_id), 10)
+    watch.create_subscription(TeamState, "/team/heartbeat", lambda m: states.append(m.state), 10)
     watch.create_subscription(Bool, "/team/estop", lambda m: estops.append(m.data), LATCHED)
     watch.create_subscription(TwistStamped, "/robot_1/drive/override", twists.append, 100)
     probe = DiagnosticsProbe(watch)  # the console's own status: its actions, named after it

@@ -5,10 +5,11 @@ from __future__ import annotations
 import re
 import threading
 
+from excavation_interfaces.msg import TeamState
 from helpers.operator import operator
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from std_msgs.msg import Bool, Header
+from std_msgs.msg import Bool
 
 from excavation_common.messages import pose_message
 from excavation_common.ros import LATCHED
@@ -20,7 +21,7 @@ def watch(ros, robots=2):
 
     node = ros.add(Node("watch", context=ros.context))
     node.heartbeats, node.estop, node.enabled = [], [], {k: [] for k in range(robots)}
-    node.create_subscription(Header, "/team/heartbeat", node.heartbeats.append, 10)
+    node.create_subscription(TeamState, "/team/heartbeat", node.heartbeats.append, 10)
     node.create_subscription(Bool, "/team/estop", lambda m: node.estop.append(m.data), LATCHED)
     for k in range(robots):
         node.create_subscription(
@@ -48,7 +49,7 @@ def test_heartbeat_estop_and_enables_over_ros(ros):
     )
     w = watch(ros)
     assert ros.spin_until(lambda: len(w.heartbeats) >= 3 and w.estop and all(w.enabled.values()))
-    assert w.heartbeats[-1].frame_id == "disarmed" and w.estop[-1] is False
+    assert w.heartbeats[-1].state == "disarmed" and w.estop[-1] is False
     assert w.enabled[0][-1] and w.enabled[1][-1]
 
     def call(kind, name, request):
@@ -59,15 +60,15 @@ def test_heartbeat_estop_and_enables_over_ros(ros):
         return future.result()
 
     assert call(Trigger, "/supervisor/arm", Trigger.Request()).success
-    assert ros.spin_until(lambda: w.heartbeats[-1].frame_id == "armed")
+    assert ros.spin_until(lambda: w.heartbeats[-1].state == "armed")
     assert call(Trigger, "/supervisor/estop", Trigger.Request()).success
-    assert ros.spin_until(lambda: w.estop[-1] is True and w.heartbeats[-1].frame_id == "estop")
+    assert ros.spin_until(lambda: w.estop[-1] is True and w.heartbeats[-1].state == "estop")
     refused = call(Trigger, "/supervisor/arm", Trigger.Request())
     assert not refused.success and "reset first" in refused.message
     assert call(Trigger, "/supervisor/reset", Trigger.Request()).success
     # The latched e-stop topic changes at once, the heartbeat with its next beat (seen in a
     # rehearsal: the last heartbeat still said "estop" when the e-stop said false).
-    assert ros.spin_until(lambda: w.estop[-1] is False and w.heartbeats[-1].frame_id == "disarmed")
+    assert ros.spin_until(lambda: w.estop[-1] is False and w.heartbeats[-1].state == "disarmed")
     assert call(SetBool, "/robot_1/enable", SetBool.Request(data=False)).success
     assert ros.spin_until(lambda: w.enabled[1][-1] is False)
     assert (

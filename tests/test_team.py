@@ -184,19 +184,19 @@ def test_a_robot_side_gate_waits_for_a_re_arm_after_its_heartbeat_was_lost():
     for robot_side in (False, True):
         gate = MotionGate(deadman=0.5, active=True, rearm_after_loss=robot_side)
         gate.on_enabled(True)
-        gate.on_armed(100, 0, "1")
+        gate.on_armed(100, 0, 1)
         for t in (0.0, 0.4):
             gate.on_heartbeat(ARMED_STATE, t)
         assert gate.allowed(0.5)
         assert gate.reason(1.0).startswith("heartbeat lost")  # the link drops for 2 s
         for t in (3.0, 3.1):  # it returns: armed heartbeats again, the same latched arming
             gate.on_heartbeat(ARMED_STATE, t)
-        gate.on_armed(100, 0, "1")
+        gate.on_armed(100, 0, 1)
         if not robot_side:
             assert gate.allowed(3.1)  # the dome PC's nodes: a dead supervisor came back
             continue
         assert gate.reason(3.1) == "heartbeat lost earlier: waiting for the operator to re-arm"
         gate.on_heartbeat(ARMED_STATE, 3.2)
         assert not gate.allowed(3.2)
-        gate.on_armed(104, 5, "2")  # ant-operator arm
+        gate.on_armed(104, 5, 2)  # ant-operator arm
         assert gate.allowed(3.2)

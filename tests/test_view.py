@@ -172,11 +172,12 @@ def test_the_view_is_a_console_for_the_supervisor_and_the_robots(ros):
     """Foxglove's service calls reach the supervisor (arm, e-stop, enable) and its client
     publishing drives a robot; each action is counted on the view's diagnostics."""
     import foxglove
+    from excavation_interfaces.msg import TeamState
     from geometry_msgs.msg import TwistStamped
     from helpers.view_client import free_port
     from rclpy.node import Node
     from rclpy.parameter import Parameter
-    from std_msgs.msg import Bool, Header
+    from std_msgs.msg import Bool
 
     from excavation_bringup.view_client import ControlClient
     from excavation_bringup.view_control import ControlPolicy, ViewControl
@@ -186,7 +187,7 @@ def test_the_view_is_a_console_for_the_supervisor_and_the_robots(ros):
     ros.add(SupervisorNode(context=ros.context, parameter_overrides=[Parameter("robots", value=2)]))
     watch = ros.add(Node("watch", context=ros.context))
     states, estops, twists = [], [], []
-    watch.create_subscription(Header, "/team/heartbeat", lambda m: states.append(m.frame_id), 10)
+    watch.create_subscription(TeamState, "/team/heartbeat", lambda m: states.append(m.state), 10)
     watch.create_subscription(Bool, "/team/estop", lambda m: estops.append(m.data), LATCHED)
     watch.create_subscription(TwistStamped, "/robot_1/drive/override", twists.append, 10)
     v = view.ViewNode(2, 0.05, period=0.2, context=ros.context)

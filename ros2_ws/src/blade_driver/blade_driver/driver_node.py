@@ -56,11 +56,11 @@ from __future__ import annotations
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from excavation_interfaces.msg import DriveStatus
+from excavation_interfaces.msg import DriveStatus, TeamArmed, TeamState
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, Float64MultiArray, Header, UInt16
+from std_msgs.msg import Bool, Float64MultiArray, UInt16
 
 from blade_driver.core import BLADE_NAMES, AfterDrive, BladeDriverCore
 from blade_driver.errors import DriverConfigError
@@ -111,8 +111,8 @@ class BladeDriverNode(LifecycleNode):
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.tf = TfBroadcaster(self)
         self.create_subscription(Bool, ESTOP_TOPIC, self.on_estop, LATCHED)
-        self.create_subscription(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
-        self.create_subscription(Header, ARMED_TOPIC, self.on_armed, LATCHED)
+        self.create_subscription(TeamState, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
+        self.create_subscription(TeamArmed, ARMED_TOPIC, self.on_armed, LATCHED)
         self.create_subscription(Bool, ENABLED_TOPIC, self.on_enabled, LATCHED)
         self.create_timer(1.0 / p.safety_rate, self.apply_gate)
         self.create_timer(p.diagnostics_period, self.publish_diagnostics)
@@ -198,14 +198,14 @@ class BladeDriverNode(LifecycleNode):
         self.gate.on_estop(msg.data)
         self.apply_gate()
 
-    def on_heartbeat(self, msg: Header) -> None:
-        """A team heartbeat (``frame_id`` = team state)."""
-        self.gate.on_heartbeat(msg.frame_id, self.wall())
+    def on_heartbeat(self, msg: TeamState) -> None:
+        """A team heartbeat (the team state)."""
+        self.gate.on_heartbeat(msg.state, self.wall())
         self.apply_gate()
 
-    def on_armed(self, msg: Header) -> None:
+    def on_armed(self, msg: TeamArmed) -> None:
         """``/team/armed``: an arming (a re-arm ends a latched link loss)."""
-        self.gate.on_armed(msg.stamp.sec, msg.stamp.nanosec, msg.frame_id)
+        self.gate.on_armed(msg.stamp.sec, msg.stamp.nanosec, msg.armings)
         self.apply_gate()
 
     def on_enabled(self, msg: Bool) -> None:

@@ -10,8 +10,8 @@ Subscribes (relative names resolve in the robot's namespace): ``pose``
 pose runs one control step and is answered by one ``cmd_vel``; ``drive/goal``
 (excavation_interfaces/DriveGoal, :mod:`drive_executor.goals`: the team tick's word for a tick);
 ``behaviour`` (std_msgs/UInt16, ``mode: free`` only); ``drive/override`` (TwistStamped, the
-operator's drive); ``/team/estop`` (Bool, latched), ``/team/heartbeat`` (Header, team state in
-``frame_id``), ``enabled`` (Bool, latched).
+operator's drive); ``/team/estop`` (Bool, latched), ``/team/heartbeat`` (TeamState), ``/team/armed``
+(TeamArmed, latched), ``enabled`` (Bool, latched).
 
 Publishes: ``cmd_vel`` (parameter ``drive_type``: geometry_msgs/TwistStamped, frame
 ``robot_k/base_link``, as Jazzy's diff_drive_controller takes it, or geometry_msgs/Twist),
@@ -47,12 +47,12 @@ from typing import assert_never
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
-from excavation_interfaces.msg import DriveStatus
+from excavation_interfaces.msg import DriveStatus, TeamArmed, TeamState
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
-from std_msgs.msg import Bool, Header, UInt16
+from std_msgs.msg import Bool, UInt16
 
 from drive_executor.core import DriveExecutorCore, ReportStatus, SetThrottle
 from drive_executor.errors import GoalError
@@ -131,8 +131,8 @@ class ExecutorNode(LifecycleNode):
             sub(UInt16, "behaviour", self.on_behaviour, 10),
             sub(TwistStamped, "drive/override", self.on_override, 10),
             sub(Bool, ESTOP_TOPIC, self.on_estop, LATCHED),
-            sub(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10),
-            sub(Header, ARMED_TOPIC, self.on_armed, LATCHED),
+            sub(TeamState, HEARTBEAT_TOPIC, self.on_heartbeat, 10),
+            sub(TeamArmed, ARMED_TOPIC, self.on_armed, LATCHED),
             sub(Bool, ENABLED_TOPIC, self.on_enabled, LATCHED),
             self.create_timer(1.0 / self.params.rate, self.enforce),
             # wall clock: a node on use_sim_time reports even while the simulator waits
@@ -257,9 +257,9 @@ class ExecutorNode(LifecycleNode):
         self.gate.on_estop(msg.data)
         self.enforce()
 
-    def on_heartbeat(self, msg: Header) -> None:
+    def on_heartbeat(self, msg: TeamState) -> None:
         """``/team/heartbeat``: the team state."""
-        self.gate.on_heartbeat(msg.frame_id, self._now())
+        self.gate.on_heartbeat(msg.state, self._now())
         self.enforce()
 
     def on_enabled(self, msg: Bool) -> None:
@@ -267,9 +267,9 @@ class ExecutorNode(LifecycleNode):
         self.gate.on_enabled(msg.data)
         self.enforce()
 
-    def on_armed(self, msg: Header) -> None:
+    def on_armed(self, msg: TeamArmed) -> None:
         """``/team/armed``: an arming (a re-arm ends a latched link loss)."""
-        self.gate.on_armed(msg.stamp.sec, msg.stamp.nanosec, msg.frame_id)
+        self.gate.on_armed(msg.stamp.sec, msg.stamp.nanosec, msg.armings)
         self.enforce()
 
     # --- outputs ----------------------------------------------------------------------------

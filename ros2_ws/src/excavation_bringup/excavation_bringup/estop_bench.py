@@ -27,6 +27,8 @@ import sys
 import time
 from pathlib import Path
 
+from excavation_interfaces.msg import TeamState
+
 from excavation_bringup.view_client import ControlClient
 from excavation_common.files import replace_marked
 
@@ -48,7 +50,7 @@ class Watcher:
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
-        from std_msgs.msg import Bool, Header
+        from std_msgs.msg import Bool
         from std_srvs.srv import Trigger
 
         from excavation_common.ros import LATCHED
@@ -63,13 +65,13 @@ class Watcher:
         self.node.create_subscription(
             Bool, "/team/estop", lambda m: self.estop.append((time.monotonic(), m.data)), LATCHED
         )
-        self.node.create_subscription(Header, "/team/heartbeat", self._beat, 10)
+        self.node.create_subscription(TeamState, "/team/heartbeat", self._beat, 10)
         self.clients = {
             n: self.node.create_client(Trigger, f"/supervisor/{n}") for n in ("reset", "arm")
         }
 
     def _beat(self, msg) -> None:
-        self.state = msg.frame_id
+        self.state = msg.state
 
     def spin_until(self, condition, timeout: float = 60.0) -> bool:
         """Spin until ``condition()`` (False after ``timeout`` s)."""

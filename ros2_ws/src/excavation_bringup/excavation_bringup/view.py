@@ -53,6 +53,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from excavation_interfaces.msg import TeamState
 
 from excavation_common.errors import FieldError
 
@@ -197,7 +198,7 @@ class ViewNode:
         from nav_msgs.msg import MapMetaData
         from rclpy.node import Node
         from sensor_msgs.msg import CompressedImage, Image
-        from std_msgs.msg import Bool, Float32, Header, UInt16
+        from std_msgs.msg import Bool, Float32, UInt16
         from tf2_msgs.msg import TFMessage
 
         from excavation_common.ros import LATCHED, LATEST_FRAME
@@ -242,7 +243,7 @@ class ViewNode:
             node.create_subscription(
                 UInt16, f"{ns}/behaviour", lambda m, s=state: setattr(s, "word", m.data), 10
             )
-        node.create_subscription(Header, "/team/heartbeat", self.on_heartbeat, 10)
+        node.create_subscription(TeamState, "/team/heartbeat", self.on_heartbeat, 10)
         for k in range(robots):
             node.create_subscription(
                 PoseWithCovarianceStamped, f"/robot_{k}/pose", lambda m, k=k: self.on_pose(k, m), 10
@@ -273,7 +274,7 @@ class ViewNode:
 
     def on_heartbeat(self, msg) -> None:
         """The team's state (the supervisor's heartbeat)."""
-        self.team_state = msg.frame_id
+        self.team_state = msg.state
 
     def on_tf(self, msg) -> None:
         """Transforms from ``/tf`` or ``/tf_static``: the newest of each frame, kept.

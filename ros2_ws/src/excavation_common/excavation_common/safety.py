@@ -4,12 +4,12 @@ The supervisor (``team_supervisor``) owns the team state and announces it on two
 
 * ``/team/estop`` (``std_msgs/Bool``, reliable, transient local): ``True`` from an e-stop
   until a reset; latched, so a node that starts late still sees it;
-* ``/team/heartbeat`` (``std_msgs/Header``, 10 Hz): ``stamp`` = the supervisor's clock,
-  ``frame_id`` = the team state (:data:`TEAM_STATES`);
-
-* ``/team/armed`` (``std_msgs/Header``, reliable, transient local): stamped at the newest
-  arming on the supervisor's clock, ``frame_id`` = the count of armings (a re-arm of an
-  armed team counts);
+* ``/team/heartbeat`` (``excavation_interfaces/TeamState``, 10 Hz): ``stamp`` = the
+  supervisor's clock, ``state`` = the team state (:data:`TEAM_STATES`, the message's
+  constants);
+* ``/team/armed`` (``excavation_interfaces/TeamArmed``, reliable, transient local): stamped
+  at the newest arming on the supervisor's clock, ``armings`` = the count of armings (a
+  re-arm of an armed team counts);
 
 and, per robot, ``/robot_k/enabled`` (``std_msgs/Bool``, reliable, transient local).
 
@@ -65,7 +65,7 @@ class MotionGate:
         active: The node is in the lifecycle ``active`` state.
         estop: An e-stop is latched on ``/team/estop``.
         enabled: The robot is enabled (``/robot_k/enabled``); ``None`` = never heard.
-        team_state: ``frame_id`` of the last heartbeat (``None`` = never heard).
+        team_state: The state the last heartbeat said (``None`` = never heard).
         heartbeat_time: Local time of the last heartbeat, seconds.
         rearm_after_loss: A lost heartbeat keeps the gate closed until a newer arming
             (module docstring): set on a robot's own computer.
@@ -82,18 +82,18 @@ class MotionGate:
     team_state: str | None = None
     heartbeat_time: float | None = None
     rearm_after_loss: bool = False
-    arming: tuple[int, int, str] | None = None
+    arming: tuple[int, int, int] | None = None
     link_lost: bool = False
-    lost_arming: tuple[int, int, str] | None = None
+    lost_arming: tuple[int, int, int] | None = None
 
     def on_heartbeat(self, state: str, now: float) -> None:
         """A heartbeat arrived at local time ``now``."""
         self.team_state = state
         self.heartbeat_time = now
 
-    def on_armed(self, sec: int, nanosec: int, count: str) -> None:
+    def on_armed(self, sec: int, nanosec: int, count: int) -> None:
         """``/team/armed``: an arming (stamp and count); one newer than a latched loss clears it."""
-        self.arming = (int(sec), int(nanosec), str(count))
+        self.arming = (int(sec), int(nanosec), int(count))
         if self.link_lost and self.arming != self.lost_arming:
             self.link_lost = False
 

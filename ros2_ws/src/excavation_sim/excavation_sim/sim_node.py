@@ -63,11 +63,12 @@ import sys
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from excavation_interfaces.msg import TeamState
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, Imu, JointState
-from std_msgs.msg import Bool, Float32, Header, UInt16
+from std_msgs.msg import Bool, Float32, UInt16
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ant_controller.layout import (
@@ -194,7 +195,7 @@ class SimNode(Node):
         self.holds = 0
         if p.supervised:
             self.create_subscription(Bool, ESTOP_TOPIC, self.on_estop, LATCHED)
-            self.create_subscription(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
+            self.create_subscription(TeamState, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
             for k in range(self.n):
                 self.create_subscription(
                     Bool,
@@ -346,9 +347,9 @@ class SimNode(Node):
         """``/team/estop`` changed."""
         self.team.on_estop(msg.data)
 
-    def on_heartbeat(self, msg: Header) -> None:
-        """A team heartbeat (``frame_id`` = team state)."""
-        self.team.on_heartbeat(msg.frame_id, self._seconds())
+    def on_heartbeat(self, msg: TeamState) -> None:
+        """A team heartbeat (the team state)."""
+        self.team.on_heartbeat(msg.state, self._seconds())
 
     def on_enabled(self, k: int, msg: Bool) -> None:
         """Robot ``k`` enabled (waited for) or disabled (absent, idles)."""

@@ -23,6 +23,8 @@ import sys
 import time
 from typing import TextIO
 
+from excavation_interfaces.msg import TeamState
+
 from team_supervisor.client import OVERRIDE_RATE, NoAnswer, Operator
 from team_supervisor.console import (
     HOLD,
@@ -47,7 +49,6 @@ class ConsoleNode:
 
     def __init__(self, op: Operator, robots: int, out: TextIO) -> None:
         from diagnostic_msgs.msg import DiagnosticArray
-        from std_msgs.msg import Header
         from std_srvs.srv import SetBool
         from std_srvs.srv import Trigger as TriggerSrv
 
@@ -63,7 +64,7 @@ class ConsoleNode:
         self.controls = 0
         self.last = ""
         self.diag_pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        node.create_subscription(Header, "/team/heartbeat", self.on_heartbeat, 10)
+        node.create_subscription(TeamState, "/team/heartbeat", self.on_heartbeat, 10)
         node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 50)
 
     def wait_for_supervisor(self) -> None:
@@ -78,8 +79,8 @@ class ConsoleNode:
             )
 
     def on_heartbeat(self, msg) -> None:
-        """The team's state (``frame_id``)."""
-        self.team = msg.frame_id
+        """The team's state (the supervisor's heartbeat)."""
+        self.team = msg.state
 
     def on_diagnostics(self, msg) -> None:
         """The newest status of each node."""

@@ -6,10 +6,11 @@ r"""``ros2 run team_supervisor supervisor``: the team's e-stop, heartbeat, arm a
     ros2 run team_supervisor supervisor --ros-args --params-file config/supervisor.yaml
 
 Publishes ``/team/estop`` (std_msgs/Bool, reliable, transient local: ``True`` from an e-stop
-until a reset), ``/team/heartbeat`` (std_msgs/Header at ``heartbeat_rate``: stamp = this
-node's clock, ``frame_id`` = the team state), ``/team/armed`` (std_msgs/Header, latched:
-stamped at the newest arming, ``frame_id`` = the count of armings; a re-arm of an armed team
-counts, which robot-side nodes wait for after their link dropped), ``/robot_k/enabled``
+until a reset), ``/team/heartbeat`` (excavation_interfaces/TeamState at ``heartbeat_rate``:
+stamp = this node's clock, ``state`` = the team state), ``/team/armed``
+(excavation_interfaces/TeamArmed, latched: stamped at the newest arming, ``armings`` = the
+count of armings; a re-arm of an armed team counts, which robot-side nodes wait for after
+their link dropped), ``/robot_k/enabled``
 (std_msgs/Bool, latched) and ``/diagnostics`` (the team state and one value per robot).
 Every change goes out at once, not at the next heartbeat. Services (std_srvs/Trigger):
 ``~/estop``, ``~/reset``, ``~/arm``, ``~/pause``, ``~/resume`` and ``~/status`` (the state
@@ -27,10 +28,10 @@ import sys
 from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from excavation_interfaces.msg import DriveStatus
+from excavation_interfaces.msg import DriveStatus, TeamArmed, TeamState
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
-from std_msgs.msg import Bool, Header
+from std_msgs.msg import Bool
 from std_srvs.srv import SetBool, Trigger
 
 from excavation_common.params import param
@@ -93,8 +94,8 @@ class SupervisorNode(Node):
             busy_timeout=p.busy_timeout,
         )
         self.estop_pub = self.create_publisher(Bool, ESTOP_TOPIC, LATCHED)
-        self.heartbeat_pub = self.create_publisher(Header, HEARTBEAT_TOPIC, 10)
-        self.armed_pub = self.create_publisher(Header, ARMED_TOPIC, LATCHED)
+        self.heartbeat_pub = self.create_publisher(TeamState, HEARTBEAT_TOPIC, 10)
+        self.armed_pub = self.create_publisher(TeamArmed, ARMED_TOPIC, LATCHED)
         self.published_armings = 0
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.enabled_pubs = [
@@ -134,7 +135,7 @@ class SupervisorNode(Node):
 
     def publish_heartbeat(self) -> None:
         """One heartbeat: this node's time and the team state."""
-        msg = Header(frame_id=self.team.state)
+        msg = TeamState(state=self.team.state)
         msg.stamp = self.get_clock().now().to_msg()
         self.heartbeat_pub.publish(msg)
 
@@ -145,7 +146,7 @@ class SupervisorNode(Node):
             self.estop_pub.publish(Bool(data=self.team.estopped))
         if self.team.armings != self.published_armings:
             self.published_armings = self.team.armings
-            msg = Header(frame_id=str(self.team.armings))
+            msg = TeamArmed(armings=self.team.armings)
             msg.stamp = self.get_clock().now().to_msg()
             self.armed_pub.publish(msg)
         for k in range(self.team.robots):

@@ -49,7 +49,7 @@ import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
-from excavation_interfaces.msg import DriveStatus
+from excavation_interfaces.msg import DriveStatus, TeamState
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from sensor_msgs.msg import Image, JointState
@@ -163,7 +163,7 @@ class TeamTickNode(Node):
             sub(Bool, f"{ns}/drive/operator", lambda m, k=k: self.on_operator(k, m), LATCHED)
             sub(Bool, f"{ns}/{ENABLED_TOPIC}", lambda m, k=k: self.on_enabled(k, m), LATCHED)
         sub(Image, "/worksite/height_map", self.on_heights, LATCHED)
-        sub(Header, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
+        sub(TeamState, HEARTBEAT_TOPIC, self.on_heartbeat, 10)
         self.team = MotionGate(active=True, enabled=True)
         sub(Bool, ESTOP_TOPIC, lambda m: self.team.on_estop(m.data), LATCHED)
         self.core.armed = False
@@ -233,9 +233,9 @@ class TeamTickNode(Node):
         """Robot k's executor: the operator's override drives it, or no longer."""
         self.core.on_operator(k, bool(msg.data))
 
-    def on_heartbeat(self, msg: Header) -> None:
+    def on_heartbeat(self, msg: TeamState) -> None:
         """The team state: the tick runs only while armed."""
-        self.team.on_heartbeat(msg.frame_id, self._now())
+        self.team.on_heartbeat(msg.state, self._now())
         self._gate(self._now())
 
     def on_enabled(self, k: int, msg: Bool) -> None:
