@@ -79,6 +79,8 @@ from excavation_sim.soil import (
     body_window,
     cut,
     dig_wheels,
+    firm_above,
+    pile_above,
     relax_local,
     stamp_body,
     volume_above,
@@ -560,9 +562,7 @@ def _near_force(soil, m, edge):
     cut_n = 0
     for a in range(m):
         if soil.near_u[a] < front + sub:
-            firm = soil.near_fine[a] - soil.near_loose[a] - edge
-            if firm > 0:
-                cut_total += firm
+            cut_total += firm_above(soil.near_fine[a], soil.near_loose[a], edge)
             cut_n += 1
     depth = cut_total / cut_n if cut_n else 0.0
     length = depth * ph[X_WEDGE_Q]
@@ -573,11 +573,9 @@ def _near_force(soil, m, edge):
         u = soil.near_u[a]
         if u >= front + far:
             continue
-        pile = soil.near_fine[a] - edge
-        if pile <= 0:
+        pile = pile_above(soil.near_fine[a], soil.near_loose[a], edge)
+        if pile == 0:
             continue
-        if pile > soil.near_loose[a]:
-            pile = soil.near_loose[a]
         if u < front + length:
             over += pile
         else:

@@ -955,6 +955,28 @@ def volume_above(fine, x, y, yaw, sub, front, half_width, reach, edge):
     return volume
 
 
+@nb.njit(cache=True, inline="always")
+def firm_above(fine, loose, edge):
+    """Quanta of a sub-cell's firm ground (``fine - loose``) above a blade's ``edge``.
+
+    What the blade cuts there (:func:`blade_load`).
+    """
+    firm = fine - loose - edge
+    return firm if firm > 0 else 0
+
+
+@nb.njit(cache=True, inline="always")
+def pile_above(fine, loose, edge):
+    """Quanta of a sub-cell's loose soil above a blade's ``edge``.
+
+    What the blade pushes there (:func:`blade_load`).
+    """
+    pile = fine - edge
+    if pile <= 0:
+        return 0
+    return loose if pile > loose else pile
+
+
 @nb.njit(cache=True)
 def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedge):
     """``(cut, over, beyond)``: what a blade at ``(x, y, yaw)``, edge at ``edge``, meets.
@@ -978,9 +1000,7 @@ def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedg
             u, v = _local(i, j, sub, x, y, cy, sy)
             if abs(v) >= half_width or u < front or u >= front + sub:
                 continue
-            firm = fine[i, j] - loose[i, j] - edge
-            if firm > 0:
-                cut_total += firm
+            cut_total += firm_above(fine[i, j], loose[i, j], edge)
             cut_n += 1
     depth = cut_total / cut_n if cut_n else 0.0
     length = depth * wedge
@@ -995,11 +1015,9 @@ def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedg
             u, v = _local(i, j, sub, x, y, cy, sy)
             if abs(v) >= half_width or u < front or u >= front + far:
                 continue
-            pile = fine[i, j] - edge
-            if pile <= 0:
+            pile = pile_above(fine[i, j], loose[i, j], edge)
+            if pile == 0:
                 continue
-            if pile > loose[i, j]:
-                pile = loose[i, j]
             if u < front + length:
                 over += pile
             else:
