@@ -162,6 +162,28 @@ def first_difference(grid, physical) -> dict | None:
     return None
 
 
+def _row(switch: Switch, controller: str, robots: int, scenario: int, args, trace, f) -> dict:
+    """What every trial's row holds: its cell and scenario, its grid and physical fitness.
+
+    ``trace``: the grid trial's fitness per tick (from the start ``f0``); ``f``: the physical
+    trial's final fitness.
+    """
+    f0, f_grid = trace[0], trace[-1]
+    return {
+        "switch": switch.key,
+        "soil": switch.soil,
+        "controller": controller,
+        "robots": robots,
+        "seed": args.seed,
+        "scenario": scenario,
+        "steps": args.steps,
+        "f0": f0,
+        "grid": f_grid,
+        "physical": f,
+        "progress": (f - f0) / (f_grid - f0) if f_grid != f0 else None,
+    }
+
+
 def run_one(switch: Switch, controller: str, robots: int, scenario: int, args) -> dict:
     """One physical trial beside its grid trial (a JSON-ready row)."""
     from excavation_bringup.trial import run_trial
@@ -189,19 +211,7 @@ def run_one(switch: Switch, controller: str, robots: int, scenario: int, args) -
     finally:
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
-    f0, f_grid, f = trace[0], trace[-1], float(r.fitness)
-    return {
-        "switch": switch.key,
-        "soil": switch.soil,
-        "controller": controller,
-        "robots": robots,
-        "seed": args.seed,
-        "scenario": scenario,
-        "steps": args.steps,
-        "f0": f0,
-        "grid": f_grid,
-        "physical": f,
-        "progress": (f - f0) / (f_grid - f0) if f_grid != f0 else None,
+    return _row(switch, controller, robots, scenario, args, trace, float(r.fitness)) | {
         "slips": r.slips,
         "stuck_events": r.stuck_events,
         "primitives_aborted": r.primitives_aborted,
@@ -270,20 +280,8 @@ def run_offline(switch: Switch, controller: str, robots: int, scenario: int, arg
         switch.soil, controller, robots, args.steps, args.seed, scenario
     )
     per_robot = [[row[k] for row in pdecisions] for k in range(robots)]
-    f0, f_grid, f = trace[0], trace[-1], float(ptrace[-1])
-    return {
-        "switch": switch.key,
-        "soil": switch.soil,
+    return _row(switch, controller, robots, scenario, args, trace, float(ptrace[-1])) | {
         "world": "offline",
-        "controller": controller,
-        "robots": robots,
-        "seed": args.seed,
-        "scenario": scenario,
-        "steps": args.steps,
-        "f0": f0,
-        "grid": f_grid,
-        "physical": f,
-        "progress": (f - f0) / (f_grid - f0) if f_grid != f0 else None,
         "slips": int(counters[C_STALLS]),
         "refused": int(counters[C_REFUSED]),
         "cut": int(counters[C_CUT]),
