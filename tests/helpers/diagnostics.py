@@ -23,7 +23,9 @@ class DiagnosticsProbe:
 
     def named(self, name: str) -> list[DiagnosticStatus]:
         """Every status of ``name`` heard, in order: a live list that grows as they come."""
-        return self._by_name.setdefault(name, [s for s in self.statuses if s.name == name])
+        if name not in self._by_name:  # the statuses heard so far, then each as it comes
+            self._by_name[name] = [s for s in self.statuses if s.name == name]
+        return self._by_name[name]
 
     def on_message(self, msg: DiagnosticArray) -> None:
         """Keep each status of one message."""
