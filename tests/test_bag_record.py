@@ -139,9 +139,7 @@ def test_continuous_process_trial_waits_for_a_late_recorder(tmp_path, domain):
         result = _run_with_a_late_recorder(trial)
     assert len(result["tick_wall"]) == steps
     bag = open_bag(bag_dir)
-    ticks = [
-        int(bag.decode("/team/tick", raw).frame_id) for _, _, raw in bag.messages(["/team/tick"])
-    ]
+    ticks = [int(bag.decode("/team/tick", raw).tick) for _, _, raw in bag.messages(["/team/tick"])]
     assert ticks == list(range(steps))
 
 

@@ -144,16 +144,16 @@ def test_sim_driver_node_answers_each_tick_in_sim_time(ros):
         return probe.servo[-1] if len(probe.servo) > n_servo else None
 
     cmd = tick(0, word(BLADE_BELOW_CMD))
-    assert cmd.header.stamp.sec == 0 and cmd.position[0] == pytest.approx(-0.02)
+    assert cmd.stamp.sec == 0 and cmd.position == pytest.approx(-0.02)
     assert probe.joints[-1].effort[0] == 0.0
     cmd = tick(1, word(BLADE_LEVEL_CMD), position=-0.02)
-    assert cmd.header.stamp.sec == 1 and cmd.position[0] == pytest.approx(0.0)
+    assert cmd.stamp.sec == 1 and cmd.position == pytest.approx(0.0)
     # The controller goes quiet: at tick 2 the watchdog (1.5 s of sim time) is not due, so
     # no set-point; at tick 3 it is, and the driver sends "home" without waiting.
     assert tick(2) is None
     cmd = tick(3)
-    assert cmd is not None and cmd.header.stamp.sec == 3
-    assert cmd.position[0] == pytest.approx(0.10)
+    assert cmd is not None and cmd.stamp.sec == 3
+    assert cmd.position == pytest.approx(0.10)
 
 
 def test_sim_driver_gives_a_late_reader_the_ticks_joint_state(ros):
@@ -246,34 +246,35 @@ def test_sim_driver_waits_for_the_ticks_drive_before_moving_the_blade(ros):
     assert driver.core.pushing and driver.core.state.setting == BLADE_HOME  # not yet set
     cmd = send_status(0, GoalStatus.STATUS_SUCCEEDED, expect=True)
     # below ground, trimmed by the constant-force loop (it pushes: 0 N measured)
-    assert cmd.header.stamp.sec == 0 and cmd.position[0] == pytest.approx(-0.02, abs=0.008)
+    assert cmd.stamp.sec == 0 and cmd.position == pytest.approx(-0.02, abs=0.008)
     # Tick 1: an old tick's status releases nothing; an aborted drive of tick 1 does.
     new_tick(1)
     assert send_word(word(BLADE_LEVEL_CMD)) is None
     assert send_status(0, GoalStatus.STATUS_SUCCEEDED) is None
     cmd = send_status(1, GoalStatus.STATUS_ABORTED, expect=True)
-    assert cmd.header.stamp.sec == 1 and cmd.position[0] == pytest.approx(0.0)
+    assert cmd.stamp.sec == 1 and cmd.position == pytest.approx(0.0)
     # Tick 2: the drive ended before the word came (nothing to drive): the blade at once.
     new_tick(2)
     assert send_status(2, GoalStatus.STATUS_SUCCEEDED) is None
     cmd = send_word(word(BLADE_ABOVE_CMD), expect=True)
-    assert cmd.header.stamp.sec == 2 and cmd.position[0] == pytest.approx(0.02)
+    assert cmd.stamp.sec == 2 and cmd.position == pytest.approx(0.02)
 
 
 def test_serial_driver_waits_for_the_team_ticks_drive(ros, board):
     from builtin_interfaces.msg import Time
     from excavation_interfaces.msg import DriveStatus as GoalStatus
-    from std_msgs.msg import Header, UInt16
+    from excavation_interfaces.msg import Tick
+    from std_msgs.msg import UInt16
 
     fake, path = board
     cal = ServoCalibration()
     driver = blade_driver_node(ros, backend="serial", port=path, rate=50.0, blade_after_motion=True)
     probe = blade_probe(ros)
     probe.status = probe.create_publisher(GoalStatus, "/robot_0/drive/status", 10)
-    team_tick = probe.create_publisher(Header, "/team/tick", 10)
+    team_tick = probe.create_publisher(Tick, "/team/tick", 10)
     assert ros.spin_until(lambda: probe.count_subscribers("/team/tick") > 0)
     assert ros.spin_until(lambda: len(probe.joints) > 3 and fake.target == cal.angle(0.10))
-    team_tick.publish(Header(stamp=Time(sec=4), frame_id="4"))
+    team_tick.publish(Tick(stamp=Time(sec=4), tick=4))
     assert ros.spin_until(lambda: driver.hw.team_tick == (4, 0))
     level = UInt16(data=word(BLADE_LEVEL_CMD))
 
@@ -299,7 +300,8 @@ def test_serial_driver_watchdog_counts_team_ticks(ros, board):
     """
     from builtin_interfaces.msg import Time
     from excavation_interfaces.msg import DriveStatus as GoalStatus
-    from std_msgs.msg import Header, UInt16
+    from excavation_interfaces.msg import Tick
+    from std_msgs.msg import UInt16
 
     fake, path = board
     cal = ServoCalibration()
@@ -308,12 +310,12 @@ def test_serial_driver_watchdog_counts_team_ticks(ros, board):
     )
     probe = blade_probe(ros)
     probe.status = probe.create_publisher(GoalStatus, "/robot_0/drive/status", 10)
-    team_tick = probe.create_publisher(Header, "/team/tick", 10)
+    team_tick = probe.create_publisher(Tick, "/team/tick", 10)
     assert ros.spin_until(lambda: probe.count_subscribers("/team/tick") > 0)
     for topic in ("/robot_0/behaviour", "/robot_0/drive/status"):
         assert ros.spin_until(lambda topic=topic: probe.count_subscribers(topic) > 0)
     assert ros.spin_until(lambda: len(probe.joints) > 3 and fake.target == cal.angle(0.10))
-    team_tick.publish(Header(stamp=Time(sec=4), frame_id="4"))
+    team_tick.publish(Tick(stamp=Time(sec=4), tick=4))
     assert ros.spin_until(lambda: driver.hw.team_tick == (4, 0))
     probe.behaviour.publish(UInt16(data=word(BLADE_LEVEL_CMD)))  # once
     assert ros.spin_until(lambda: driver.commands == 1)
@@ -325,12 +327,12 @@ def test_serial_driver_watchdog_counts_team_ticks(ros, board):
     assert fake.target == cal.angle(0.0) and driver.core.state.source.startswith("controller")
     assert not driver.core.state.watchdog_tripped
     # Tick 5 without a word: still within the watchdog; tick 6 too: the blade goes home.
-    team_tick.publish(Header(stamp=Time(sec=5), frame_id="5"))
+    team_tick.publish(Tick(stamp=Time(sec=5), tick=5))
     assert ros.spin_until(lambda: driver.hw.team_tick == (5, 0))
     seen = len(probe.joints)
     assert ros.spin_until(lambda: len(probe.joints) >= seen + 5, timeout=20.0)
     assert fake.target == cal.angle(0.0)
-    team_tick.publish(Header(stamp=Time(sec=6), frame_id="6"))
+    team_tick.publish(Tick(stamp=Time(sec=6), tick=6))
     assert ros.spin_until(lambda: fake.target == cal.angle(0.10), timeout=5.0)
     assert driver.core.state.watchdog_tripped
 

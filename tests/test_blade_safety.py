@@ -16,7 +16,6 @@ from ant_controller.layout import BLADE_BELOW_CMD
 from blade_driver.fake_board import FakeBoard, open_pty
 from blade_driver.hardware import joint_state
 from blade_driver.protocol import ServoCalibration
-from excavation_common.safety import HELD
 
 HOME = 0.10
 
@@ -33,8 +32,8 @@ def sim(ros):
     assert ros.spin_until(lambda: probe.joints)
     probe.behaviour.publish(UInt16(data=word(BLADE_BELOW_CMD)))
     assert ros.spin_until(lambda: probe.servo)
-    assert probe.servo[-1].position[0] == pytest.approx(-0.02)
-    assert probe.servo[-1].header.frame_id == ""
+    assert probe.servo[-1].position == pytest.approx(-0.02)
+    assert not probe.servo[-1].held
     return sup, drv, probe
 
 
@@ -47,7 +46,7 @@ def change(ros, sup, action, *args):
 
 
 def held(probe, n):
-    return len(probe.servo) > n and probe.servo[-1].header.frame_id == HELD
+    return len(probe.servo) > n and probe.servo[-1].held
 
 
 @pytest.mark.parametrize(
@@ -66,18 +65,18 @@ def test_sim_blade_goes_home_and_returns_to_the_ticks_setpoint(ros, sim, stop, g
     assert ros.spin_until(lambda: held(probe, n), timeout=5)
     print(f"{stop[0][0]}: blade home {1e3 * (time.monotonic() - sent):.1f} ms after the change")
     cmd = probe.servo[-1]
-    assert cmd.position[0] == pytest.approx(HOME) and cmd.header.stamp.sec == 0
+    assert cmd.position == pytest.approx(HOME) and cmd.stamp.sec == 0
     assert drv.core.state.setpoint == pytest.approx(-0.02)  # the core is left as it was
     for action in go[:-1]:  # e-stop: reset alone leaves the team disarmed, the blade home
         change(ros, sup, *action)
         ros.spin_until(lambda: False, timeout=0.5)
-        assert probe.servo[-1].header.frame_id == HELD
+        assert probe.servo[-1].held
     n = len(probe.servo)
     change(ros, sup, *go[-1])
     assert ros.spin_until(lambda: len(probe.servo) > n, timeout=5)
     again = probe.servo[-1]
-    assert again.header.frame_id == "" and again.header.stamp.sec == 0
-    assert again.position[0] == pytest.approx(-0.02)  # the tick's own set-point, unchanged
+    assert not again.held and again.stamp.sec == 0
+    assert again.position == pytest.approx(-0.02)  # the tick's own set-point, unchanged
 
 
 def test_sim_blade_homes_on_heartbeat_loss_and_lifecycle(ros, sim):
@@ -86,7 +85,7 @@ def test_sim_blade_homes_on_heartbeat_loss_and_lifecycle(ros, sim):
     drv.trigger_deactivate()
     assert ros.spin_until(lambda: held(probe, n)) and "not active" in drv.hold
     drv.trigger_activate()
-    assert ros.spin_until(lambda: probe.servo[-1].header.frame_id == "")
+    assert ros.spin_until(lambda: not probe.servo[-1].held)
     n = len(probe.servo)
     ros.executor.remove_node(sup)  # the supervisor dies
     killed = time.monotonic()
@@ -106,10 +105,8 @@ def test_an_unarmed_team_never_moves_the_blade(ros):
         probe.state.publish(joint_state(HOME, 0.0, Time(sec=t)))
         probe.behaviour.publish(UInt16(data=word(BLADE_BELOW_CMD)))
         probe.override.publish(Float64MultiArray(data=[-0.03]))
-        ros.spin_until(lambda t=t: probe.servo and probe.servo[-1].header.stamp.sec == t, 3)
-    assert probe.servo and all(
-        m.position[0] == pytest.approx(HOME) and m.header.frame_id == HELD for m in probe.servo
-    )
+        ros.spin_until(lambda t=t: probe.servo and probe.servo[-1].stamp.sec == t, 3)
+    assert probe.servo and all(m.position == pytest.approx(HOME) and m.held for m in probe.servo)
 
 
 class Plug:

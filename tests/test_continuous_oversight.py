@@ -31,7 +31,7 @@ from helpers.watchers import OperatorWatcher, occlude
 
 from excavation_bringup.deployment import Deployment
 from excavation_bringup.nodes import LOST_GRACE, LOST_TIMEOUT
-from excavation_common.safety import ESTOPPED, HELD
+from excavation_common.safety import ESTOPPED
 
 SEED = 3
 pytestmark = pytest.mark.system
@@ -113,9 +113,8 @@ class Watcher(OperatorWatcher):
 
     def __init__(self, domain: int):
         from diagnostic_msgs.msg import DiagnosticArray
-        from excavation_interfaces.msg import DriveGoal, TeamState
+        from excavation_interfaces.msg import DriveStatus, TeamState, Tick
         from geometry_msgs.msg import TwistStamped
-        from std_msgs.msg import Header
 
         super().__init__(domain, ROBOTS)  # servo set-points, enables; ``tick`` is /clock's
         self.team_tick = -1
@@ -130,7 +129,7 @@ class Watcher(OperatorWatcher):
             return header.stamp.sec + header.stamp.nanosec * 1e-9
 
         def on_tick(msg):
-            self.team_tick = int(msg.frame_id)
+            self.team_tick = int(msg.tick)
 
         def on_diag(msg):
             for status in msg.status:
@@ -138,7 +137,7 @@ class Watcher(OperatorWatcher):
                     values = {v.key: v.value for v in status.values}
                     self.supervisor.append((stamp(msg.header), values))
 
-        sub(Header, "/team/tick", on_tick, 10)
+        sub(Tick, "/team/tick", on_tick, 10)
         sub(
             TeamState,
             "/team/heartbeat",
@@ -156,10 +155,14 @@ class Watcher(OperatorWatcher):
                 ),
                 200,
             )
-            sub(
-                DriveGoal,
-                f"{ns}/drive/goal",
-                lambda m, k=k: self.goals[k].append(time.monotonic()),
+            sub(  # every goal the executor starts (the drive action's, EXECUTING)
+                DriveStatus,
+                f"{ns}/drive/status",
+                lambda m, k=k: (
+                    self.goals[k].append(time.monotonic())
+                    if m.status == DriveStatus.STATUS_EXECUTING
+                    else None
+                ),
                 50,
             )
 
@@ -267,7 +270,7 @@ def test_estop_at_tick_10_stops_every_executor_within_100_ms_then_reset_and_arm_
             k: [(v, f) for w, _, v, f in watch.servo[k] if sent <= w < armed_at] for k in zero
         }
         homed = {
-            k: next(w for w, _, _, f in watch.servo[k] if w >= sent and f == HELD) - sent
+            k: next(w for w, _, _, h in watch.servo[k] if w >= sent and h) - sent
             for k in range(ROBOTS)
         }
         print(
@@ -279,7 +282,7 @@ def test_estop_at_tick_10_stops_every_executor_within_100_ms_then_reset_and_arm_
         assert max(zero.values()) - t_estop <= STOP_LIMIT
         for k, sent_home in blades.items():
             assert sent_home, f"robot {k}: no blade set-point after the e-stop"
-            assert all(f == HELD and v == pytest.approx(0.10) for v, f in sent_home), k
+            assert all(h and v == pytest.approx(0.10) for v, h in sent_home), k
         assert watch.spin_until(trial.done, 600)
         result = trial.result()
     finally:

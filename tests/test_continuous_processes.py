@@ -21,7 +21,6 @@ CONTINUOUS_TOPICS = {
     "/robot_0/cmd_vel",
     "/robot_1/cmd_vel",
     "/robot_0/drive/status",
-    "/robot_0/drive/goal",
     "/robot_0/imu",
     "/robot_0/pose",
     "/robot_0/behaviour",
@@ -69,20 +68,21 @@ def test_processes_equal_the_composed_and_grid_trials_and_record_a_bag(tmp_path,
     status = recorded.topics["/robot_0/drive/status"]
     assert status.msgtype == "excavation_interfaces/msg/DriveStatus"
     # the suite's own types are recorded with their definitions: a foreign reader (mcap_ros2,
-    # no package of ours) decodes every goal and status, the ticks in order
+    # no package of ours) decodes every status with its goal, the ticks in order
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
     (mcap_file,) = bag.glob("*.mcap")
-    seen: dict[str, list] = {"/robot_0/drive/goal": [], "/robot_0/drive/status": []}
+    seen: dict[str, list] = {"/robot_0/drive/status": []}
     with open(mcap_file, "rb") as f:
         for _, channel, _, m in make_reader(
             f, decoder_factories=[DecoderFactory()]
         ).iter_decoded_messages(topics=list(seen)):
             seen[channel.topic].append(m)
-    goals = [int(m.tick) for m in seen["/robot_0/drive/goal"]]
+    started = [m.goal for m in seen["/robot_0/drive/status"] if m.status == 2]  # EXECUTING
+    goals = [int(g.tick) for g in started]
     assert goals and goals == sorted(goals)
-    assert all(m.robot == 0 for m in seen["/robot_0/drive/goal"])
+    assert all(g.robot == 0 for g in started)
     ended = {int(m.goal.tick) for m in seen["/robot_0/drive/status"] if m.status in (4, 6)}
     assert set(goals) <= ended  # every goal of robot 0 ended (succeeded or aborted)
     assert bag_main(["info", str(bag)]) == 0

@@ -390,8 +390,8 @@ def test_the_real_dome_wires_executor_team_tick_and_controller(tmp_path, ros, ro
             ("sub", "/tick/robot_0/pose"): ["controller"],
             ("sub", "/tick/robot_1/stuck"): ["controller"],
             ("sub", "/tick/worksite/height_map"): ["controller"],
-            ("sub", "/robot_1/drive/goal"): ["executor"],
-            ("sub", "/robot_1/drive/status"): ["team_tick"],
+            ("pub", "/robot_1/drive/_action/status"): ["executor"],  # the drive action's
+            ("sub", "/robot_1/drive/_action/feedback"): ["team_tick"],  # server and client
         }
         seen = {}
 

@@ -152,6 +152,7 @@ def test_parameters_are_checked():
 
 def test_the_serial_blade_driver_moves_the_world_blade_through_the_board(ros, tmp_path):
     from dome_emulator.servo_board_node import ServoBoardNode
+    from excavation_interfaces.msg import BladeCommand
     from helpers.blades import blade_driver_node, blade_probe, word
     from rclpy.node import Node
     from rclpy.parameter import Parameter
@@ -174,7 +175,7 @@ def test_the_serial_blade_driver_moves_the_world_blade_through_the_board(ros, tm
     assert os.path.realpath(link) == os.path.realpath(port)
     world = ros.add(Node("world", context=ros.context))
     commands = []
-    world.create_subscription(JointState, "/robot_0/world/servo_command", commands.append, 10)
+    world.create_subscription(BladeCommand, "/robot_0/world/servo_command", commands.append, 10)
     diags = DiagnosticsProbe(world).named("/robot_0/servo_board")
     plant = world.create_publisher(JointState, "/robot_0/world/plant_state", 10)
 
@@ -193,7 +194,7 @@ def test_the_serial_blade_driver_moves_the_world_blade_through_the_board(ros, tm
     assert ros.spin_until(lambda: len(probe.joints) > 3, 30.0)  # it reads the board
     assert probe.joints[-1].position[0] == pytest.approx(0.10, abs=1e-4)  # home
     assert ros.spin_until(lambda: bool(commands))
-    assert commands[-1].name == ["blade"] and commands[-1].position[0] == pytest.approx(0.10)
+    assert commands[-1].position == pytest.approx(0.10) and not commands[-1].held
     assert ros.spin_until(lambda: any(port in s.message for s in diags))
     assert {v.key: v.value for v in diags[-1].values}["port"] == port
 
@@ -202,7 +203,7 @@ def test_the_serial_blade_driver_moves_the_world_blade_through_the_board(ros, tm
 
     def lowered():
         probe.behaviour.publish(below)
-        return bool(commands) and commands[-1].position[0] == pytest.approx(-0.02)
+        return bool(commands) and commands[-1].position == pytest.approx(-0.02)
 
     assert ros.spin_until(lowered, 30.0)
     assert ros.spin_until(lambda: probe.joints[-1].position[0] == pytest.approx(-0.02), 10.0)

@@ -1,5 +1,6 @@
-"""The executor node: lifecycle, the team gate over real topics, the override, diagnostics,
-the stamp and type of ``cmd_vel``, the final stop."""
+"""The executor node: lifecycle, the drive action (results, preemption, cancel, rejection,
+feedback), the team gate over real topics, the override, diagnostics, the stamp and type of
+``cmd_vel``, the final stop."""
 
 from __future__ import annotations
 
@@ -12,18 +13,19 @@ import time
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
-from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
+from excavation_interfaces.action import Drive
 from excavation_interfaces.msg import DriveStatus as GoalStatus
 from excavation_interfaces.msg import TeamArmed, TeamState
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
 from helpers.diagnostics import DiagnosticsProbe
+from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool
 
-from ant_controller.layout import MOVE_FORWARD
+from ant_controller.layout import MOVE_FORWARD, TURN_RIGHT
 from drive_executor.executor_node import ExecutorNode
 from drive_executor.goals import DriveGoal, goal_message
 from excavation_common.frames import robot_center
@@ -41,7 +43,10 @@ class Base(Node):
         self.twists: list[tuple[float, TwistStamped]] = []
         self.statuses: list[int] = []
         self.pose_pub = self.create_publisher(PoseWithCovarianceStamped, "/robot_0/pose", 10)
-        self.goal_pub = self.create_publisher(DriveGoalMsg, "/robot_0/drive/goal", 10)
+        self.drive = ActionClient(self, Drive, "/robot_0/drive")
+        self.handles: dict[int, object] = {}  # tick -> the client's goal handle
+        self.results: dict[int, tuple] = {}  # tick -> (status, stuck, reason); None: rejected
+        self.feedback: list[tuple[int, int, int]] = []  # (tick, done, total)
         self.override_pub = self.create_publisher(TwistStamped, "/robot_0/drive/override", 10)
         self.estop_pub = self.create_publisher(Bool, "/team/estop", LATCHED)
         self.enabled_pub = self.create_publisher(Bool, "/robot_0/enabled", LATCHED)
@@ -63,6 +68,29 @@ class Base(Node):
 
     def on_twist(self, msg):
         self.twists.append((time.monotonic(), msg))
+
+    def send(self, tick: int, word: int = 1 << MOVE_FORWARD) -> None:
+        """The team tick's goal for robot 0 (the drive action)."""
+        goal = Drive.Goal(goal=goal_message(DriveGoal(tick, 0, 0, 0, (tick, 0))))
+        goal.goal.word = word  # unchecked: a bad word reaches the server as sent
+        sent = self.drive.send_goal_async(
+            goal,
+            feedback_callback=lambda m: self.feedback.append(
+                (m.feedback.tick, m.feedback.done, m.feedback.total)
+            ),
+        )
+        sent.add_done_callback(lambda f: self.on_response(tick, f.result()))
+
+    def on_response(self, tick: int, handle) -> None:
+        self.handles[tick] = handle
+        if not handle.accepted:
+            self.results[tick] = None
+            return
+        handle.get_result_async().add_done_callback(
+            lambda f: self.results.__setitem__(
+                tick, (f.result().status, f.result().result.stuck, f.result().result.reason)
+            )
+        )
 
     def tick(self):
         if self.twists:
@@ -119,7 +147,7 @@ def wait_matched(ros, base, node):
     assert ros.spin_until(
         lambda: (
             node.cmd_pub.get_subscription_count() > 0
-            and base.goal_pub.get_subscription_count() > 0
+            and base.drive.server_is_ready()
             and base.override_pub.get_subscription_count() > 0
             and node.gate.allowed(node.get_clock().now().nanoseconds * 1e-9)
         ),
@@ -128,17 +156,20 @@ def wait_matched(ros, base, node):
 
 
 def send_goal(base, tick):
-    base.goal_pub.publish(goal_message(DriveGoal(tick, 1 << MOVE_FORWARD, 0, 0, (tick, 0))))
+    base.send(tick)
 
 
 def test_nothing_moves_before_activation_then_the_goal_drives(rig):
     ros, base, node = rig
     node.trigger_configure()
     ros.spin_until(lambda: node.cmd_pub.get_subscription_count() > 0, 5)
+    assert ros.spin_until(base.drive.server_is_ready, 5)
     send_goal(base, 0)
-    ros.spin_until(lambda: False, 0.6)
+    assert ros.spin_until(lambda: 0 in base.results, 5)
     assert base.twists == []  # configured, not active: the lifecycle publisher is silent
+    assert base.results[0] == (GoalStatus.STATUS_ABORTED, True, "not active (lifecycle)")
     node.trigger_activate()
+    wait_matched(ros, base, node)  # armed, enabled, heard (a goal before would abort)
     send_goal(base, 1)
     assert ros.spin_until(base.moving, 5)
     assert base.twists[-1][1].header.frame_id == "robot_0/base_link"
@@ -148,6 +179,11 @@ def test_nothing_moves_before_activation_then_the_goal_drives(rig):
     assert ros.spin_until(lambda: base.stuck and base.throttle, 5)
     assert base.statuses == [GoalStatus.STATUS_EXECUTING, GoalStatus.STATUS_SUCCEEDED]
     assert base.stuck == [False] and base.throttle == [False]
+    # the action's result and feedback: the moves done of the goal's total
+    assert ros.spin_until(lambda: 1 in base.results, 5)
+    assert base.results[1] == (GoalStatus.STATUS_SUCCEEDED, False, "")
+    assert base.feedback and base.feedback[0] == (1, 0, base.feedback[0][2])
+    assert base.feedback[0][2] >= 1 and all(t == 1 for t, _, _ in base.feedback)
 
 
 @pytest.mark.parametrize(
@@ -182,6 +218,10 @@ def test_stops_at_once_and_stays_stopped(rig, stop):
     first = base.first_zero_after(t0)
     print(f"{stop}: zero cmd_vel {(base.twists[first][0] - t0) * 1000:.1f} ms after the event")
     assert ros.spin_until(lambda: GoalStatus.STATUS_ABORTED in base.statuses, 5)
+    # the action goal ends aborted, with why
+    assert ros.spin_until(lambda: 0 in base.results, 5)
+    status, stuck, reason = base.results[0]
+    assert status == GoalStatus.STATUS_ABORTED and stuck and reason, base.results
     send_goal(base, 1)  # still stopped: the new goal is refused, nothing moves
     count = len(base.twists)
     if stop != "deactivate":  # inactive: silent (the base's cmd_vel_timeout is the rest)
@@ -191,6 +231,54 @@ def test_stops_at_once_and_stays_stopped(rig, stop):
         ros.spin_until(lambda: False, 0.5)
         assert len(base.twists) == count
     assert all(m.twist.linear.x == 0.0 and m.twist.angular.z == 0.0 for _, m in base.twists[first:])
+
+
+def test_a_newer_goal_preempts_the_running_one(rig):
+    """A newer tick's goal supersedes the running one: aborted (stuck, with why), then the
+    new one runs to its end."""
+    ros, base, node = rig
+    node.trigger_configure()
+    node.trigger_activate()
+    wait_matched(ros, base, node)
+    send_goal(base, 0)
+    assert ros.spin_until(base.moving, 5)
+    base.send(1, 1 << TURN_RIGHT)
+    assert ros.spin_until(lambda: 0 in base.results and 1 in base.results, 15), base.results
+    assert base.results[0] == (GoalStatus.STATUS_ABORTED, True, "superseded by tick 1")
+    assert base.results[1] == (GoalStatus.STATUS_SUCCEEDED, False, "")
+    assert base.stuck == [True, False]
+
+
+def test_a_cancelled_goal_stops_the_robot_and_ends_cancelled(rig):
+    """The client cancels: zero twist, result CANCELED (stuck), drive/status says so too."""
+    ros, base, node = rig
+    node.trigger_configure()
+    node.trigger_activate()
+    wait_matched(ros, base, node)
+    send_goal(base, 0)
+    assert ros.spin_until(lambda: base.moving() and 0 in base.handles, 5)
+    t0 = time.monotonic()
+    base.handles[0].cancel_goal_async()
+    assert ros.spin_until(lambda: 0 in base.results, 5)
+    assert base.results[0] == (GoalStatus.STATUS_CANCELED, True, "canceled by the client")
+    assert ros.spin_until(lambda: base.stopped_after(t0), 5)
+    assert base.statuses[-1] == GoalStatus.STATUS_CANCELED and base.stuck == [True]
+    count = len(base.twists)
+    ros.spin_until(lambda: len(base.twists) > count + 3, 1.0)
+    assert all(m.twist.linear.x == 0.0 for _, m in base.twists[count - 1 :])
+
+
+def test_a_goal_it_cannot_run_is_rejected_and_said_why(rig):
+    """A word with bits beyond the 12 behaviours: rejected, reported stuck, nothing moves."""
+    ros, base, node = rig
+    node.trigger_configure()
+    node.trigger_activate()
+    wait_matched(ros, base, node)
+    base.send(0, 0x1000 | 1 << MOVE_FORWARD)
+    assert ros.spin_until(lambda: 0 in base.results, 5)
+    assert base.results[0] is None and base.stuck == [True]
+    assert "beyond the 12 behaviours" in node.errors["drive"]
+    assert not base.moving()
 
 
 def test_override_wins_while_fresh_clamped_estop_wins_over_it(rig):

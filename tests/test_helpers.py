@@ -22,11 +22,9 @@ def test_domain_fixtures_hand_out_fresh_ids_of_the_range(domain, domains):
 def test_operator_watcher_hears_the_trial_calls_services_and_occludes(domain):
     import rclpy
     from builtin_interfaces.msg import Time
+    from excavation_interfaces.msg import BladeCommand
     from rosgraph_msgs.msg import Clock
-    from sensor_msgs.msg import JointState
     from std_srvs.srv import Trigger
-
-    from excavation_common.safety import HELD
 
     watch = OperatorWatcher(domain, robots=1)
     sensors = rclpy.create_node("sensors", context=watch.context)
@@ -41,7 +39,7 @@ def test_operator_watcher_hears_the_trial_calls_services_and_occludes(domain):
 
         sensors.create_service(Trigger, "/supervisor/arm", on_trigger)
         clock = sensors.create_publisher(Clock, "/clock", 10)
-        servo = sensors.create_publisher(JointState, "/robot_0/blade/servo_command", 10)
+        servo = sensors.create_publisher(BladeCommand, "/robot_0/blade/servo_command", 10)
         watch.executor.add_node(sensors)
         assert watch.spin_until(
             lambda: clock.get_subscription_count() and servo.get_subscription_count(), 10
@@ -51,11 +49,9 @@ def test_operator_watcher_hears_the_trial_calls_services_and_occludes(domain):
         assert watch.tick_wall[-1][0] == 3
         reply, sent = watch.call("/supervisor/arm", timeout=10.0)
         assert reply.success and reply.message == "stand-in" and len(calls) == 1
-        held = JointState(name=["blade"], position=[0.10])
-        held.header.stamp, held.header.frame_id = Time(sec=3), HELD
-        servo.publish(held)
+        servo.publish(BladeCommand(stamp=Time(sec=3), position=0.10, held=True))
         assert watch.spin_until(lambda: 0 in watch.held_since(sent), 10)
-        assert watch.servo[0][-1][1:] == (3, 0.10, HELD)
+        assert watch.servo[0][-1][1:] == (3, 0.10, True)
         occlude(watch, "2:front,2:rear", timeout=10.0)
         assert sensors.get_parameter("occlude").value == "2:front,2:rear"
     finally:
@@ -67,19 +63,19 @@ def test_operator_watcher_hears_the_trial_calls_services_and_occludes(domain):
 def test_fault_watcher_keeps_ticks_and_statuses_from_its_thread(domain):
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-    from std_msgs.msg import Header
+    from excavation_interfaces.msg import Tick
 
     watch = FaultWatcher(domain, "truth", continuous=True)
     node = rclpy.create_node("stand_in", context=watch.context)  # publishes only: not spun
     try:
-        tick = node.create_publisher(Header, "/team/tick", 10)
+        tick = node.create_publisher(Tick, "/team/tick", 10)
         diag = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         status = DiagnosticStatus(
             level=DiagnosticStatus.WARN, name="/sim", message="m", values=[KeyValue(key="k")]
         )
         deadline = time.monotonic() + 10.0
         while time.monotonic() < deadline:
-            tick.publish(Header(frame_id="7"))
+            tick.publish(Tick(tick=7))
             diag.publish(DiagnosticArray(status=[status]))
             with watch.lock:
                 if watch.tick == 7 and any(s.tick == 7 for s in watch.statuses):

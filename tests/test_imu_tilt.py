@@ -12,11 +12,11 @@ import math
 
 import numpy as np
 import pytest
+from excavation_interfaces.msg import Snapshot
 from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image, Imu
-from std_msgs.msg import Header
 
 from ant_controller.input_gate import TILT_IMU, TILT_THRESHOLD, ControllerParams, InputGate
 from ant_controller.sensing import is_tilted_down
@@ -128,7 +128,7 @@ class Team(Node):
             )
             sub(Imu, f"/robot_{k}/imu", lambda m, k=k: self.on_imu(k, m), 50)
         self.create_subscription(Image, "/worksite/height_map", self.on_heights, LATCHED)
-        self.snapshot = self.create_publisher(Header, "/team/snapshot", 10)
+        self.snapshot = self.create_publisher(Snapshot, "/team/snapshot", 10)
 
     @staticmethod
     def key(msg):
@@ -172,7 +172,7 @@ def test_imu_r1_equals_height_map_r1_on_a_ramp_and_flat_ground_in_a_dynamics_run
         sim.sim.bodies[k] = (x, y, heading_to_yaw(heading))
     team = ros.add(Team(ros.context, 4, turn_rate=0.6))
     assert ros.spin_until(lambda: sim.clock.started, timeout=20.0)
-    team.snapshot.publish(Header(frame_id="ramp"))
+    team.snapshot.publish(Snapshot(tick=1))
     assert ros.spin_until(lambda: sim.sim.counters.turns >= 4, timeout=60.0)
     assert ros.spin_until(lambda: team.heights is not None)
     bp = sim.blueprint

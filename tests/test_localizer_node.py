@@ -183,7 +183,7 @@ def test_a_tracked_robot_unseen_asks_for_a_retake_and_holds_the_frame(ros, camer
     """Frame 1 tracks both robots; frame 2 (glare over robot 1's front LED, here: hidden)
     publishes nothing and asks for the instant again; the retake shows both: its poses go out.
     With the retakes spent, the incomplete frame's poses go out as they are."""
-    from std_msgs.msg import Header
+    from excavation_interfaces.msg import Retake
 
     rng = np.random.default_rng(1)
 
@@ -194,12 +194,12 @@ def test_a_tracked_robot_unseen_asks_for_a_retake_and_holds_the_frame(ros, camer
     poses, retakes = counted(node)
     probe = Probe(ros)
     asked = []
-    probe.node.create_subscription(Header, "/overhead/retake", asked.append, 10)
+    probe.node.create_subscription(Retake, "/overhead/retake", asked.append, 10)
     probe.send(render(), 7)
     assert ros.spin_until(lambda: all(probe.poses.values()))
     probe.send(render({(1, "front")}), 8)
     assert ros.spin_until(lambda: asked and node.frames == 2)
-    assert asked[0].stamp.sec == 8 and "robots [1] not seen" in asked[0].frame_id
+    assert asked[0].stamp.sec == 8 and list(asked[0].unseen) == [1]
     assert [len(p.sent) for p in poses] == [1, 1]  # frame 2 held back whole
     probe.send(render(), 8)  # the retake: same instant, its own noise
     assert ros.spin_until(lambda: all(len(p) == 2 for p in probe.poses.values()))
@@ -215,14 +215,14 @@ def test_a_tracked_robot_unseen_asks_for_a_retake_and_holds_the_frame(ros, camer
 
 
 def test_retakes_off_never_ask(ros, frame, camera):
-    from std_msgs.msg import Header
+    from excavation_interfaces.msg import Retake
 
     node = localizer(ros)
     poses, retakes = counted(node)
     assert retakes is None  # retakes off: the node has no retake publisher at all
     probe = Probe(ros)
     asked = []
-    probe.node.create_subscription(Header, "/overhead/retake", asked.append, 10)
+    probe.node.create_subscription(Retake, "/overhead/retake", asked.append, 10)
     probe.send(frame_to_message(frame, Image()), 7)
     assert ros.spin_until(lambda: all(probe.poses.values()))
     hidden = camera.render(VIEWS, np.zeros((16, 16)), np.random.default_rng(2), {(1, "front")})

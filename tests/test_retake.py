@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
+from excavation_interfaces.msg import Retake
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image
-from std_msgs.msg import Header
 
 from excavation_common.messages import grid_to_image, pose_message
 from excavation_common.ros import LATCHED
@@ -36,7 +36,7 @@ def test_sensors_answer_a_retake_of_the_last_frame_only(ros):
     node = ros.add(Node("probe", context=ros.context))
     pose_pub = node.create_publisher(PoseWithCovarianceStamped, "/truth/robot_0/pose", 10)
     map_pub = node.create_publisher(Image, "/truth/worksite/height_map", LATCHED)
-    retake_pub = node.create_publisher(Header, RETAKE_TOPIC, 10)
+    retake_pub = node.create_publisher(Retake, RETAKE_TOPIC, 10)
     frames: list[Image] = []
     node.create_subscription(Image, "/overhead/image_raw", frames.append, 10)
     stamp = TimeMsg(sec=3)
@@ -49,8 +49,8 @@ def test_sensors_answer_a_retake_of_the_last_frame_only(ros):
 
     # Two requests from one writer arrive in order, and any frame the first gave would go out
     # before the second's: once the second's frame is in, the first was refused.
-    retake_pub.publish(Header(stamp=TimeMsg(sec=2)))  # not the last frame's stamp
-    retake_pub.publish(Header(stamp=stamp, frame_id="robots [0] not seen"))
+    retake_pub.publish(Retake(stamp=TimeMsg(sec=2)))  # not the last frame's stamp
+    retake_pub.publish(Retake(stamp=stamp, unseen=[0]))
     assert ros.spin_until(lambda: len(frames) >= 2 and sensors.retakes >= 1)
     assert len(frames) == 2
     first, again = (np.frombuffer(bytes(f.data), np.uint8) for f in frames)

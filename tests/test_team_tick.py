@@ -109,7 +109,7 @@ def test_one_tick_end_to_end():
     tt.on_status(2, 0, terminal=True, aborted=False, now=3.5)
     tt.on_status(1, 0, terminal=True, aborted=False, now=6.0)
     actions = tt.step(6.0, 3.0)
-    assert actions == [RequestSnapshot("tick 1", 6.0 + 0.1)]
+    assert actions == [RequestSnapshot(1, 6.0 + 0.1)]
     assert tt.tick == 1 and tt.phase is Phase.SNAPSHOT
     # A snapshot from before the motion ended does not count; nor a blade not yet lowered.
     feed_snapshot(tt, 5.0, [(3, 2, 0), (4, 3, 2), (12, 12, 2)])
@@ -150,7 +150,7 @@ def test_no_tick_starts_while_the_team_is_not_armed_and_the_snapshot_is_taken_ag
     tt.armed = True
     # Held: the snapshot taken before (blades homed meanwhile) does not count; a new one.
     actions = tt.step(0.7, 0.1)
-    assert actions[1:] == [RequestSnapshot("tick 0", 0.7 + 0.1)]
+    assert actions[1:] == [RequestSnapshot(0, 0.7 + 0.1)]
     assert isinstance(actions[0], Report) and "held" in actions[0].message
     assert tt.step(0.75, 0.2) == []
     feed_snapshot(tt, 0.8, [(2, 2, 0)])
@@ -187,14 +187,14 @@ def test_a_heartbeat_gap_of_any_length_asks_for_no_other_snapshot():
     ]:
         tt = make(robots=1, snapshot_retry=2.0)
         tt.start(0.0, 0.0)
-        tt.on_ack("tick 0", 0.1)
+        tt.on_ack(0, 0.1)
         feed_snapshot(tt, 0.5, [(2, 2, 0)])
         assert kinds(held(tt, hold, 0.6, 0.1, seconds)) == [PublishTick], (hold, seconds)
     # a gap, then an unacknowledged request: sent again, unchanged (the simulator takes it once)
     tt = make(robots=1, snapshot_retry=2.0)
     tt.start(0.0, 0.0)
     actions = held(tt, "heartbeat lost", 0.6, 0.1, 3.0)
-    assert actions[1:] == [RequestSnapshot("tick 0", 0.1)]
+    assert actions[1:] == [RequestSnapshot(0, 0.1)]
     assert "not acknowledged" in actions[0].message
 
 
@@ -208,7 +208,7 @@ def test_after_a_heartbeat_gap_the_blades_get_blade_wait_again():
     tt.step(0.4, 0.2)
     tt.on_status(0, 0, terminal=True, aborted=False, now=1.0)
     assert kinds(tt.step(1.0, 0.3)) == [RequestSnapshot]
-    tt.on_ack("tick 1", 1.1)
+    tt.on_ack(1, 1.1)
     feed_snapshot(tt, 1.1, [(2, 2, 0)], [BLADE_BELOW])  # lowered, as the word asked
     tt.armed, tt.hold = False, "heartbeat lost"
     assert tt.step(1.2, 0.4) == []
@@ -224,7 +224,7 @@ def test_an_operator_hold_asks_for_a_new_snapshot_and_says_why():
     for hold in ["team paused", "e-stop latched", "team disarmed"]:
         tt = make(robots=1, snapshot_retry=2.0)
         tt.start(0.0, 0.0)
-        tt.on_ack("tick 0", 0.1)
+        tt.on_ack(0, 0.1)
         feed_snapshot(tt, 0.5, [(2, 2, 0)])
         actions = held(tt, hold, 0.6, 0.1, 0.2)
         assert kinds(actions) == [Report, RequestSnapshot], hold
@@ -248,18 +248,18 @@ def test_an_operator_hold_asks_for_a_new_snapshot_and_says_why():
 
 def test_a_request_is_sent_again_only_while_not_acknowledged():
     tt = make(robots=1, settle=0.1, snapshot_retry=2.0)
-    assert tt.start(0.0, 0.0) == [RequestSnapshot("tick 0", 0.1)]
+    assert tt.start(0.0, 0.0) == [RequestSnapshot(0, 0.1)]
     assert tt.step(0.5, 1.9) == []
     # lost (no acknowledgement): the same request again, every snapshot_retry
     actions = tt.step(0.6, 2.0)
     assert kinds(actions) == [Report, RequestSnapshot]
     assert "not acknowledged" in actions[0].message
-    assert actions[1] == RequestSnapshot("tick 0", 0.1)
+    assert actions[1] == RequestSnapshot(0, 0.1)
     assert tt.step(0.7, 3.9) == []
-    tt.on_ack("tick 1", 0.2)  # another tick's (a restarted team tick's latched one): not ours
-    tt.on_ack("tick 0", 0.05)  # taken before the instant asked for: not ours
+    tt.on_ack(1, 0.2)  # another tick's (a restarted team tick's latched one): not ours
+    tt.on_ack(0, 0.05)  # taken before the instant asked for: not ours
     assert kinds(tt.step(0.8, 4.0)) == [Report, RequestSnapshot]
-    tt.on_ack("tick 0", 0.15)  # taken: perception is slow, nothing is asked again
+    tt.on_ack(0, 0.15)  # taken: perception is slow, nothing is asked again
     assert tt.step(0.9, 5.9) == []
     feed_snapshot(tt, 0.15, [(2, 2, 0)])
     assert kinds(tt.step(1.0, 6.0)) == [PublishTick]
@@ -269,16 +269,16 @@ def test_a_snapshot_taken_without_a_robot_asks_for_another_instant():
     # A robot hidden from the camera: further frames let the lost-robot policy judge it.
     tt = make(robots=2, settle=0.1, snapshot_retry=2.0)
     tt.start(0.0, 0.0)
-    tt.on_ack("tick 0", 0.1)
+    tt.on_ack(0, 0.1)
     tt.on_pose(0, (2, 2, 0), 0.1, "p0")
     for k in range(2):
         tt.on_blade(k, BLADE_HOME, 0.1, f"blade{k}")
     tt.on_heights(0.1, "heights")
     assert tt.step(0.5, 1.0) == []
     actions = tt.step(3.0, 2.0)
-    assert actions[1:] == [RequestSnapshot("tick 0", 3.0)]  # a new instant: rendered anew
+    assert actions[1:] == [RequestSnapshot(0, 3.0)]  # a new instant: rendered anew
     assert "no pose of robot 1 yet" in actions[0].message
-    tt.on_ack("tick 0", 0.1)  # the first request's again: not the new one's
+    tt.on_ack(0, 0.1)  # the first request's again: not the new one's
     assert kinds(tt.step(3.1, 4.0)) == [Report, RequestSnapshot]
     assert tt.step(3.2, 4.1) == []  # sent again (not acknowledged), unchanged
 
@@ -289,7 +289,7 @@ def test_without_acknowledgements_a_request_is_never_sent_again_for_want_of_one(
     tt.start(0.0, 0.0)
     feed_snapshot(tt, 0.05, [(2, 2, 0)])  # before the motion ended: not the snapshot
     actions = tt.step(1.0, 2.0)  # incomplete: another instant, as a taken request
-    assert actions[1:] == [RequestSnapshot("tick 0", 1.0)]
+    assert actions[1:] == [RequestSnapshot(0, 1.0)]
     assert "no pose of robot 0" in actions[0].message
     feed_snapshot(tt, 0.2, [(2, 2, 0)])  # any instant after the motion still counts
     assert kinds(tt.step(1.1, 2.1)) == [PublishTick]
@@ -423,20 +423,20 @@ def test_every_action_is_a_declared_frozen_class_and_every_state_is_declared():
     emitted: list = []
     emitted += tt.start(0.0, 0.0)
     emitted += tt.step(0.1, 1.0)  # not acknowledged: sent again
-    tt.on_ack("tick 0", 0.1)
+    tt.on_ack(0, 0.1)
     feed_snapshot(tt, 0.2, [(2, 2, 0), (8, 8, 0)])
     tt.armed, tt.hold = False, "team paused"
     emitted += tt.step(0.3, 1.1)
     tt.armed, tt.hold = True, None
     emitted += tt.step(0.4, 1.2)  # the operator's hold: a new snapshot
-    tt.on_ack("tick 0", 0.5)
+    tt.on_ack(0, 0.5)
     feed_snapshot(tt, 0.5, [(2, 2, 0), (8, 8, 0)])
     emitted += tt.step(0.6, 1.3)
     tt.on_word(0, FWD | 1 << RANDOM_TURN)
     emitted += tt.step(0.7, 2.0)  # robot 1 silent: it idles
     tt.on_status(0, 0, terminal=True, aborted=False, now=1.0)
     emitted += tt.step(6.0, 3.0)  # robot 1 never finishes: left out
-    tt.on_ack("tick 1", 6.1)
+    tt.on_ack(1, 6.1)
     feed_snapshot(tt, 0.5, [(2, 2, 0), (8, 8, 0)])  # from before the motion ended
     emitted += tt.step(6.2, 9.0)  # past snapshot_limit: taken as it is
     tt.on_word(0, 0)
@@ -445,7 +445,7 @@ def test_every_action_is_a_declared_frozen_class_and_every_state_is_declared():
     for k in range(2):
         tt.on_status(k, 1, terminal=True, aborted=False, now=6.4)
     emitted += tt.step(6.4, 9.2)
-    tt.on_ack("tick 2", 6.5)
+    tt.on_ack(2, 6.5)
     feed_snapshot(tt, 6.5, [(3, 2, 0), (8, 8, 0)])
     emitted += tt.step(6.6, 9.3)
     assert tt.phase is Phase.FINISHED

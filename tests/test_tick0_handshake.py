@@ -210,7 +210,9 @@ def test_team_tick_waits_for_every_controller_to_be_ready(ros):
     """The continuous trial's tick 0 as the lockstep simulator's: a recorder (or any other
     node) subscribed to the tick topics must not stand in for a controller that is not yet
     connected (seen: robot 1 missed tick 0 of a recorded process trial)."""
-    from excavation_interfaces.msg import DriveGoal, DriveStatus
+    from excavation_interfaces.action import Drive
+    from excavation_interfaces.msg import DriveStatus
+    from rclpy.action import ActionServer
     from team_tick.core import Phase
     from team_tick.node import TeamTickNode
 
@@ -231,10 +233,11 @@ def test_team_tick_waits_for_every_controller_to_be_ready(ros):
         [
             (PoseWithCovarianceStamped, "/tick/robot_0/pose"),
             (Bool, "/tick/robot_0/stuck"),
-            (DriveGoal, "/robot_0/drive/goal"),
             (JointState, "/robot_0/blade/servo_state"),
         ],
     )
+    executor = ros.add(Node("executor", context=ros.context))  # the drive action's server
+    ActionServer(executor, Drive, "/robot_0/drive", execute_callback=lambda h: Drive.Result())
     reports_from(ros, tick)
     assert tick.core.phase is Phase.WAITING  # present and connected, but not ready
     ready.publish(Bool(data=True))
@@ -245,8 +248,10 @@ def test_team_tick_node_sends_each_action_as_its_message(ros, tmp_path):
     """The node's dispatch on the core's action classes: each becomes its message."""
     import json
 
-    from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
-    from std_msgs.msg import Header
+    from excavation_interfaces.action import Drive
+    from excavation_interfaces.msg import Snapshot as SnapshotMsg
+    from excavation_interfaces.msg import Tick
+    from rclpy.action import ActionServer, GoalResponse
     from team_tick.core import (
         Finished,
         PublishTick,
@@ -273,24 +278,34 @@ def test_team_tick_node_sends_each_action_as_its_message(ros, tmp_path):
     heard: dict[str, list] = {}
     probe = ros.add(Node("probe_actions", context=ros.context))
     for msg_type, topic, qos in [
-        (Header, "/team/snapshot", 10),
-        (Header, "/team/tick", 10),
+        (SnapshotMsg, "/team/snapshot", 10),
+        (Tick, "/team/tick", 10),
         (PoseWithCovarianceStamped, "/tick/robot_0/pose", 10),
         (Bool, "/tick/robot_0/stuck", 10),
         (Image, "/tick/worksite/height_map", LATCHED),
         (JointState, "/robot_0/blade/servo_state", 10),
-        (DriveGoalMsg, "/robot_0/drive/goal", 10),
     ]:
         heard[topic] = []
         probe.create_subscription(msg_type, topic, heard[topic].append, qos)
+    heard["/robot_0/drive"] = []  # the goals the drive action's server is asked to run
+
+    def on_goal(request):
+        heard["/robot_0/drive"].append(request.goal)
+        return GoalResponse.REJECT
+
+    ActionServer(probe, Drive, "/robot_0/drive", lambda h: Drive.Result(), goal_callback=on_goal)
     sent = [tick.request_pub, tick.tick_pub, tick.heights_pub]
-    sent += [tick.pose_pubs[0], tick.stuck_pubs[0], tick.blade_pubs[0], tick.goal_pubs[0]]
-    assert ros.spin_until(lambda: all(p.get_subscription_count() > 0 for p in sent))
+    sent += [tick.pose_pubs[0], tick.stuck_pubs[0], tick.blade_pubs[0]]
+    assert ros.spin_until(
+        lambda: (
+            all(p.get_subscription_count() > 0 for p in sent) and tick.drives[0].server_is_ready()
+        )
+    )
     pose, blade, heights = PoseWithCovarianceStamped(), JointState(), Image()
     tick.core.records.append(TickRecord(3, [0x21], [-1], [True], [], 0.0, 0.5, 1.0))  # summary
     tick.execute(
         [
-            RequestSnapshot("tick 3", 2.5),
+            RequestSnapshot(3, 2.5),
             PublishTick(3, 3.0, Snapshot((pose,), heights, (blade,), (True,))),
             SendGoal(robot=0, tick=3, stamp=3.0, word=0x21, turn=-1),
             Report("tick 3: a report"),
@@ -300,13 +315,13 @@ def test_team_tick_node_sends_each_action_as_its_message(ros, tmp_path):
     assert ros.spin_until(lambda: all(heard.values()))
     stamp = TimeMsg(sec=3, nanosec=0)
     (request,) = heard["/team/snapshot"]
-    assert request.frame_id == "tick 3" and request.stamp == TimeMsg(sec=2, nanosec=500_000_000)
-    (header,) = heard["/team/tick"]
-    assert header.frame_id == "3" and header.stamp == stamp
+    assert request.tick == 3 and request.stamp == TimeMsg(sec=2, nanosec=500_000_000)
+    (begun,) = heard["/team/tick"]
+    assert begun.tick == 3 and begun.stamp == stamp
     assert [m.data for m in heard["/tick/robot_0/stuck"]] == [True]
     for topic in ("/tick/robot_0/pose", "/tick/worksite/height_map", "/robot_0/blade/servo_state"):
         assert [m.header.stamp for m in heard[topic]] == [stamp], topic
-    (goal,) = heard["/robot_0/drive/goal"]
+    (goal,) = heard["/robot_0/drive"]
     assert goal_from_message(goal) == DriveGoal(3, 0x21, -1, 0, (3, 0))
     assert tick.reports == ["tick 3: a report"]
     summary = json.loads(result.read_text())

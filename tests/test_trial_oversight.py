@@ -27,7 +27,6 @@ from helpers.trials import GENOME, ROBOTS, finish, offline, start_trial, stays_s
 from helpers.watchers import OperatorWatcher, occlude
 
 from excavation_bringup.nodes import LOST_GRACE, LOST_TIMEOUT
-from excavation_common.safety import HELD
 
 
 def test_estop_at_tick_10_then_pause_resume_ends_as_an_uninterrupted_trial(domain):
@@ -41,9 +40,7 @@ def test_estop_at_tick_10_then_pause_resume_ends_as_an_uninterrupted_trial(domai
         assert watch.spin_until(lambda: len(watch.held_since(sent)) == ROBOTS, timeout=10)
         at = watch.tick
         held = watch.held_since(sent)
-        stamps = {
-            k: next(s for w, s, _, f in watch.servo[k] if w >= sent and f == HELD) for k in held
-        }
+        stamps = {k: next(s for w, s, _, h in watch.servo[k] if w >= sent and h) for k in held}
         print(
             f"e-stop at tick {at}: every blade home within "
             f"{1e3 * (max(held.values()) - sent):.1f} ms wall, "
@@ -120,7 +117,7 @@ def test_ant_operator_disables_a_robot_and_overrides_a_blade_in_a_running_trial(
     assert (commands[off_at + 2 : on_at - 1, 1] == 0).all()
     assert commands[off_at + 2 : on_at - 1, [0, 2, 3]].any()
     assert result.missed == {0: 0, 1: 0, 2: 0, 3: 0}
-    overridden = [v for _, _, v, f in watch.servo[0] if f == "" and v == pytest.approx(0.05)]
+    overridden = [v for _, _, v, h in watch.servo[0] if not h and v == pytest.approx(0.05)]
     assert overridden, "the operator's blade set-point never reached the simulator"
 
 

@@ -64,6 +64,7 @@ def blade_probe(ros):
     simulator's servo state).
     """
     from diagnostic_msgs.msg import DiagnosticArray
+    from excavation_interfaces.msg import BladeCommand
     from rclpy.node import Node
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray, UInt16
@@ -71,7 +72,7 @@ def blade_probe(ros):
     node = ros.add(Node("probe", context=ros.context))
     node.joints, node.servo, node.diags = [], [], []
     node.create_subscription(JointState, "/robot_0/blade/joint_states", node.joints.append, 10)
-    node.create_subscription(JointState, "/robot_0/blade/servo_command", node.servo.append, 10)
+    node.create_subscription(BladeCommand, "/robot_0/blade/servo_command", node.servo.append, 10)
     node.create_subscription(
         DiagnosticArray,
         "/diagnostics",

@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from excavation_common.safety import HELD
 from helpers.operator import operator
 from helpers.trials import ROBOTS
 
@@ -69,14 +68,14 @@ class OperatorWatcher(DomainWatcher):
         tick: The latest ``/clock`` second (-1 before tick 0).
         tick_wall: ``(tick, wall time)`` of every ``/clock``.
         sim_reports: ``(wall, message)`` of ``/sim``'s ``/diagnostics`` statuses.
-        servo: Per robot, ``(wall, stamp sec, value, frame_id)`` of its blade set-points.
+        servo: Per robot, ``(wall, stamp sec, value, held)`` of its blade set-points.
         enabled: Per robot, its ``enabled`` values in order.
     """
 
     def __init__(self, domain: int, robots: int = ROBOTS):
         from diagnostic_msgs.msg import DiagnosticArray
+        from excavation_interfaces.msg import BladeCommand
         from rosgraph_msgs.msg import Clock
-        from sensor_msgs.msg import JointState
         from std_msgs.msg import Bool
 
         from excavation_common.ros import LATCHED
@@ -84,7 +83,7 @@ class OperatorWatcher(DomainWatcher):
         super().__init__(domain, "test_operator")
         self.tick = -1
         self.tick_wall: list[tuple[int, float]] = []
-        self.servo = {k: [] for k in range(robots)}  # (wall, stamp sec, value, frame_id)
+        self.servo = {k: [] for k in range(robots)}  # (wall, stamp sec, value, held)
         self.enabled = {k: [] for k in range(robots)}
 
         def on_clock(msg):
@@ -102,10 +101,10 @@ class OperatorWatcher(DomainWatcher):
         self.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
         for k in range(robots):
             self.node.create_subscription(
-                JointState,
+                BladeCommand,
                 f"/robot_{k}/blade/servo_command",
                 lambda m, k=k: self.servo[k].append(
-                    (time.monotonic(), m.header.stamp.sec, m.position[0], m.header.frame_id)
+                    (time.monotonic(), m.stamp.sec, m.position, m.held)
                 ),
                 50,
             )
@@ -156,8 +155,8 @@ class OperatorWatcher(DomainWatcher):
         """Robot -> wall time of its first held (home) set-point after ``since``."""
         out = {}
         for k, msgs in self.servo.items():
-            for wall, _, value, frame in msgs:
-                if wall >= since and frame == HELD:
+            for wall, _, value, held in msgs:
+                if wall >= since and held:
                     assert value == pytest.approx(0.10)
                     out[k] = wall
                     break
@@ -172,10 +171,10 @@ class OperatorWatcher(DomainWatcher):
             return {}
         out = {}
         for k, msgs in self.servo.items():
-            if not msgs or msgs[-1][3] != HELD:
+            if not msgs or not msgs[-1][3]:
                 continue
             i = len(msgs) - 1
-            while i > 0 and msgs[i - 1][3] == HELD:
+            while i > 0 and msgs[i - 1][3]:
                 i -= 1
             assert msgs[-1][2] == pytest.approx(0.10)
             out[k] = msgs[i][0]
@@ -240,9 +239,9 @@ class FaultWatcher(DomainWatcher):
 
     def __init__(self, domain: int, perception: str, continuous: bool = False) -> None:
         from diagnostic_msgs.msg import DiagnosticArray
+        from excavation_interfaces.msg import Tick
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import Image
-        from std_msgs.msg import Header
 
         from excavation_common.ros import LATCHED
 
@@ -253,7 +252,7 @@ class FaultWatcher(DomainWatcher):
         self.statuses: list[Status] = []
         self.maps: dict[str, dict[tuple[int, int], np.ndarray]] = {"truth": {}, "mapped": {}}
         if continuous:  # the team tick's tick (sim time runs on between ticks)
-            self.node.create_subscription(Header, "/team/tick", self.on_team_tick, 100)
+            self.node.create_subscription(Tick, "/team/tick", self.on_team_tick, 100)
         else:
             self.node.create_subscription(Clock, "/clock", self.on_clock, 100)
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 100)
@@ -285,9 +284,9 @@ class FaultWatcher(DomainWatcher):
             self.ticks_seen.append(self.tick)
 
     def on_team_tick(self, msg) -> None:
-        """The continuous trial's tick (``/team/tick``, the tick in ``frame_id``)."""
+        """The continuous trial's tick (``/team/tick``)."""
         with self.lock:
-            self.tick = int(msg.frame_id)
+            self.tick = int(msg.tick)
             self.ticks_seen.append(self.tick)
 
     def on_diagnostics(self, msg) -> None:

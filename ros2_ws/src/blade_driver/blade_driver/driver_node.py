@@ -28,14 +28,14 @@ Backends (parameter ``backend``), each a hardware interface of
 * ``serial``: a servo board on ``port`` (:mod:`blade_driver.protocol`), stepped by a
   wall-clock timer at ``rate`` Hz; a port that is absent or fails (unplugged) is closed and
   reopened with back-off (``reopen_initial`` doubling up to ``reopen_max``), reported on
-  ``/diagnostics``. Once ``/team/tick`` (std_msgs/Header, the team tick's tick ``t``
-  stamped ``t`` s) has come, the watchdog counts tick time: a controller answers once per
+  ``/diagnostics``. Once ``/team/tick`` (excavation_interfaces/Tick, the team tick's
+  tick ``t`` stamped ``t`` s) has come, the watchdog counts tick time: a controller answers once per
   tick, and a dome tick lasts many wall seconds.
 * ``sim``: the simulator's blade through ``blade/servo_state`` and
-  ``blade/servo_command`` (JointState, stamped with the tick), on the simulator's time, so a
-  lockstep trial is deterministic however slow the machine is; one set-point per tick
-  (:class:`blade_driver.core.TickSetpoints`); while the gate is closed it sends home marked
-  :data:`~excavation_common.safety.HELD` and leaves its core untouched.
+  ``blade/servo_command`` (excavation_interfaces/BladeCommand, stamped with the tick), on
+  the simulator's time, so a lockstep trial is deterministic however slow the machine is;
+  one set-point per tick (:class:`blade_driver.core.TickSetpoints`); while the gate is
+  closed it sends home with ``held`` set and leaves its core untouched.
 
 On either backend the core restarts when the time it is given goes back
 (:meth:`~blade_driver.core.BladeDriverCore.restart`; ``clock_restarts`` on ``/diagnostics``).
@@ -46,7 +46,7 @@ blade behaviours (:class:`blade_driver.core.AfterDrive` says why): the driver su
 ``drive/status`` (excavation_interfaces/DriveStatus from the drive executor, ``goal.stamp`` = the
 tick) and applies a word's blade bits once a terminal status (succeeded, aborted, canceled)
 of its tick or a later one has come. The word's tick is the stamp of ``blade/servo_state``
-(sim backend) or of ``/team/tick`` (std_msgs/Header from the team tick; serial backend);
+(sim backend) or of ``/team/tick`` (excavation_interfaces/Tick from the team tick; serial backend);
 before either is known a word applies at once. The watchdog, the operator's override and
 a closed gate do not wait. Lockstep trials, with no executor, leave it off.
 """

@@ -9,10 +9,10 @@ lives in :mod:`blade_driver.core`.
 
 * :class:`SimBlade` (``sim``): the simulator's blade through two topics in the style of
   topic_based_ros2_control: ``blade/servo_state`` (JointState, stamped with the simulator's
-  tick) in, ``blade/servo_command`` (JointState, the set-point, stamped with the tick it is
-  for) out. Time is the simulator's, one set-point per tick
-  (:class:`~blade_driver.core.TickSetpoints`); a set-point sent under a closed gate is
-  marked :data:`~excavation_common.safety.HELD` in ``frame_id``. A tick stamped before the
+  tick) in, ``blade/servo_command`` (excavation_interfaces/BladeCommand, the set-point,
+  stamped with the tick it is for) out. Time is the simulator's, one set-point per tick
+  (:class:`~blade_driver.core.TickSetpoints`); a set-point sent under a closed gate says so
+  (``held``). A tick stamped before the
   last one (the simulator restarted) is a new trial: set-points, word and override are
   dropped and the core starts afresh.
 * :class:`SerialBlade` (``serial``): a servo board on ``port``
@@ -28,14 +28,13 @@ import math
 from typing import Protocol
 
 from builtin_interfaces.msg import Time as TimeMsg
+from excavation_interfaces.msg import BladeCommand, Tick
 from rclpy.lifecycle import LifecycleNode
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Header
 
 from blade_driver.core import AfterDrive, Stamp, TickSetpoints
 from blade_driver.errors import BoardError, DriverConfigError, PortError
 from blade_driver.params import JOINT
-from excavation_common.safety import HELD
 
 TEAM_TICK_TOPIC = "/team/tick"
 
@@ -140,7 +139,7 @@ class SimBlade:
     def configure(self) -> None:
         """The set-point publisher and the simulator's blade subscription."""
         node = self.node
-        self.servo_pub = node.create_publisher(JointState, "blade/servo_command", 10)
+        self.servo_pub = node.create_publisher(BladeCommand, "blade/servo_command", 10)
         self._io = [
             node.create_subscription(JointState, "blade/servo_state", self.on_servo_state, 10)
         ]
@@ -242,7 +241,8 @@ class SimBlade:
         if due is None:
             return
         value, held = due
-        self.servo_pub.publish(joint_state(value, 0.0, self.tick_stamp, HELD if held else ""))
+        command = BladeCommand(stamp=self.tick_stamp, position=float(value), held=bool(held))
+        self.servo_pub.publish(command)
         node.report_changes()
 
     def diagnostic_values(self) -> dict:
@@ -271,7 +271,7 @@ class SerialBlade:
     def configure(self) -> None:
         """The team tick's subscription, the port (opened now or retried) and the timer."""
         node = self.node
-        self._io = [node.create_subscription(Header, TEAM_TICK_TOPIC, self.on_team_tick, 10)]
+        self._io = [node.create_subscription(Tick, TEAM_TICK_TOPIC, self.on_team_tick, 10)]
         self.backoff = node.params.backoff()
         self.open_board()
         self._io.append(node.create_timer(1.0 / node.params.rate, self.step))
@@ -327,8 +327,8 @@ class SerialBlade:
         """A control step at once (a closed gate sends home without waiting)."""
         self.step()
 
-    def on_team_tick(self, msg: Header) -> None:
-        """The team tick began tick ``msg.stamp`` (its words come next)."""
+    def on_team_tick(self, msg: Tick) -> None:
+        """The team tick began the tick stamped ``msg.stamp`` (its words come next)."""
         self.team_tick = (msg.stamp.sec, msg.stamp.nanosec)
 
     def open_board(self) -> bool:

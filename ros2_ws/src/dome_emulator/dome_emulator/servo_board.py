@@ -42,7 +42,7 @@ SPRING = "spring"
 class ServoBoardParams:
     """The emulated board's parameters (the servo calibration is the blade driver's)."""
 
-    joint: str = param("blade", "the blade joint's name in world/servo_command")
+    joint: str = param("blade", "the blade joint's name in world/plant_state")
     firmware: str = param("dome_emulator/1", "the firmware name PING is answered with")
     speed: float = param(120.0, "servo slew rate, deg/s (0: at once)", low=0.0, high=1e5)
     start_angle: float = param(

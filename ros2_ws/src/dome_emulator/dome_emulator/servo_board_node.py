@@ -14,8 +14,8 @@ parameters before the board starts (as ``/dev/serial/by-id/...`` is on a robot):
     ros2 run blade_driver driver --ros-args -r __ns:=/robot_0 -p backend:=serial
       -p port:=/tmp/robot_0_blade
 
-Publishes ``world/servo_command`` (sensor_msgs/JointState, joint ``joint``: the blade
-position the servo is at, stamped with the node clock; ``dynamics``'
+Publishes ``world/servo_command`` (excavation_interfaces/BladeCommand: the blade position
+the servo is at, stamped with the node clock; ``dynamics``'
 ``/robot_k/blade/servo_command``, which sets the simulated blade to the nearest setting:
 run ``dynamics`` with ``blade_after_motion: false``, since the serial driver holds a
 tick's blade bits itself) whenever the servo moved, and every ``refresh`` seconds.
@@ -40,6 +40,7 @@ import time
 import tty
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from excavation_interfaces.msg import BladeCommand
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
@@ -97,7 +98,7 @@ class ServoBoardNode(Node):
         except PtyError:
             self.close_pty()
             raise
-        self.command_pub = self.create_publisher(JointState, "world/servo_command", 10)
+        self.command_pub = self.create_publisher(BladeCommand, "world/servo_command", 10)
         self.create_subscription(JointState, "world/plant_state", self.on_plant_state, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(1.0 / p.rate, self.move)
@@ -141,11 +142,8 @@ class ServoBoardNode(Node):
             command = self.core.world_command(time.monotonic())
         if command is None:
             return
-        msg = JointState()
-        msg.header.stamp = self.get_clock().now().to_msg()
-        msg.name = [self.params.joint]
-        msg.position = [float(command.position)]
-        self.command_pub.publish(msg)
+        stamp = self.get_clock().now().to_msg()
+        self.command_pub.publish(BladeCommand(stamp=stamp, position=float(command.position)))
 
     def on_plant_state(self, msg: JointState) -> None:
         """The simulated blade's push force, for the load cell."""

@@ -85,15 +85,17 @@ class SetThrottle:
 
 @dataclass(frozen=True)
 class ReportStatus:
-    """The status of ``goal`` changed to ``code`` (``drive/status``).
+    """The status of ``goal`` changed to ``code`` (``drive/status``, the drive action).
 
     ``stuck`` is the goal's U1: true when it ended aborted; the node sends it on ``stuck``
-    once the code is terminal (succeeded or aborted).
+    once the code is terminal (succeeded or aborted). ``reason`` says why it was aborted
+    (the action's result; not compared).
     """
 
     goal: DriveGoal
     code: int
     stuck: bool
+    reason: str = field(default="", compare=False)
 
 
 ExecutorEvent = SetThrottle | ReportStatus
@@ -204,6 +206,8 @@ class DriveExecutorCore:
         """The goal running (``None``: idle)."""
         self.queue: deque[Step] = deque()
         """The running goal's steps not started yet."""
+        self.planned = 0
+        """Primitives the running goal planned (its feedback's total)."""
         self.current: Primitive | None = None
         """The primitive running (``None``: the next step starts on the next pose)."""
         self.limits: Limits = Limits.of(params, False)
@@ -243,7 +247,7 @@ class DriveExecutorCore:
         try:
             steps = plan(goal.word, turn)
         except GoalError as exc:
-            self.goal = goal
+            self.goal, self.planned = goal, 0
             self.counters.goals += 1
             self.goal_failures = [str(exc)]
             self._finish()
@@ -251,6 +255,7 @@ class DriveExecutorCore:
         self.goal = goal
         self.counters.goals += 1
         self.queue = deque(steps)
+        self.planned = len(steps)
         self.current = None
         self.goal_failures = []
         throttle = bool((goal.word >> THROTTLE_UP) & 1)
@@ -432,7 +437,8 @@ class DriveExecutorCore:
             self.counters.goals_aborted += 1
             self.counters.failures.append(f"tick {goal.tick}: " + "; ".join(self.goal_failures))
             del self.counters.failures[:-20]
-        self.events.append(ReportStatus(goal, ABORTED if failed else SUCCEEDED, failed))
+        code = ABORTED if failed else SUCCEEDED
+        self.events.append(ReportStatus(goal, code, failed, "; ".join(self.goal_failures)))
         self.goal = None
         self.current = None
         self.queue.clear()
@@ -447,3 +453,10 @@ class DriveExecutorCore:
     def busy(self) -> bool:
         """True while a goal runs."""
         return self.goal is not None
+
+    @property
+    def progress(self) -> tuple[int, int]:
+        """``(done, total)``: primitives of the running goal completed, and planned."""
+        if self.goal is None:
+            return (0, 0)
+        return (self.planned - len(self.queue) - (self.current is not None), self.planned)

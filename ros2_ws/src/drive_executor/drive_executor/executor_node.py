@@ -5,11 +5,20 @@ Run one per robot in its namespace, then configure and activate it (nothing move
     ros2 run drive_executor executor --ros-args -r __ns:=/robot_0 \\
         --params-file config/executor.yaml -p cell_size:=0.25
 
+Serves the action ``drive`` (excavation_interfaces/action/Drive, in the robot's namespace:
+``/robot_k/drive``) with ``rclpy.action``, as nav2's behaviour server serves ``Spin`` or
+``BackUp``: the team tick's goal for a tick (:mod:`drive_executor.goals`) runs at once, a
+newer goal preempts the running one (aborted, "superseded by tick t"), a cancel request ends
+it at the next safety check (canceled, stuck), and an e-stop, a lost heartbeat, disarming,
+the robot disabled or the node deactivated abort it, as the core decides
+(:class:`DriveExecutorCore`; a pause suspends it until the team resumes). Feedback: the
+primitives done of the goal's total; result: how it ended, U1 (``stuck``) and why. A goal
+with bits beyond the 12 behaviours or an unknown turn is rejected.
+
 Subscribes (relative names resolve in the robot's namespace): ``pose``
 (PoseWithCovarianceStamped in ``map``; parameter ``pose_topic``) which closes the loop: each
-pose runs one control step and is answered by one ``cmd_vel``; ``drive/goal``
-(excavation_interfaces/DriveGoal, :mod:`drive_executor.goals`: the team tick's word for a tick);
-``behaviour`` (std_msgs/UInt16, ``mode: free`` only); ``drive/override`` (TwistStamped, the
+pose runs one control step and is answered by one ``cmd_vel``; ``behaviour``
+(std_msgs/UInt16, ``mode: free`` only); ``drive/override`` (TwistStamped, the
 operator's drive); ``/team/estop`` (Bool, latched), ``/team/heartbeat`` (TeamState), ``/team/armed``
 (TeamArmed, latched), ``enabled`` (Bool, latched).
 
@@ -18,7 +27,9 @@ Publishes: ``cmd_vel`` (parameter ``drive_type``: geometry_msgs/TwistStamped, fr
 stamped with the node clock when it is sent (``cmd_vel_stamp: now``: a base's
 ``cmd_vel_timeout`` then counts from the command, not from the camera frame behind it; the
 continuous simulator's lockstep takes ``pose``, the stamp of the pose answered),
-``drive/status`` (excavation_interfaces/DriveStatus, with the goal), ``stuck`` (std_msgs/Bool,
+``drive/status`` (excavation_interfaces/DriveStatus, with the goal: every change of every
+goal's status, for the nodes that watch the drive without being its client: the blade
+driver, the simulator, the supervisor, the bag), ``stuck`` (std_msgs/Bool,
 U1, once per goal), ``drive/throttle`` (Bool, latched: the power mode of the running goal,
 for the base), ``drive/operator`` (Bool, latched: the operator's override drives the
 robot; the team tick records the ticks it spent so) and ``/diagnostics`` (every wall
@@ -46,9 +57,11 @@ from typing import assert_never
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
+from excavation_interfaces.action import Drive
 from excavation_interfaces.msg import DriveStatus, TeamArmed, TeamState
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
@@ -56,7 +69,13 @@ from std_msgs.msg import Bool, UInt16
 
 from drive_executor.core import DriveExecutorCore, ReportStatus, SetThrottle
 from drive_executor.errors import GoalError
-from drive_executor.goals import TERMINAL, goal_from_message, status_message
+from drive_executor.goals import (
+    CANCELED,
+    TERMINAL,
+    DriveGoal,
+    goal_from_message,
+    status_message,
+)
 from drive_executor.params import ExecutorParams
 from drive_executor.primitives import Pose2D, Twist2D
 from excavation_common.errors import FieldError
@@ -105,6 +124,12 @@ class ExecutorNode(LifecycleNode):
         self.core = DriveExecutorCore(self.params, self.gate)
         self.errors: dict[str, str] = {}
         self._entities: list = []
+        self.action_server: ActionServer | None = None
+        self.handles: dict[int, tuple[DriveGoal, ServerGoalHandle]] = {}
+        """The action's goals the core runs, by ``id`` of the core's goal (a goal object is
+        the core's event's own, so a tick sent twice is still two goals)."""
+        self.cancels: list[ServerGoalHandle] = []  # cancels accepted, ended at the next check
+        self.feedback_sent: tuple[int, tuple[int, int]] | None = None  # (goal id, progress)
         self.cmd_pub = None
         self.pose_lead: float | None = None  # most any pose was ahead of our clock (window)
         self.stamped = self.params.drive_type == "twist_stamped"
@@ -123,11 +148,19 @@ class ExecutorNode(LifecycleNode):
         self._operator_sent: bool | None = None
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         sub = self.create_subscription
+        self.action_server = ActionServer(
+            self,
+            Drive,
+            "drive",
+            execute_callback=self.refuse_execution,
+            goal_callback=self.accept_goal,
+            handle_accepted_callback=self.start_goal,
+            cancel_callback=self.cancel_goal,
+        )
         self._entities = [
             self.diag_pub,
             self.operator_pub,
             sub(PoseWithCovarianceStamped, self.params.pose_topic, self.on_pose, 10),
-            sub(DriveGoalMsg, "drive/goal", self.on_goal, 10),
             sub(UInt16, "behaviour", self.on_behaviour, 10),
             sub(TwistStamped, "drive/override", self.on_override, 10),
             sub(Bool, ESTOP_TOPIC, self.on_estop, LATCHED),
@@ -193,6 +226,9 @@ class ExecutorNode(LifecycleNode):
             else:
                 self.destroy_subscription(entity)
         self._entities = []
+        if self.action_server is not None:
+            self.action_server.destroy()
+            self.action_server = None
         for pub in (self.cmd_pub, self.status_pub, self.stuck_pub, self.throttle_pub):
             if pub is not None:
                 self.destroy_lifecycle_publisher(pub)
@@ -226,20 +262,94 @@ class ExecutorNode(LifecycleNode):
             self.publish_twist(twist, self.get_clock().now().to_msg())
         self.publish_events()
 
-    def on_goal(self, msg: DriveGoalMsg) -> None:
-        """The team tick's word for this robot."""
+    # --- the drive action ---------------------------------------------------------------------
+
+    def accept_goal(self, request: Drive.Goal) -> GoalResponse:
+        """Accept a readable goal; reject one the executor cannot run (and say why)."""
         try:
-            goal = goal_from_message(msg)
+            goal_from_message(request.goal, "drive")
         except GoalError as exc:
-            self.errors["drive/goal"] = str(exc)
+            self.errors["drive"] = str(exc)
             self.get_logger().error(str(exc))
-            self.status_pub.publish(DriveStatus(goal=msg, status=DriveStatus.STATUS_ABORTED))
-            self.stuck_pub.publish(Bool(data=True))
-            return
-        self.errors.pop("drive/goal", None)
+            if self.status_pub is not None:
+                self.status_pub.publish(
+                    DriveStatus(goal=request.goal, status=DriveStatus.STATUS_ABORTED)
+                )
+                self.stuck_pub.publish(Bool(data=True))
+            return GoalResponse.REJECT
+        self.errors.pop("drive", None)
+        return GoalResponse.ACCEPT
+
+    def start_goal(self, handle: ServerGoalHandle) -> None:
+        """Run an accepted goal now (a running one is aborted first: superseded).
+
+        The goal stays ``ACCEPTED`` while the core runs it and is executed (``EXECUTING``,
+        then its terminal state) when the core ends it (:meth:`end_goal`): an execute
+        coroutine waiting on the core would keep rclpy's single-threaded executor spinning
+        without sleep for as long as the goal runs.
+        """
+        goal = goal_from_message(handle.request.goal, "drive")
+        self.handles[id(goal)] = (goal, handle)
         self.core.submit(goal, self._now())
         self.publish_events()
         self.enforce()
+
+    def refuse_execution(self, handle: ServerGoalHandle) -> Drive.Result:
+        """Every goal is executed with its own result (:meth:`end_goal`); never called."""
+        handle.abort()
+        return Drive.Result(status=DriveStatus.STATUS_ABORTED, stuck=True, reason="not run")
+
+    def cancel_goal(self, handle: ServerGoalHandle) -> CancelResponse:
+        """Accept a cancel of a running goal; the next safety check stops it."""
+        self.cancels.append(handle)
+        return CancelResponse.ACCEPT
+
+    def end_goal(self, goal: DriveGoal, code: int, stuck: bool, reason: str) -> int:
+        """Give the action goal the core ended its terminal state and result.
+
+        Returns the code to report: ``CANCELED`` where the client asked for the cancel.
+        """
+        entry = self.handles.pop(id(goal), None)
+        if entry is None:
+            return code  # a free-mode goal: no client
+        handle = entry[1]
+        if handle.is_cancel_requested:
+            code, reason = CANCELED, reason or "canceled by the client"
+        result = Drive.Result(status=code, stuck=stuck, reason=reason)
+
+        def finish(h: ServerGoalHandle) -> Drive.Result:
+            if code == CANCELED:
+                h.canceled()
+            elif code == DriveStatus.STATUS_SUCCEEDED:
+                h.succeed()
+            else:
+                h.abort()
+            return result
+
+        handle.execute(finish)
+        return code
+
+    def run_cancels(self) -> None:
+        """Stop the goals whose cancel was accepted (their state is now CANCELING)."""
+        cancels, self.cancels = self.cancels, []
+        for handle in cancels:
+            for goal, h in list(self.handles.values()):
+                if h is handle and self.core.goal is goal:
+                    self.core.abort("canceled by the client")
+                elif h is handle:  # not the core's any more: ends as canceled
+                    self.end_goal(goal, CANCELED, True, "canceled by the client")
+        self.publish_events()
+
+    def publish_feedback(self) -> None:
+        """The running action goal's progress, when it changed."""
+        goal = self.core.goal
+        entry = self.handles.get(id(goal)) if goal is not None else None
+        progress = self.core.progress
+        if entry is None or (id(goal), progress) == self.feedback_sent:
+            return
+        self.feedback_sent = (id(goal), progress)
+        done, total = progress
+        entry[1].publish_feedback(Drive.Feedback(tick=goal.tick, done=done, total=total))
 
     def on_behaviour(self, msg: UInt16) -> None:
         """``mode: free``: the controller's word, run when idle."""
@@ -278,6 +388,8 @@ class ExecutorNode(LifecycleNode):
         """The safety check: publish the forced twist (zero, or the override) if any."""
         if self.cmd_pub is None:
             return
+        if self.cancels:
+            self.run_cancels()
         twist = self.core.check(self._now())
         if twist is not None:
             self.publish_twist(twist, self.get_clock().now().to_msg())
@@ -305,12 +417,15 @@ class ExecutorNode(LifecycleNode):
             match event:
                 case SetThrottle(on):
                     self.throttle_pub.publish(Bool(data=on))
-                case ReportStatus(goal, code, stuck):
+                case ReportStatus(goal, code, stuck, reason):
+                    if code in TERMINAL:
+                        code = self.end_goal(goal, code, bool(stuck), reason)
                     self.status_pub.publish(status_message(goal, code))
                     if code in TERMINAL:
                         self.stuck_pub.publish(Bool(data=bool(stuck)))
                 case _:
                     assert_never(event)
+        self.publish_feedback()
 
     def publish_diagnostics(self) -> None:
         """OK while driving or ready; WARN while stopped (with why); ERROR on bad input.

@@ -1,10 +1,12 @@
 """The team tick's drive goal and the executor's status of it, as ROS messages.
 
-A goal is an ``excavation_interfaces/DriveGoal`` on ``/robot_k/drive/goal``: the tick's
-stamp and number, the behaviour word (bit i = behaviour i+1 of Table 2), the random turn's
-direction and the robot. The executor answers on ``drive/status``
+A goal is an ``excavation_interfaces/DriveGoal``, sent as the goal of the drive action
+(``/robot_k/drive``, ``excavation_interfaces/action/Drive``): the tick's stamp and number,
+the behaviour word (bit i = behaviour i+1 of Table 2), the random turn's direction and the
+robot. The executor reports every goal's status on ``drive/status``
 (``excavation_interfaces/DriveStatus``) with the goal: ``STATUS_EXECUTING`` when it starts,
-then ``STATUS_SUCCEEDED`` or ``STATUS_ABORTED`` (the codes are ``action_msgs/GoalStatus``'s).
+then ``STATUS_SUCCEEDED``, ``STATUS_ABORTED`` or ``STATUS_CANCELED`` (the codes are
+``action_msgs/GoalStatus``'s, as the action's result has them).
 """
 
 from __future__ import annotations
@@ -22,7 +24,8 @@ TURNS = (DriveGoalMsg.TURN_DRAW, RIGHT, LEFT)
 EXECUTING = DriveStatus.STATUS_EXECUTING
 SUCCEEDED = DriveStatus.STATUS_SUCCEEDED
 ABORTED = DriveStatus.STATUS_ABORTED
-TERMINAL = (SUCCEEDED, ABORTED, DriveStatus.STATUS_CANCELED)
+CANCELED = DriveStatus.STATUS_CANCELED
+TERMINAL = (SUCCEEDED, ABORTED, CANCELED)
 
 
 @dataclass(frozen=True)

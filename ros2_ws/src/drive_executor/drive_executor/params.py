@@ -78,7 +78,7 @@ class ExecutorParams:
     )
     mode: str = param(
         "tick",
-        "tick: run the team tick's goals (drive/goal); free: run each behaviour word when idle",
+        "tick: run the team tick's goals (the drive action); free: run each word when idle",
         choices=("tick", "free"),
     )
     seed: int = param(0, "seed of the executor's own random-turn generator", low=0, high=2**31 - 1)

@@ -44,7 +44,6 @@ SUITE_TOPICS: tuple[str, ...] = (
     "/robot_*/blade/plant_state",
     "/robot_*/blade/tick_state",
     "/robot_*/cmd_vel",
-    "/robot_*/drive/goal",
     "/robot_*/drive/status",
     "/robot_*/drive/throttle",
     "/robot_*/drive/override",

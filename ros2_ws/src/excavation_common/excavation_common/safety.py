@@ -45,13 +45,6 @@ TEAM_STATES = (DISARMED, ARMED, PAUSED, ESTOPPED)
 DEADMAN_TIMEOUT = 0.5
 """Seconds without a heartbeat after which every robot stops (as ``cmd_vel_timeout``)."""
 
-HELD = "hold"
-"""``header.frame_id`` of a set-point a closed gate produced (blade home, zero twist).
-
-The lockstep simulator applies a robot's tick only with set-points sent under an open gate;
-one sent under a closed gate (``HELD``) stops it, so a pause leaves no trace in the world.
-"""
-
 
 @dataclass
 class MotionGate:

@@ -23,13 +23,14 @@ Subscribes, per robot k: ``/robot_k/cmd_vel`` (TwistStamped; none for ``cmd_vel_
 sim seconds stops the robot's wheels, as diff_drive_controller's ``cmd_vel_timeout`` does,
 and the steps stop waiting for it until it sends again),
 ``/robot_k/drive/throttle``
-(Bool, latched: high-power mode), ``/robot_k/blade/servo_command`` (JointState, a blade
+(Bool, latched: high-power mode), ``/robot_k/blade/servo_command`` (BladeCommand, a blade
 set-point stamped with its tick, from the ``blade_driver`` sim backend) and
 ``/robot_k/drive/status`` (excavation_interfaces/DriveStatus): with ``blade_after_motion``
 a set-point takes effect once the robot's drive goal of the same tick has ended (Table 2
-order: blade behaviours run after the moves). ``/team/snapshot`` (Header): the team tick
-asks for a perception snapshot taken at ``stamp`` or later (published with the first step
-that reaches it). Each request (``frame_id`` and ``stamp``) is taken once: the same request
+order: blade behaviours run after the moves). ``/team/snapshot``
+(excavation_interfaces/Snapshot): the team tick asks for a perception snapshot of a tick
+taken at ``stamp`` or later (published with the first step that reaches it). Each request
+(tick and ``stamp``) is taken once: the same request
 again (the team tick sends it again while it has no acknowledgement) is only acknowledged
 again, so that a late acknowledgement never renders a second frame and sweep of the tick.
 
@@ -42,7 +43,7 @@ simulated servo's position and push force); on each snapshot request every robot
 then ``{snapshot_prefix}/worksite/height_map`` (latched, 32FC1 metres), the poses again under
 ``snapshot_prefix`` when it differs from ``pose_prefix`` (the ``sensors`` node renders
 exactly those), the blade plant states, ``/worksite/fitness``, ``/worksite/markers`` and
-``/team/snapshot_ack`` (Header, latched: the request's ``frame_id``, stamped with the
+``/team/snapshot_ack`` (Snapshot, latched: the request's tick, stamped with the
 snapshot's instant); ``/diagnostics``.
 
 With ``snapshot_period`` (sim seconds) the node takes a snapshot that often unasked and
@@ -74,12 +75,13 @@ from dataclasses import dataclass
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from excavation_interfaces.msg import DriveStatus
+from excavation_interfaces.msg import BladeCommand, DriveStatus
+from excavation_interfaces.msg import Snapshot as SnapshotMsg
 from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, Imu, JointState
-from std_msgs.msg import Bool, Float32, Header
+from std_msgs.msg import Bool, Float32
 from visualization_msgs.msg import Marker, MarkerArray
 
 from excavation_common.constants import BladeGeometry
@@ -197,10 +199,10 @@ class DynamicsNode(Node):
         self.next_snapshot_ns = 0
         self.pending: list[tuple[int, int] | None] = [None] * self.n
         self.done_tick: list[int] = [-1] * self.n
-        self.snapshot_request: str | None = None
+        self.snapshot_request: int | None = None  # the tick of the request standing
         self.snapshot_due: int | None = None
-        self.taken: tuple[str, int] | None = None  # (label, due) of the last request taken
-        self.ack: Header | None = None
+        self.taken: tuple[int, int] | None = None  # (tick, due) of the last request taken
+        self.ack: SnapshotMsg | None = None
         self.snapshots: dict[str, float] = {}
         self.wall_started = time.monotonic()
 
@@ -229,10 +231,10 @@ class DynamicsNode(Node):
                 sub(TwistStamped, f"{ns}/cmd_vel", lambda m, k=k: self.on_cmd_vel(k, m), 10)
             )
             sub(Bool, f"{ns}/drive/throttle", lambda m, k=k: self.on_throttle(k, m), LATCHED)
-            sub(JointState, f"{ns}/blade/servo_command", lambda m, k=k: self.on_blade(k, m), 10)
+            sub(BladeCommand, f"{ns}/blade/servo_command", lambda m, k=k: self.on_blade(k, m), 10)
             sub(DriveStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
-        self.create_subscription(Header, "/team/snapshot", self.on_snapshot_request, 10)
-        self.ack_pub = self.create_publisher(Header, "/team/snapshot_ack", LATCHED)
+        self.create_subscription(SnapshotMsg, "/team/snapshot", self.on_snapshot_request, 10)
+        self.ack_pub = self.create_publisher(SnapshotMsg, "/team/snapshot_ack", LATCHED)
         self.heights_pub = self.create_publisher(
             Image, f"{p.snapshot_prefix.rstrip('/')}/worksite/height_map", LATCHED
         )
@@ -259,14 +261,11 @@ class DynamicsNode(Node):
         """Robot k's power mode (Throttle Up)."""
         self.sim.throttle[k] = bool(msg.data)
 
-    def on_blade(self, k: int, msg: JointState) -> None:
+    def on_blade(self, k: int, msg: BladeCommand) -> None:
         """A blade set-point (nearest setting), applied after its tick's drive."""
-        if "blade" not in msg.name or len(msg.position) <= list(msg.name).index("blade"):
+        if not math.isfinite(msg.position):
             return
-        value = float(msg.position[list(msg.name).index("blade")])
-        if not math.isfinite(value):
-            return
-        self.pending[k] = (_key(msg.header.stamp), self.geometry.nearest(value))
+        self.pending[k] = (_key(msg.stamp), self.geometry.nearest(float(msg.position)))
         self.apply_blade(k)
 
     def on_status(self, k: int, msg: DriveStatus) -> None:
@@ -285,7 +284,7 @@ class DynamicsNode(Node):
         self.sim.set_blade(k, pending[1])
         self.pending[k] = None
 
-    def on_snapshot_request(self, msg: Header) -> None:
+    def on_snapshot_request(self, msg: SnapshotMsg) -> None:
         """The team tick wants a perception snapshot taken at ``msg.stamp`` or later.
 
         Ignored with ``snapshot_period``: in an emulated dome the team tick's requests are
@@ -293,10 +292,10 @@ class DynamicsNode(Node):
         """
         if self.params.snapshot_period > 0:
             return
-        if (msg.frame_id, _key(msg.stamp)) == self.taken:
+        if (int(msg.tick), _key(msg.stamp)) == self.taken:
             self.ack_pub.publish(self.ack)  # taken already: its acknowledgement came late
             return
-        self.snapshot_request = msg.frame_id
+        self.snapshot_request = int(msg.tick)
         self.snapshot_due = _key(msg.stamp)
         if self.clock.started and self.clock.now_ns >= self.snapshot_due:
             self.publish_snapshot()
@@ -407,9 +406,9 @@ class DynamicsNode(Node):
             self.plant_pubs[k].publish(self.plant_state(k, stamp))
         fitness = self.sim.fitness()
         if self.snapshot_request is not None:
-            self.snapshots[self.snapshot_request] = fitness
+            self.snapshots[f"tick {self.snapshot_request}"] = fitness
             self.taken = (self.snapshot_request, self.snapshot_due)
-            self.ack = Header(stamp=stamp, frame_id=self.snapshot_request)
+            self.ack = SnapshotMsg(stamp=stamp, tick=self.snapshot_request)
         self.snapshot_due = None
         self.fitness_pub.publish(Float32(data=float(fitness)))
         self.markers_pub.publish(self.markers(stamp))

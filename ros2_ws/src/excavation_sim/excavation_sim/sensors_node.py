@@ -40,7 +40,7 @@ state cannot be placed): a lockstep tick's only frame is not lost to a localizer
 subscription the middleware has not matched yet, and the noise drawn does not depend on
 when the listeners came.
 
-A ``std_msgs/Header`` on ``/overhead/retake`` stamped with the last frame sent (the
+An ``excavation_interfaces/Retake`` on ``/overhead/retake`` stamped with the last frame sent (the
 localizer's ``retakes``: a robot it tracks was not seen, most often under a glare spot)
 renders that instant again with the generator's next draws and sends it, as a camera's next
 frame of a scene that has not moved; a request for any other stamp, or while ``paused``, is
@@ -56,11 +56,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from excavation_interfaces.msg import Retake
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Image, JointState, LaserScan
-from std_msgs.msg import Header
 
 from excavation_common.frames import robot_anchor
 from excavation_common.messages import MessageError, image_to_grid
@@ -221,7 +221,7 @@ class SensorsNode(Node):
                 10,
             )
         self.create_subscription(Image, f"{prefix}/worksite/height_map", self.on_heights, LATCHED)
-        self.create_subscription(Header, RETAKE_TOPIC, self.on_retake, 10)
+        self.create_subscription(Retake, RETAKE_TOPIC, self.on_retake, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_timer(1.0, self.publish_diagnostics)
         self.create_timer(0.01, self.send_ready)  # what a fault held back, once it ends
@@ -345,7 +345,7 @@ class SensorsNode(Node):
             self.ready = None
             self.frames += 1
 
-    def on_retake(self, msg: Header) -> None:
+    def on_retake(self, msg: Retake) -> None:
         """Render the last frame's instant again (a localizer missed a robot in it)."""
         key = (msg.stamp.sec, msg.stamp.nanosec)
         if self.sent is None or self.sent[0] != key or self.params.paused:

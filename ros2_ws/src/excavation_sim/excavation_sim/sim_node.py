@@ -50,8 +50,8 @@ applies a tick only while the team is armed (``/team/heartbeat`` younger than th
 and saying ``armed``, no e-stop latched on ``/team/estop``); otherwise it holds the tick,
 keeping the words and set-points already in, so a paused trial ends as an unpaused one
 does. A robot disabled on ``/robot_k/enabled`` is absent: it is not waited for and idles.
-A blade set-point marked :data:`excavation_common.safety.HELD` (sent under a closed gate)
-does not complete a tick; it applies only to an absent robot or when the tick times out.
+A blade set-point with ``held`` set (sent under a closed gate) does not complete a tick; it
+applies only to an absent robot or when the tick times out.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ import sys
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from excavation_interfaces.msg import TeamState
+from excavation_interfaces.msg import BladeCommand, TeamState
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -95,7 +95,6 @@ from excavation_common.safety import (
     ENABLED_TOPIC,
     ESTOP_TOPIC,
     HEARTBEAT_TOPIC,
-    HELD,
     MotionGate,
 )
 from excavation_common.tf import TfBroadcaster, base_frame, blade_transform, pose_transform
@@ -169,7 +168,7 @@ class SimNode(Node):
             if self.blade_driver:
                 self.inputs.append(
                     self.create_subscription(
-                        JointState,
+                        BladeCommand,
                         f"{ns}/blade/servo_command",
                         lambda m, k=k: self.on_servo_command(k, m),
                         10,
@@ -329,15 +328,13 @@ class SimNode(Node):
                 return False
         return True
 
-    def on_servo_command(self, k: int, msg: JointState) -> None:
+    def on_servo_command(self, k: int, msg: BladeCommand) -> None:
         """A blade driver's set-point for the current tick (stamped with it; others dropped)."""
         stamp = self._stamp()
-        if (msg.header.stamp.sec, msg.header.stamp.nanosec) != (stamp.sec, stamp.nanosec):
+        if (msg.stamp.sec, msg.stamp.nanosec) != (stamp.sec, stamp.nanosec):
             return
-        if "blade" in msg.name and len(msg.position) > msg.name.index("blade"):
-            value = float(msg.position[list(msg.name).index("blade")])
-            if math.isfinite(value):
-                self.clock.on_setpoint(k, value, held=msg.header.frame_id == HELD)
+        if math.isfinite(msg.position):
+            self.clock.on_setpoint(k, float(msg.position), held=bool(msg.held))
 
     def on_command(self, k: int, msg: UInt16) -> None:
         """A robot's behaviour mask for the current tick (the first one counts)."""

@@ -23,11 +23,11 @@ robots share LED colours). Bad input never stops the node and never produces a p
 
 With ``retakes`` > 0, a frame in which a robot the node was tracking is not seen (a glare
 spot washing out one of its LEDs) publishes nothing yet: the node asks for another frame of
-the same instant on ``retake_topic`` (std_msgs/Header, the frame's stamp), up to
-``retakes`` times, and publishes the poses of the first frame that shows every tracked
-robot, or of the last one. The trials' synthetic camera (``excavation_sim sensors``)
-answers; a lockstep team then no longer waits a whole tick timeout for a pose that one
-frame's glare hid.
+the same instant on ``retake_topic`` (excavation_interfaces/Retake: the frame's stamp and
+the robots not seen), up to ``retakes`` times, and publishes the poses of the first frame
+that shows every tracked robot, or of the last one. The trials' synthetic camera
+(``excavation_sim sensors``) answers; a lockstep team then no longer waits a whole tick
+timeout for a pose that one frame's glare hid.
 
 The node refuses to start (one line on stderr, exit code 2) without ``calibration``, or
 with a calibration or LED table file it cannot use: it never falls back to another camera.
@@ -44,12 +44,12 @@ import sys
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from excavation_interfaces.msg import Retake
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
-from std_msgs.msg import Header
 
 from excavation_common.errors import FieldError
 from excavation_common.messages import MessageError, image_to_grid
@@ -158,7 +158,7 @@ class LocalizerNode(Node):
         self.retakes_asked = 0
         self.retakes_total = 0
         self.retake_pub = (
-            self.create_publisher(Header, c.retake_topic, 10) if c.retakes > 0 else None
+            self.create_publisher(Retake, c.retake_topic, 10) if c.retakes > 0 else None
         )
 
         self.pose_pubs = [
@@ -286,7 +286,7 @@ class LocalizerNode(Node):
             return False
         self.retakes_asked += 1
         self.retakes_total += 1
-        self.retake_pub.publish(Header(stamp=stamp, frame_id=f"robots {unseen} not seen"))
+        self.retake_pub.publish(Retake(stamp=stamp, unseen=unseen))
         return True
 
     def camera_status(self) -> tuple[bytes, str]:

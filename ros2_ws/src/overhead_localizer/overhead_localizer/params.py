@@ -43,7 +43,7 @@ class LocalizerNodeParams:
             spent. 0 (the default, a camera that streams): never. The trials' synthetic
             camera, which renders one frame per simulator tick, answers with a new frame of
             the same instant (its next noise and glare).
-        retake_topic: ``std_msgs/Header`` stamped with the frame to take again.
+        retake_topic: ``excavation_interfaces/Retake`` stamped with the frame to take again.
     """
 
     robots: int = param(4, "robots localized (first entries of the LED table)", low=1, high=64)
@@ -63,4 +63,4 @@ class LocalizerNodeParams:
     retakes: int = param(
         0, "frames of an instant asked for when a tracked robot is unseen", low=0, high=10
     )
-    retake_topic: str = param(RETAKE_TOPIC, "Header: the frame stamp to take again")
+    retake_topic: str = param(RETAKE_TOPIC, "Retake: the frame stamp to take again")

@@ -99,12 +99,12 @@ class Snapshot:
 
 @dataclass(frozen=True)
 class RequestSnapshot:
-    """Ask for a snapshot (``/team/snapshot``): taken at ``not_before`` (s) or later.
+    """Ask for a snapshot (``/team/snapshot``) for ``tick``: taken at ``not_before`` (s) or later.
 
-    ``label`` is ``tick t``; a request not acknowledged is sent again unchanged.
+    A request not acknowledged is sent again unchanged.
     """
 
-    label: str
+    tick: int
     not_before: float
 
 
@@ -437,15 +437,15 @@ class TeamTick:
         """Robot k's measured blade setting at ``stamp``."""
         self.blades[k] = Latest(stamp, setting, payload)
 
-    def on_ack(self, label: str, stamp: float) -> None:
-        """The simulator took the snapshot ``label`` at ``stamp`` (``/team/snapshot_ack``).
+    def on_ack(self, tick: int, stamp: float) -> None:
+        """The simulator took the snapshot of ``tick`` at ``stamp`` (``/team/snapshot_ack``).
 
-        It acknowledges the request sent last only if it is that request's label, taken at
+        It acknowledges the request sent last only if it is that request's tick, taken at
         or after its ``not_before`` (an older acknowledgement, latched, is another's).
         """
         if (
             self.phase is Phase.SNAPSHOT
-            and label == f"tick {self.tick}"
+            and tick == self.tick
             and stamp >= self._not_before - STAMP_SLACK
         ):
             self._acked = True
@@ -537,12 +537,12 @@ class TeamTick:
         self._asked = wall
         self._not_before = self._after + self.params.settle if not_before is None else not_before
         self._acked = not self.params.snapshot_ack  # none will come: taken as it is sent
-        return [RequestSnapshot(f"tick {self.tick}", self._not_before)]
+        return [RequestSnapshot(self.tick, self._not_before)]
 
     def _resend(self, wall: float) -> list[TickAction]:
         """The request not acknowledged, unchanged (the simulator takes it once)."""
         self._asked = wall
-        return [RequestSnapshot(f"tick {self.tick}", self._not_before)]
+        return [RequestSnapshot(self.tick, self._not_before)]
 
     def snapshot_ready(self, now: float) -> str | None:
         """What the snapshot still lacks (``None``: complete)."""

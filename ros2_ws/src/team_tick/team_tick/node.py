@@ -2,12 +2,12 @@
 
 Reads, per robot k: ``/robot_k/pose`` (the localiser's, or the simulator's truth),
 ``/robot_k/{blade_in}`` (JointState: the measured blade; ``blade/plant_state`` from
-``dynamics``), ``/robot_k/behaviour`` (the controller's word), ``/robot_k/drive/status`` and
-``/robot_k/drive/operator`` (the ticks the operator's override drove the robot are in the
-summary's ``operator_ticks``); ``/worksite/height_map`` (the mapper's, or the simulator's);
-the supervisor's ``/team/heartbeat``, ``/team/estop`` and ``/robot_k/enabled``: the tick
-runs only while the team is armed (a heartbeat saying ``armed`` younger than the 0.5 s
-deadman, no e-stop), and a robot disabled or lost is absent (:class:`~team_tick.core.TeamTick`).
+``dynamics``), ``/robot_k/behaviour`` (the controller's word), ``/robot_k/drive/operator``
+(the ticks the operator's override drove the robot are in the summary's
+``operator_ticks``); ``/worksite/height_map`` (the mapper's, or the simulator's); the
+supervisor's ``/team/heartbeat``, ``/team/estop`` and ``/robot_k/enabled``: the tick runs
+only while the team is armed (a heartbeat saying ``armed`` younger than the 0.5 s deadman,
+no e-stop), and a robot disabled or lost is absent (:class:`~team_tick.core.TeamTick`).
 
 With ``wait_for_ready`` (set by every trial and dome table) tick 0 also waits for every
 controller's latched ``/robot_k/ready`` (std_msgs/Bool: its inputs are connected); with
@@ -18,13 +18,16 @@ Publishes for each tick t, stamped ``t * tick_period``: ``{output_prefix}/robot_
 ``{output_prefix}/robot_k/stuck`` (U1: the executor aborted), ``{output_prefix}/worksite/
 height_map`` (latched) and ``/robot_k/{blade_out}`` (the blade driver's ``servo_state``), so
 that a controller run with ``lockstep: true`` and remapped onto ``{output_prefix}`` decides
-once per tick, unchanged; ``/team/tick`` (Header: the tick's stamp, ``frame_id`` = t);
-``/robot_k/drive/goal`` (excavation_interfaces/DriveGoal, :mod:`drive_executor.goals`)
-when robot k may move; ``/team/snapshot`` (Header: ``stamp`` = the earliest time the
-snapshot may be taken, ``settle`` after the motion ended, ``frame_id`` = ``tick t``) to
-ask for a snapshot; ``/diagnostics``. With ``snapshot_ack`` it reads ``/team/snapshot_ack``
-(Header, latched: the simulator's ``dynamics`` took the snapshot ``frame_id`` at
-``stamp``) and sends a request again only while it is not acknowledged.
+once per tick, unchanged; ``/team/tick`` (excavation_interfaces/Tick: its stamp and number);
+when robot k may move, the goal of the drive action ``/robot_k/drive``
+(excavation_interfaces/action/Drive, this node its client; the goal an
+``excavation_interfaces/DriveGoal``, :mod:`drive_executor.goals`), whose result (U1:
+``stuck``; a rejected goal is stuck) ends the robot's motion for the tick;
+``/team/snapshot`` (excavation_interfaces/Snapshot: ``stamp`` = the earliest time the
+snapshot may be taken, ``settle`` after the motion ended, and the tick) to ask for a
+snapshot; ``/diagnostics``. With ``snapshot_ack`` it reads ``/team/snapshot_ack`` (Snapshot,
+latched: the simulator's ``dynamics`` took the snapshot of that tick at ``stamp``) and sends
+a request again only while it is not acknowledged.
 
 A robot whose executor is replaced while its goal runs (a new writer on its
 ``drive/status``: the old one crashed and ``ant-dome`` restarted it) is done for the tick
@@ -48,16 +51,19 @@ from typing import assert_never
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
-from excavation_interfaces.msg import DriveStatus, TeamState
+from excavation_interfaces.action import Drive
+from excavation_interfaces.msg import Snapshot as SnapshotMsg
+from excavation_interfaces.msg import TeamState, Tick
 from geometry_msgs.msg import PoseWithCovarianceStamped
+from rclpy.action import ActionClient
 from rclpy.node import Node
+from rclpy.task import Future
 from sensor_msgs.msg import Image, JointState
-from std_msgs.msg import Bool, Header, UInt16
+from std_msgs.msg import Bool, UInt16
 
 from blueprint_server.blueprint import resolve_blueprint
 from drive_executor.errors import GoalError
-from drive_executor.goals import ABORTED, TERMINAL, DriveGoal, goal_from_message, goal_message
+from drive_executor.goals import TERMINAL, DriveGoal, goal_message
 from excavation_common.constants import BladeGeometry
 from excavation_common.files import write_text_atomic
 from excavation_common.messages import MessageError, blade_from_joint, pose_to_grid
@@ -86,11 +92,14 @@ from team_tick.core import (
     TickAction,
 )
 
+TICK_TOPIC = "/team/tick"
+"""Each tick's number and stamp as it begins (excavation_interfaces/Tick)."""
 SNAPSHOT_TOPIC = "/team/snapshot"
+"""The team tick asks the simulator for a tick's snapshot (excavation_interfaces/Snapshot)."""
 SNAPSHOT_ACK_TOPIC = "/team/snapshot_ack"
+"""Latched: the simulator acknowledges the snapshot request it took (``dynamics``)."""
 EXECUTOR_CHECK_PERIOD = 0.5
 """Wall seconds between looks at the graph for a restarted executor."""
-"""Latched: the simulator acknowledges the snapshot request it took (``dynamics``)."""
 
 
 @dataclass(frozen=True)
@@ -141,8 +150,9 @@ class TeamTickNode(Node):
         self.executor_writers: dict[int, set[bytes]] = {}  # drive/status writers seen
         self.reports: list[str] = []
         out = t.output_prefix.rstrip("/")
-        self.pose_pubs, self.stuck_pubs, self.blade_pubs, self.goal_pubs = [], [], [], []
-        self.inputs = []  # per robot: its word and its executor's status
+        self.pose_pubs, self.stuck_pubs, self.blade_pubs = [], [], []
+        self.drives: list[ActionClient] = []  # per robot: the drive action's client
+        self.inputs = []  # per robot: its word
         sub = self.create_subscription
         for k in range(self.n):
             ns = f"/robot_{k}"
@@ -151,14 +161,11 @@ class TeamTickNode(Node):
             )
             self.stuck_pubs.append(self.create_publisher(Bool, f"{out}{ns}/stuck", 10))
             self.blade_pubs.append(self.create_publisher(JointState, f"{ns}/{t.blade_out}", 10))
-            self.goal_pubs.append(self.create_publisher(DriveGoalMsg, f"{ns}/drive/goal", 10))
+            self.drives.append(ActionClient(self, Drive, f"{ns}/drive"))
             sub(PoseWithCovarianceStamped, f"{ns}/pose", lambda m, k=k: self.on_pose(k, m), 10)
             sub(JointState, f"{ns}/{t.blade_in}", lambda m, k=k: self.on_blade(k, m), 10)
             self.inputs.append(
                 sub(UInt16, f"{ns}/behaviour", lambda m, k=k: self.core.on_word(k, m.data), 10)
-            )
-            self.inputs.append(
-                sub(DriveStatus, f"{ns}/drive/status", lambda m, k=k: self.on_status(k, m), 10)
             )
             sub(Bool, f"{ns}/drive/operator", lambda m, k=k: self.on_operator(k, m), LATCHED)
             sub(Bool, f"{ns}/{ENABLED_TOPIC}", lambda m, k=k: self.on_enabled(k, m), LATCHED)
@@ -168,13 +175,13 @@ class TeamTickNode(Node):
         sub(Bool, ESTOP_TOPIC, lambda m: self.team.on_estop(m.data), LATCHED)
         self.core.armed = False
         self.heights_pub = self.create_publisher(Image, f"{out}/worksite/height_map", LATCHED)
-        self.tick_pub = self.create_publisher(Header, "/team/tick", 10)
-        self.request_pub = self.create_publisher(Header, SNAPSHOT_TOPIC, 10)
+        self.tick_pub = self.create_publisher(Tick, TICK_TOPIC, 10)
+        self.request_pub = self.create_publisher(SnapshotMsg, SNAPSHOT_TOPIC, 10)
         if p.snapshot_ack:
             sub(
-                Header,
+                SnapshotMsg,
                 SNAPSHOT_ACK_TOPIC,
-                lambda m: self.core.on_ack(m.frame_id, _seconds(m.stamp)),
+                lambda m: self.core.on_ack(int(m.tick), _seconds(m.stamp)),
                 LATCHED,
             )
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
@@ -221,13 +228,29 @@ class TeamTickNode(Node):
         """A height map."""
         self.core.on_heights(_seconds(msg.header.stamp), msg)
 
-    def on_status(self, k: int, msg: DriveStatus) -> None:
-        """Robot k's executor status."""
-        goal = self._decode(f"/robot_{k}/drive/status", lambda: goal_from_message(msg.goal))
-        if goal is not None:
-            self.core.on_status(
-                k, goal.tick, msg.status in TERMINAL, msg.status == ABORTED, self._now()
-            )
+    def send_goal(self, k: int, goal: DriveGoal) -> None:
+        """Robot k's goal of the tick, as the drive action's goal."""
+        sent = self.drives[k].send_goal_async(Drive.Goal(goal=goal_message(goal)))
+        sent.add_done_callback(lambda f: self.on_goal_response(k, goal.tick, f))
+
+    def on_goal_response(self, k: int, tick: int, sent: Future) -> None:
+        """The executor accepted the goal (then its result ends it) or rejected it (stuck)."""
+        handle = sent.result()
+        topic = f"/robot_{k}/drive"
+        if handle is None or not handle.accepted:
+            self.errors[topic] = f"robot {k}'s executor rejected the goal of tick {tick}"
+            self.core.on_status(k, tick, True, True, self._now())
+            return
+        self.errors.pop(topic, None)
+        handle.get_result_async().add_done_callback(lambda f: self.on_result(k, tick, f))
+
+    def on_result(self, k: int, tick: int, done: Future) -> None:
+        """Robot k's goal of ``tick`` ended: its U1 is the result's ``stuck``."""
+        answer = done.result()
+        if answer is None:
+            return
+        terminal = answer.status in TERMINAL
+        self.core.on_status(k, tick, terminal, bool(answer.result.stuck), self._now())
 
     def on_operator(self, k: int, msg: Bool) -> None:
         """Robot k's executor: the operator's override drives it, or no longer."""
@@ -287,12 +310,13 @@ class TeamTickNode(Node):
         for k in range(self.n):
             if not controllers[k] or not executors[k]:
                 return f"robot {k}'s controller or executor is not on the graph"
+            if not self.drives[k].server_is_ready():
+                return f"robot {k}'s drive action server is not ready yet"
         everyone = set().union(*controllers)
         for k in range(self.n):
             for pub, readers in (
                 (self.pose_pubs[k], everyone),
                 (self.stuck_pubs[k], controllers[k]),
-                (self.goal_pubs[k], executors[k]),
                 (self.blade_pubs[k], ()),
             ):
                 if not reaches(self, pub, readers) or pub.get_subscription_count() == 0:
@@ -342,14 +366,14 @@ class TeamTickNode(Node):
         """Publish what the state machine decided, in its order."""
         for action in actions:
             match action:
-                case RequestSnapshot(label, not_before):
-                    self.request_pub.publish(Header(stamp=_time(not_before), frame_id=label))
+                case RequestSnapshot(tick, not_before):
+                    self.request_pub.publish(SnapshotMsg(stamp=_time(not_before), tick=tick))
                 case PublishTick(tick, stamp, snapshot):
                     self.publish_tick(tick, _time(stamp), snapshot)
                 case SendGoal(k, tick, stamp, word, turn):
                     ns = int(round(stamp * 1e9))
                     sec_ns = (ns // 1_000_000_000, ns % 1_000_000_000)
-                    self.goal_pubs[k].publish(goal_message(DriveGoal(tick, word, turn, k, sec_ns)))
+                    self.send_goal(k, DriveGoal(tick, word, turn, k, sec_ns))
                 case Report(message):
                     self.reports.append(message)
                     self.get_logger().warning(message)
@@ -364,7 +388,7 @@ class TeamTickNode(Node):
 
     def publish_tick(self, tick: int, stamp: TimeMsg, snapshot: Snapshot) -> None:
         """Republish a snapshot stamped with its tick."""
-        self.tick_pub.publish(Header(stamp=stamp, frame_id=str(tick)))
+        self.tick_pub.publish(Tick(stamp=stamp, tick=tick))
         heights = snapshot.heights
         heights.header.stamp = stamp
         self.heights_pub.publish(heights)
