@@ -122,9 +122,10 @@ def copy_bag(dst, drop=(), retype=None, custom=None, foreign=False):
     retype = retype or {}
     if foreign:
         from rosbags.rosbag2 import StoragePlugin, Writer
-        from rosbags.typesys import Stores, get_typestore
 
-        store = get_typestore(Stores.ROS2_JAZZY)
+        from excavation_bags.topics import typestore
+
+        store = typestore()  # Jazzy's, taught the suite's own types (as any reader would be)
         with Writer(dst, version=9, storage_plugin=StoragePlugin.MCAP) as w:
             conns = {
                 t.name: w.add_connection(
