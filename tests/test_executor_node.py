@@ -159,6 +159,17 @@ def send_goal(base, tick):
     base.send(tick)
 
 
+def driving(rig):
+    """The rig's executor configured, active and armed, driving its goal of tick 0."""
+    ros, base, node = rig
+    node.trigger_configure()
+    node.trigger_activate()
+    wait_matched(ros, base, node)
+    send_goal(base, 0)
+    assert ros.spin_until(base.moving, 5)
+    return ros, base, node
+
+
 def test_nothing_moves_before_activation_then_the_goal_drives(rig):
     ros, base, node = rig
     node.trigger_configure()
@@ -195,12 +206,7 @@ def test_stops_at_once_and_stays_stopped(rig, stop):
     Order, not wall-clock margins: after the event the test waits for the first zero twist;
     every twist after that one must be zero too, and a new goal must not move the robot.
     """
-    ros, base, node = rig
-    node.trigger_configure()
-    node.trigger_activate()
-    wait_matched(ros, base, node)
-    send_goal(base, 0)
-    assert ros.spin_until(base.moving, 5)
+    ros, base, node = driving(rig)
     t0 = time.monotonic()
     if stop == "estop":
         base.estop_pub.publish(Bool(data=True))
@@ -236,12 +242,7 @@ def test_stops_at_once_and_stays_stopped(rig, stop):
 def test_a_newer_goal_preempts_the_running_one(rig):
     """A newer tick's goal supersedes the running one: aborted (stuck, with why), then the
     new one runs to its end."""
-    ros, base, node = rig
-    node.trigger_configure()
-    node.trigger_activate()
-    wait_matched(ros, base, node)
-    send_goal(base, 0)
-    assert ros.spin_until(base.moving, 5)
+    ros, base, node = driving(rig)
     base.send(1, 1 << TURN_RIGHT)
     assert ros.spin_until(lambda: 0 in base.results and 1 in base.results, 15), base.results
     assert base.results[0] == (GoalStatus.STATUS_ABORTED, True, "superseded by tick 1")
@@ -251,12 +252,8 @@ def test_a_newer_goal_preempts_the_running_one(rig):
 
 def test_a_cancelled_goal_stops_the_robot_and_ends_cancelled(rig):
     """The client cancels: zero twist, result CANCELED (stuck), drive/status says so too."""
-    ros, base, node = rig
-    node.trigger_configure()
-    node.trigger_activate()
-    wait_matched(ros, base, node)
-    send_goal(base, 0)
-    assert ros.spin_until(lambda: base.moving() and 0 in base.handles, 5)
+    ros, base, node = driving(rig)
+    assert ros.spin_until(lambda: 0 in base.handles, 5)
     t0 = time.monotonic()
     base.handles[0].cancel_goal_async()
     assert ros.spin_until(lambda: 0 in base.results, 5)
@@ -327,12 +324,7 @@ def test_bad_parameter_is_one_clear_error(ros):
 
 def test_the_last_command_is_a_stop_when_the_node_is_destroyed(rig):
     """Destroyed while driving (its process ends): a zero twist is its last ``cmd_vel``."""
-    ros, base, node = rig
-    node.trigger_configure()
-    node.trigger_activate()
-    wait_matched(ros, base, node)
-    send_goal(base, 0)
-    assert ros.spin_until(base.moving, 5)
+    ros, base, node = driving(rig)
     ros.executor.remove_node(node)
     node.destroy_node()
     assert ros.spin_until(lambda: base.twists[-1][1].twist.linear.x == 0.0, 5)
