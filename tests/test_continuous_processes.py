@@ -68,12 +68,17 @@ def test_processes_equal_the_composed_and_grid_trials_and_record_a_bag(tmp_path,
     status = recorded.topics["/robot_0/drive/status"]
     assert status.msgtype == "excavation_interfaces/msg/DriveStatus"
     # the suite's own types are recorded with their definitions: a foreign reader (mcap_ros2,
-    # no package of ours) decodes every status with its goal, the ticks in order
+    # no package of ours) decodes every status with its goal, the ticks in order, the team
+    # tick's ticks and the blade drivers' set-points
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
     (mcap_file,) = bag.glob("*.mcap")
-    seen: dict[str, list] = {"/robot_0/drive/status": []}
+    seen: dict[str, list] = {
+        "/robot_0/drive/status": [],
+        "/team/tick": [],
+        "/robot_0/blade/servo_command": [],
+    }
     with open(mcap_file, "rb") as f:
         for _, channel, _, m in make_reader(
             f, decoder_factories=[DecoderFactory()]
@@ -85,6 +90,11 @@ def test_processes_equal_the_composed_and_grid_trials_and_record_a_bag(tmp_path,
     assert all(g.robot == 0 for g in started)
     ended = {int(m.goal.tick) for m in seen["/robot_0/drive/status"] if m.status in (4, 6)}
     assert set(goals) <= ended  # every goal of robot 0 ended (succeeded or aborted)
+    ticks = [int(m.tick) for m in seen["/team/tick"]]
+    assert ticks[:STEPS] == list(range(STEPS))
+    assert all(m.stamp.sec == m.tick for m in seen["/team/tick"])  # the tick period is 1 s
+    commands = seen["/robot_0/blade/servo_command"]
+    assert commands and all(-0.1 < m.position < 0.2 and not m.held for m in commands)
     assert bag_main(["info", str(bag)]) == 0
     out = capfd.readouterr().out
     assert "/robot_1/cmd_vel" in out and "geometry_msgs/msg/TwistStamped" in out

@@ -39,14 +39,11 @@ from blade_driver.params import JOINT
 TEAM_TICK_TOPIC = "/team/tick"
 
 
-def joint_state(
-    position: float, force: float, stamp: TimeMsg | None = None, frame_id: str = ""
-) -> JointState:
+def joint_state(position: float, force: float, stamp: TimeMsg | None = None) -> JointState:
     """A ``blade`` joint state (position m, effort N)."""
     msg = JointState()
     if stamp is not None:
         msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
     msg.name = [JOINT]
     msg.position = [float(position)]
     msg.effort = [float(force)]
