@@ -215,16 +215,18 @@ def test_bag_with_an_unknown_type_topic(tmp_path):
     assert "no /worksite/height_map" in report.skipped["snapshots"]
 
 
-def test_the_field_figures_read_drive_statuses_of_either_type(tmp_path):
-    """A bag recorded before the suite's own drive types (``action_msgs/GoalStatus`` with the
-    goal packed in its uuid) and one after (``excavation_interfaces/DriveStatus``) give the
-    same goals ended and aborted."""
+def test_the_field_figures_read_the_drive_and_tick_types_before_and_after(tmp_path):
+    """A bag recorded before the suite's own types (``action_msgs/GoalStatus`` with the goal
+    packed in its uuid, the tick a ``std_msgs/Header`` with the number in its ``frame_id``)
+    and one after (``excavation_interfaces/DriveStatus`` and ``Tick``) give the same figures:
+    goals ended and aborted, time per tick."""
     from excavation_bags.field_report import field_figures
     from excavation_bags.topics import typestore
 
     store = typestore()
     types = store.types
     Time = types["builtin_interfaces/msg/Time"]
+    TICK = "excavation_interfaces/msg/Tick"
     ends = [(1, 4), (2, 6), (2, 6), (3, 4)]  # (tick, status): tick 2's abort heard twice
 
     def pose(t: int):
@@ -253,20 +255,30 @@ def test_the_field_figures_read_drive_statuses_of_either_type(tmp_path):
         )
         return types["excavation_interfaces/msg/DriveStatus"](goal=goal, status=status)
 
+    def old_tick(t: int):
+        return types["std_msgs/msg/Header"](stamp=Time(sec=t, nanosec=0), frame_id=str(t))
+
+    def new_tick(t: int):
+        return types["excavation_interfaces/msg/Tick"](stamp=Time(sec=t, nanosec=0), tick=t)
+
     figures = []
-    for name, make, msgtype in (
-        ("old", old, "action_msgs/msg/GoalStatus"),
-        ("new", new, "excavation_interfaces/msg/DriveStatus"),
+    for name, make, msgtype, tick_of, ticktype in (
+        ("old", old, "action_msgs/msg/GoalStatus", old_tick, "std_msgs/msg/Header"),
+        ("new", new, "excavation_interfaces/msg/DriveStatus", new_tick, TICK),
     ):
         with BagWriter(tmp_path / name) as w:
             w.add_topic("/robot_0/pose", "geometry_msgs/msg/PoseWithCovarianceStamped")
             w.add_topic("/robot_0/drive/status", msgtype)
+            w.add_topic("/team/tick", ticktype)
             for t in range(5):
                 raw = store.serialize_cdr(pose(t), "geometry_msgs/msg/PoseWithCovarianceStamped")
                 w.write("/robot_0/pose", t * 10**9 + 1, raw)
+                w.write("/team/tick", int(t * 1.5e9), store.serialize_cdr(tick_of(t), ticktype))
             for i, (tick, status) in enumerate(ends):
                 raw = store.serialize_cdr(make(tick, status), msgtype)
                 w.write("/robot_0/drive/status", tick * 10**9 + i, raw)
-        robot = field_figures(open_bag(tmp_path / name), 0.1)["robots"]["0"]
-        figures.append((robot["goals_ended"], robot["goals_aborted"]))
-    assert figures == [(3, 1), (3, 1)]
+        both = field_figures(open_bag(tmp_path / name), 0.1)
+        robot = both["robots"]["0"]
+        figures.append((robot["goals_ended"], robot["goals_aborted"], both["ticks"]))
+    assert figures[0] == figures[1] and figures[0][:2] == (3, 1)
+    assert figures[0][2]["count"] == 5 and figures[0][2]["wall_mean_s"] == pytest.approx(1.5)
