@@ -121,3 +121,44 @@ def test_the_offline_world_study_scores_as_the_evaluator_and_finds_first_differe
     for fd in filter(None, (r["first_difference"] for r in rows)):
         assert fd["grid_word"] != fd["physical_word"] and fd["inputs_differ"] is not None
     assert "fixed default" in (tmp_path / "attribution.md").read_text()
+
+
+def test_a_trial_past_its_time_limit_is_left_for_the_next_run(tmp_path, monkeypatch, capsys):
+    """A trial that times out writes no row and stops nothing: the others are kept, the run
+    says which is left and exits 1, and the next run does only that one."""
+    from excavation_field import soil_study
+
+    real = soil_study.run_offline
+    calls = []
+
+    def flaky(switch, controller, robots, scenario, args):
+        calls.append((switch.key, controller))
+        if controller == "hand-coded" and len(calls) <= 2:
+            raise TimeoutError("trial did not finish within 900 s (tick 93)")
+        return real(switch, controller, robots, scenario, args)
+
+    monkeypatch.setattr(soil_study, "run_offline", flaky)
+    argv = ["--out", str(tmp_path), "--steps", "5", "--robots", "1", "--scenarios", "1"]
+    argv += ["--switches", "shipped", "--world", "offline"]
+    assert main(argv) == 1
+    assert "shipped-hand-n1-s0.json" in capsys.readouterr().err
+    names = [f.name for f in (tmp_path / "trials").glob("*.json")]
+    assert names == ["shipped-genome-n1-s0.json"]
+    assert main(argv) == 0
+    assert calls[-1] == ("shipped", "hand-coded") and len(calls) == 3
+    assert len(list((tmp_path / "trials").glob("*.json"))) == 2
+
+
+def test_shards_split_the_trials_between_processes(tmp_path, capsys):
+    """``--shard 0/2`` and ``1/2`` run disjoint halves; together, every trial once."""
+    argv = ["--out", str(tmp_path), "--steps", "3", "--robots", "1", "2", "--scenarios", "1"]
+    argv += ["--switches", "shipped", "--world", "offline"]
+    assert main([*argv, "--shard", "1/2"]) == 0
+    first = {f.name for f in (tmp_path / "trials").glob("*.json")}
+    assert len(first) == 2
+    assert main([*argv, "--shard", "0/2"]) == 0
+    both = {f.name for f in (tmp_path / "trials").glob("*.json")}
+    assert len(both) == 4 and first < both
+    with pytest.raises(SystemExit):
+        main([*argv, "--shard", "2/2"])
+    assert "expected 0 <= K < N" in capsys.readouterr().err

@@ -30,6 +30,7 @@ import json
 import math
 import os
 import shutil
+import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -383,6 +384,17 @@ def table(rows: list[dict], robots: tuple[int, ...]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _shard(text: str) -> tuple[int, int]:
+    """``K/N`` (``0 <= K < N``) for ``--shard``."""
+    try:
+        k, n = (int(v) for v in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected K/N, e.g. 0/2") from None
+    if not 0 <= k < n <= 64:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected 0 <= K < N <= 64")
+    return k, n
+
+
 def main(argv: list[str] | None = None) -> int:
     """``ant-soil-study``: run (or continue) the attribution study."""
     p = argparse.ArgumentParser(prog="ant-soil-study", description=__doc__.split("\n\n")[0])
@@ -407,6 +419,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--domain", type=int_in(0, 101), default=101, help="ROS domain id")
     p.add_argument("--limit", type=int_in(1, 100_000), default=None, help="trials this run")
     p.add_argument(
+        "--shard",
+        type=_shard,
+        default=(0, 1),
+        metavar="K/N",
+        help="run only the K-th of N shares of the trials (0-based), so that N processes "
+        "(each with its own --domain) share one study directory",
+    )
+    p.add_argument(
         "--report", action="store_true", help="rewrite DIR/attribution.md from its trials only"
     )
     args = p.parse_args(argv)
@@ -430,19 +450,36 @@ def main(argv: list[str] | None = None) -> int:
         for s in SWITCHES
         if s.key in args.switches
     ]
+    k, n = args.shard
+    jobs = jobs[k::n]
     todo = [j for j in jobs if not (args.out / "trials" / trial_name(*j)).exists()]
     done = len(jobs) - len(todo)
     if args.limit is not None:
         todo = todo[: args.limit]
     robots = tuple(args.robots)
     trial = run_offline if args.world == "offline" else run_one
+    late: list[str] = []
     with tqdm(total=done + len(todo), initial=done, unit="trial") as bar:
         for job in todo:
-            row = trial(*job, args)
+            try:
+                row = trial(*job, args)
+            except TimeoutError as exc:
+                # a niced study beside other work can pass a trial's wall-clock limit; the
+                # trial is left for the next run (no row), the others go on
+                late.append(trial_name(*job))
+                bar.write(f"ant-soil-study: {trial_name(*job)} left for the next run: {exc}")
+                continue
             write_text_atomic(args.out / "trials" / trial_name(*job), json.dumps(row, indent=1))
             write_text_atomic(args.out / "attribution.md", table(load_rows(args.out), robots))
             bar.update(1)
     print(table(load_rows(args.out), robots))
+    if late:
+        print(
+            f"ant-soil-study: {len(late)} trial(s) passed their time limit and are left for "
+            f"the next run: {', '.join(late)}",
+            file=sys.stderr,
+        )
+        return 1
     return 0
 
 
