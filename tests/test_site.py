@@ -437,3 +437,49 @@ def test_sim_soil_reaches_the_simulated_worlds_dynamics(tmp_path):
     assert {s.name: s for s in dome_graph(grid, tmp_path / "g", "sim").nodes}["dynamics"].params[
         "soil"
     ] == "grid"
+
+
+def test_a_robot_field_sets_its_own_node_parameter_declared_once(tmp_path):
+    """``robots[k].max_speed`` (a ``node_param`` field): read and checked as the executor's
+    ``max_speed`` is declared, given to robot k's executor as derived (an override cannot
+    contradict it), other robots keep the graph's value; a rule across the executor's
+    parameters is judged on the graph."""
+    from excavation_bringup.generate import site_block
+
+    text = (CONFIG / "site_rehearsal.yaml").read_text()
+    genomes = str(CONFIG.parents[3] / "genomes") + "/"
+    text = text.replace("../../../../genomes/", genomes)
+    assert "  - name: robot_1\n" in text
+
+    def variant(value: str, extra: str = "") -> Path:
+        path = tmp_path / f"{value}{len(extra)}.yaml"
+        path.write_text(
+            text.replace("  - name: robot_1\n", f"  - name: robot_1\n    max_speed: {value}\n")
+            + extra
+        )
+        return path
+
+    good = variant("0.05")
+    assert site_problems(good, "emulated") == []
+    site = sitefile.load_site(good, emulated=True)
+    assert site.robots[1].max_speed == 0.05 and site.robots[0].max_speed is None
+    nodes = {s.name: s for s in dome_graph(site, tmp_path / "run", "emulated").nodes}
+    assert nodes["executor_1"].params["max_speed"] == 0.05
+    assert "max_speed" in nodes["executor_1"].params.derived
+    assert "max_speed" not in nodes["executor_0"].params  # the node's own default
+    # an override of it is refused for the robot that sets it only
+    lines = site_problems(
+        variant("0.05", "overrides:\n  executor: {max_speed: 0.08}\n"), "emulated"
+    )
+    assert len(lines) == 1 and "overrides.executor.max_speed = 0.08: the graph sets it" in lines[0]
+    # checked as the parameter is declared, naming the site's field
+    lines = site_problems(variant("fast"), "emulated")
+    assert len(lines) == 1 and "robots[1].max_speed = 'fast': expected a number" in lines[0]
+    lines = site_problems(variant("9.0"), "emulated")
+    assert len(lines) == 1 and "robots[1].max_speed = 9.0: must be <= 5.0" in lines[0]
+    lines = site_problems(variant("0.2"), "emulated")  # above throttle_speed 0.15
+    assert lines == [
+        f"{tmp_path / '0.20.yaml'}: node executor_1 would refuse its parameters: "
+        "throttle_speed 0.15 < max_speed 0.2"
+    ]
+    assert "`robots[k].max_speed` | `executor` `max_speed`" in site_block()

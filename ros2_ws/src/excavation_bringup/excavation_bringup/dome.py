@@ -109,8 +109,18 @@ def site_problems(path: str | Path, hardware: str = "dome") -> list[str]:
     site, errors = sitefile.check_site(path, sim=hardware == "sim", emulated=hardware == "emulated")
     if errors:
         return [str(e) for e in errors]
+    from excavation_common.params import ParameterError
+
     with tempfile.TemporaryDirectory(prefix="ant-dome-check-") as tmp:
-        graph = dome_graph(site, Path(tmp), hardware, check=False)
+        try:
+            graph = dome_graph(site, Path(tmp), hardware, check=False)
+        except ParameterError as exc:  # what the site sets breaks a rule of a node's own
+            what = (
+                exc.reason
+                if exc.field == "parameters"
+                else f"{exc.field} = {exc.value!r}: {exc.reason}"
+            )
+            return [f"{path}: node {exc.path} would refuse its parameters: {what}"]
     return [str(e) for e in graph.problems()] + start_problems(graph, str(path))
 
 

@@ -254,17 +254,23 @@ def _params(
     name: str,
     derived: dict[str, Any],
     tuned: dict[str, Any] | None = None,
+    robot: int | None = None,
 ) -> NodeParams:
     """Node ``name``'s parameters: ``derived`` and ``tuned`` with the site's ``overrides:``.
 
     ``derived`` is what the run fixes (from the site or the options: no override may change
-    it), ``tuned`` the mode's or profile's choices (a site may override them);
+    it), with what the site's node-parameter fields set (robot ``robot``'s, for a per-robot
+    node: :func:`excavation_bringup.site.node_values`); ``tuned`` the mode's or profile's
+    choices (a site may override them);
     :class:`~excavation_bringup.node_params.NodeParams` checks every value.
     """
     site = dep.site
-    overrides = site.overrides.get(kind, {}) if site is not None else {}
-    where = site.path if site is not None else ""
-    return NodeParams.build(kind, name, derived, tuned, overrides, where)
+    if site is None:
+        return NodeParams.build(kind, name, derived, tuned)
+    fields = sitefile.node_values(site, kind, robot)
+    tuned = {n: v for n, v in (tuned or {}).items() if n not in fields}
+    overrides = site.overrides.get(kind, {})
+    return NodeParams.build(kind, name, derived | fields, tuned, overrides, site.path)
 
 
 def _sim_deadman(dep: Deployment, profile: TimingProfile) -> dict[str, Any]:
@@ -562,7 +568,7 @@ def controller(dep: Deployment, k: int, geometry: Geometry) -> NodeSpec:
     return NodeSpec(
         name,
         "controller",
-        _params(dep, "controller", name, derived, {"lockstep": True}),
+        _params(dep, "controller", name, derived, {"lockstep": True}, robot=k),
         (f"{ns}/controller",),
         args=controller_args(dep.robot_controller(k)),
         namespace=ns,
@@ -609,7 +615,7 @@ def blade_driver(dep: Deployment, k: int, profile: TimingProfile, files: RunFile
     return NodeSpec(
         name,
         "blade_driver",
-        _params(dep, "blade_driver", name, derived, tuned),
+        _params(dep, "blade_driver", name, derived, tuned, robot=k),
         (f"{ns}/blade_driver",),
         namespace=ns,
         host=robot_host(dep, k),
@@ -652,7 +658,7 @@ def executor(dep: Deployment, k: int, profile: TimingProfile, geometry: Geometry
     return NodeSpec(
         name,
         "executor",
-        _params(dep, "executor", name, derived, tuned),
+        _params(dep, "executor", name, derived, tuned, robot=k),
         (f"{ns}/executor",),
         namespace=ns,
         remaps=remaps,
@@ -774,7 +780,7 @@ def emulated_base(dep: Deployment, k: int) -> NodeSpec:
     return NodeSpec(
         f"base_{k}",
         "emulated_base",
-        _params(dep, "emulated_base", f"base_{k}", derived),
+        _params(dep, "emulated_base", f"base_{k}", derived, robot=k),
         (f"{ns}/base",),
         namespace=ns,
         remaps=remaps,
@@ -793,7 +799,7 @@ def emulated_servo_board(dep: Deployment, k: int, files: RunFiles) -> NodeSpec:
     return NodeSpec(
         f"servo_board_{k}",
         "emulated_servo_board",
-        _params(dep, "emulated_servo_board", f"servo_board_{k}", derived),
+        _params(dep, "emulated_servo_board", f"servo_board_{k}", derived, robot=k),
         (f"{ns}/servo_board",),
         namespace=ns,
         remaps=remaps,

@@ -97,6 +97,25 @@ def safe_load_unique(text: str, path: str) -> Any:
 # --- the model --------------------------------------------------------------------------------
 
 
+def node_param(kind: str, name: str) -> Any:
+    """A site field that sets parameter ``name`` of node kind ``kind`` (default: unset).
+
+    Declared once: the reader reads and checks it as that parameter is declared (its type,
+    range and choices, :mod:`excavation_common.params`), the node spec functions give it to
+    the node as derived (:func:`node_values`, so an ``overrides:`` entry cannot contradict
+    it), and ``make params`` lists it in docs/dome.md. Unset (``None``), the node keeps the
+    graph's value. A field of :class:`Robot` goes to that robot's node.
+    """
+    return field(default=None, metadata={"node_param": (kind, name)})
+
+
+def node_fields(cls: type) -> list[tuple[str, str, str]]:
+    """``(field, kind, parameter)`` of each :func:`node_param` field of dataclass ``cls``."""
+    from dataclasses import fields
+
+    return [(f.name, *f.metadata["node_param"]) for f in fields(cls) if "node_param" in f.metadata]
+
+
 @dataclass(frozen=True)
 class Worksite:
     """The grid the robots dig: blueprint spec (or absolute file), its size and units."""
@@ -144,7 +163,8 @@ class Robot:
     """One robot: ``robot_k``, its LED pair, blade backend and port, drive topic, genome.
 
     ``drive_type``: the message its base takes on ``drive_topic`` (:data:`DRIVE_TYPES`);
-    ``imu``: it carries an IMU on ``/robot_k/imu`` (its controller's R1 source).
+    ``imu``: it carries an IMU on ``/robot_k/imu`` (its controller's R1 source). The fields
+    after ``host`` each set one parameter of the robot's own node (:func:`node_param`).
     """
 
     name: str
@@ -156,6 +176,8 @@ class Robot:
     drive_type: str = "twist_stamped"
     imu: bool = True
     host: str = ""
+    max_speed: float | None = node_param("executor", "max_speed")
+    max_turn_rate: float | None = node_param("executor", "max_turn_rate")
 
     @property
     def drive_topic_resolved(self) -> str:
@@ -373,6 +395,7 @@ def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
         return ()
     out = []
     keys = {"name", "leds", "blade", "drive_topic", "drive_type", "imu", "genome", "host"}
+    keys |= {name for name, _, _ in node_fields(Robot)}
     for k, entry in enumerate(entries):
         where = f"robots[{k}]"
         if not isinstance(entry, dict):
@@ -418,9 +441,49 @@ def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
                 r.text(entry, where, "drive_type", "twist_stamped", DRIVE_TYPES),
                 imu,
                 r.text(entry, where, "host", ""),
+                **_node_values(r, entry, where, Robot),
             )
         )
     return tuple(out)
+
+
+def _node_values(r: _Reader, entry: dict, where: str, cls: type) -> dict[str, Any]:
+    """The :func:`node_param` fields of ``cls`` given in ``entry``, each checked.
+
+    Each is checked as its node parameter is declared; a rule across the node's parameters
+    is judged on the graph.
+    """
+    from excavation_bringup.kinds import kind as node_kind
+    from excavation_common.params import ParameterError, specs, validate
+
+    out = {}
+    for name, kind, param in node_fields(cls):
+        if name not in entry:
+            continue
+        target = next(c for c in node_kind(kind).param_classes() if param in specs(c))
+        try:
+            value = getattr(validate(target, {param: entry[name]}, kind), param)
+        except ParameterError as exc:
+            if exc.field == param:
+                r.error(f"{where}.{name}", entry[name], exc.reason)
+                continue
+            value = entry[name]  # a rule across fields: the graph judges it
+        out[name] = value
+    return out
+
+
+def node_values(site: Site, kind: str, k: int | None = None) -> dict[str, Any]:
+    """What ``site``'s :func:`node_param` fields set of node kind ``kind``'s parameters.
+
+    Robot ``k``'s fields for a per-robot node (``k`` given); only the fields given.
+    """
+    out = {}
+    if k is not None:
+        robot = site.robots[k]
+        for name, node, param in node_fields(Robot):
+            if node == kind and getattr(robot, name) is not None:
+                out[param] = getattr(robot, name)
+    return out
 
 
 def _network(r: _Reader, doc: dict) -> Network:
