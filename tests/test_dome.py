@@ -368,7 +368,7 @@ def test_the_real_dome_wires_executor_team_tick_and_controller(tmp_path, ros, ro
         for name in ("executor_1", "team_tick", "controller_1"):
             spec = by_name[name]
             params = tmp_path / f"{name}.yaml"
-            params.write_text(yaml.safe_dump({"/**": {"ros__parameters": spec.params}}))
+            params.write_text(yaml.safe_dump({"/**": {"ros__parameters": spec.ros_params()}}))
             log = (tmp_path / f"{name}.log").open("w")
             procs.append(subprocess.Popen(spec.command(params), env=env, stdout=log, stderr=log))
         probe = ros.add(rclpy_node(ros, "probe"))

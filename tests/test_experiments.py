@@ -410,9 +410,7 @@ def test_scoring_computes_are_pure(tmp_path, capsys):
     for name, sweep in long_run.SWEEPS.items():
         rows = _pure(long_run.compute, hand, ctx, sweep, lambda: None)
         keys = TINY.depths if name == "depth" else TINY.area_sizes
-        assert [(r[sweep.key_label], r["robots"]) for r in rows] == [
-            (k, n) for k in keys for n in TINY.eval_robots
-        ]
+        assert [(r.key, r.robots) for r in rows] == [(k, n) for k in keys for n in TINY.eval_robots]
     assert not (tmp_path / "never").exists()
     assert capsys.readouterr() == ("", "")
 
@@ -424,7 +422,7 @@ def test_long_run_commands_write_their_computes_rows(done):
         rows = long_run.compute(ctl, done, sweep, lambda: None)
         with open(done.out / name / f"{name}.csv", newline="") as f:
             written = list(csv.DictReader(f))
-        assert written == [{k: str(v) for k, v in r.items()} for r in rows]
+        assert written == [{k: str(v) for k, v in r.csv(sweep.key_label).items()} for r in rows]
 
 
 def test_behaviours_compute_is_pure(done):
@@ -478,15 +476,17 @@ def test_a_cell_whose_robots_do_not_fit_its_site_is_left_out_not_fatal():
             raise PlacementError("could not place robot 3 of 3 on a 8 x 8 grid")
         return np.full(5, 0.1 * n + key / 100)
 
-    rows = robot_grid(score, [4, 6], "pit", [1, 2, 3])
-    lost = [r for r in rows if r["mean"] != r["mean"]]
-    assert [(r["pit"], r["robots"]) for r in lost] == [(4, 3)]
+    rows = robot_grid(score, [4, 6], [1, 2, 3])
+    lost = [r for r in rows if r.mean != r.mean]
+    assert [(r.key, r.robots) for r in lost] == [(4, 3)]
+    assert list(lost[0].csv("pit")) == ["pit", "robots", "mean", "std"]
     text = peak_table(rows, [4, 6], "pit", [1, 2, 3])
     assert "| 4 | 0.140 | 0.240 | - | 2 robots |" in text
     assert "| 6 | 0.160 | 0.260 | 0.360 | 3 robots |" in text
     assert text.endswith(UNPLACED_NOTE)
-    every = [dict(r, run=0) for r in rows] + [dict(r, run=1) for r in rows]
-    (g4, g6) = every_run_summary(every, [(4, [(0,), (1,)]), (6, [(0,), (1,)])], "pit", [1, 2, 3])
+    every = [dataclasses.replace(r, run=k, training_fitness=0.9) for k in (0, 1) for r in rows]
+    assert list(every[0].csv("pit"))[:3] == ["run", "training_fitness", "pit"]
+    (g4, g6) = every_run_summary(every, [(4, [(0,), (1,)]), (6, [(0,), (1,)])], [1, 2, 3])
     assert g4.peaks == [2, 2] and g6.peaks == [3, 3]
     assert np.isnan(g4.mean[2]) and not np.isnan(g4.mean[1])
 

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from excavation_bringup import site as sitefile
-from excavation_bringup.dome import dome_graph, main
+from excavation_bringup.dome import dome_graph, main, site_problems
 from excavation_common.params import validate
 
 SITES = Path(__file__).parent / "data" / "sites"
@@ -38,15 +38,15 @@ BROKEN = {
     "bad_format": "format = 'ant-site/2': expected 'ant-site/1'",
     "unknown_key": "camera.fps = 30: unknown key",
     "laser_outside": "laser.mount = [9.0, 2.0, 4.0]: is outside the 4.0 x 4.0 m worksite",
-    "derived_override": "overrides.controller.height_unit = 0.1: set by the site file's "
-    "worksite.soil_unit",
+    "derived_override": "overrides.controller.height_unit = 0.1: the graph sets it from the "
+    "site file or the run's options (excavation_bringup.nodes.controller)",
     "duplicate_key": "network = 'line 17 column 1': is given twice (first at line 16 column 1)",
     "same_drive_topic": "robots[1].drive_topic = '/base_1/cmd_vel': robots[0] drives "
     "/base_1/cmd_vel too",
     "drive_type": "robots[1].drive_type = 'twist_mux': must be one of twist_stamped, twist",
     "imu_flag": "robots[1].imu = 'yes': expected true or false",
-    "tilt_override": "overrides.controller.tilt_source = 'imu': set by the site file's "
-    "robots[k].imu",
+    "tilt_override": "overrides.controller.tilt_source = 'imu': the graph sets it from the "
+    "site file or the run's options (excavation_bringup.nodes.controller)",
     "override_type": "overrides.executor.max_speed = 'fast': expected a number",
     "override_range": "overrides.team_tick.blade_wait = -1.0: must be >= 0.0",
     "override_choice": "overrides.executor.mode = 'auto': must be one of tick, free",
@@ -62,9 +62,9 @@ def test_the_good_site_and_the_shipped_sites_are_consistent():
 
 @pytest.mark.parametrize("name", sorted(BROKEN))
 def test_each_broken_site_gives_its_message(name, capsys):
+    """The site's own checks, then the graph's: a refused override names its field."""
     path = SITES / f"{name}.yaml"
-    _, errors = sitefile.check_site(path)
-    messages = [str(e) for e in errors]
+    messages = site_problems(path)
     assert len(messages) == 1, messages  # each file breaks one thing
     assert messages[0].startswith(str(path) + ": ")
     assert BROKEN[name] in messages[0]
@@ -115,7 +115,7 @@ def test_the_dome_template_lacks_only_its_calibration_and_drives_every_base(tmp_
     table = dome_graph(site, tmp_path).nodes
     by_name = {s.name: s for s in table}
     assert table[0].name == "supervisor" and table[0].params["arm_at_start"] is False
-    assert all("use_sim_time" not in s.params for s in table)  # the dome runs on wall time
+    assert not any(s.sim_time for s in table)  # the dome runs on wall time
     for k, robot in enumerate(site.robots):
         executor = by_name[f"executor_{k}"]
         assert executor.kind == "executor"
@@ -166,8 +166,9 @@ def test_generated_parameters_are_parameters_of_each_node(tmp_path, sim):
     by_name = {s.name: s for s in table}
     for spec in table:
         # every node but the clock, the recorder and the view runs on the simulator's clock
-        on_sim_time = spec.params.pop("use_sim_time", False)
-        assert on_sim_time == (sim and spec.name not in ("dynamics", "recorder", "view"))
+        assert "use_sim_time" not in spec.params  # a ROS parameter, not the node's own
+        assert spec.ros_params().get("use_sim_time", False) is spec.sim_time
+        assert spec.sim_time == (sim and spec.name not in ("dynamics", "recorder", "view"))
         if spec.kind in ("localizer", "mapper"):
             classes = (
                 (LocalizerNodeParams, LocalizerParams)
@@ -271,15 +272,15 @@ def test_each_robot_names_its_base_type_and_imu_and_a_dome_tunes_executor_and_te
     )
     (tmp_path / "site.yaml").write_text(text)
     site, errors = sitefile.check_site(tmp_path / "site.yaml")
-    assert errors == []
+    assert errors == [] and site_problems(tmp_path / "site.yaml") == []
     assert [(r.drive_type, r.imu) for r in site.robots] == [
         ("twist_stamped", True),
         ("twist", False),
     ]
-    # an integer given for a double is the double rclpy needs (a params file keeps 20 an int)
-    assert site.overrides["executor"]["time_allowance"] == 20.0
-    assert type(site.overrides["executor"]["time_allowance"]) is float
     by_name = {s.name: s for s in dome_graph(site, tmp_path / "run").nodes}
+    # an integer given for a double is the double rclpy needs (a params file keeps 20 an int)
+    assert type(by_name["executor_0"].params["time_allowance"]) is float
+    assert type(by_name["executor_0"].ros_params()["time_allowance"]) is float
     for k, (drive_type, tilt) in enumerate([("twist_stamped", "imu"), ("twist", "height_map")]):
         executor = by_name[f"executor_{k}"].params
         assert executor["drive_type"] == drive_type
@@ -329,7 +330,7 @@ def test_a_rehearsal_is_the_dome_table_behind_emulated_drivers(tmp_path):
             other.args,
         )
     for spec in rehearsal:
-        assert "use_sim_time" not in spec.params  # every node of a rehearsal on the wall clock
+        assert not spec.sim_time  # every node of a rehearsal on the wall clock
         for cls in kind(spec.kind).param_classes():
             own = {f.name for f in fields(cls)}
             validate(cls, {k: v for k, v in spec.params.items() if k in own}, spec.name)
@@ -380,10 +381,10 @@ VARIANTS = [
 
 @pytest.mark.parametrize(("old", "new"), VARIANTS, ids=[v[1].split(":")[0] for v in VARIANTS])
 def test_every_parameter_the_site_changes_is_declared_derived(tmp_path, old, new):
-    """A parameter that follows a site field is in ``DERIVED`` (an override of it is refused).
+    """A parameter that follows a site field is derived (an override of it is refused).
 
     Each variant changes one field of the shipped rehearsal site; every node parameter that
-    changes with it, of a node kind a site may override, must be listed in ``DERIVED``.
+    changes with it must be one its node spec function gives as derived.
     """
     text = (CONFIG / "site_rehearsal.yaml").read_text()
     assert old in text
@@ -401,21 +402,17 @@ def test_every_parameter_the_site_changes_is_declared_derived(tmp_path, old, new
         dome_graph(sitefile.load_site(p, emulated=True), run, "emulated") for p in (base, changed)
     ]
     moved, elsewhere = set(), False  # a topic or a genome moves remaps or arguments
+    undeclared = set()
     for a, b in zip(graphs[0].nodes, graphs[1].nodes, strict=True):
         assert a.name == b.name
         elsewhere |= (a.remaps, a.args) != (b.remaps, b.args)
-        moved |= {
-            (a.kind, k)
-            for k in a.params.keys() | b.params.keys()
-            if a.params.get(k) != b.params.get(k)
+        changed = {
+            k for k in a.params.keys() | b.params.keys() if a.params.get(k) != b.params.get(k)
         }
+        moved |= {(a.kind, k) for k in changed}
+        undeclared |= {(a.kind, k) for k in changed if k not in b.params.derived}
     assert moved or elsewhere, f"{new!r} changed nothing in the graph"
-    undeclared = sorted(
-        (kind, name)
-        for kind, name in moved
-        if kind in sitefile.DERIVED and name not in sitefile.DERIVED[kind]
-    )
-    assert not undeclared, f"{new!r} sets {undeclared}: add them to site.DERIVED"
+    assert not undeclared, f"{new!r} sets {sorted(undeclared)}: give them as derived"
 
 
 def test_sim_soil_reaches_the_simulated_worlds_dynamics(tmp_path):
@@ -440,3 +437,49 @@ def test_sim_soil_reaches_the_simulated_worlds_dynamics(tmp_path):
     assert {s.name: s for s in dome_graph(grid, tmp_path / "g", "sim").nodes}["dynamics"].params[
         "soil"
     ] == "grid"
+
+
+def test_a_robot_field_sets_its_own_node_parameter_declared_once(tmp_path):
+    """``robots[k].max_speed`` (a ``node_param`` field): read and checked as the executor's
+    ``max_speed`` is declared, given to robot k's executor as derived (an override cannot
+    contradict it), other robots keep the graph's value; a rule across the executor's
+    parameters is judged on the graph."""
+    from excavation_bringup.generate import site_block
+
+    text = (CONFIG / "site_rehearsal.yaml").read_text()
+    genomes = str(CONFIG.parents[3] / "genomes") + "/"
+    text = text.replace("../../../../genomes/", genomes)
+    assert "  - name: robot_1\n" in text
+
+    def variant(value: str, extra: str = "") -> Path:
+        path = tmp_path / f"{value}{len(extra)}.yaml"
+        path.write_text(
+            text.replace("  - name: robot_1\n", f"  - name: robot_1\n    max_speed: {value}\n")
+            + extra
+        )
+        return path
+
+    good = variant("0.05")
+    assert site_problems(good, "emulated") == []
+    site = sitefile.load_site(good, emulated=True)
+    assert site.robots[1].max_speed == 0.05 and site.robots[0].max_speed is None
+    nodes = {s.name: s for s in dome_graph(site, tmp_path / "run", "emulated").nodes}
+    assert nodes["executor_1"].params["max_speed"] == 0.05
+    assert "max_speed" in nodes["executor_1"].params.derived
+    assert "max_speed" not in nodes["executor_0"].params  # the node's own default
+    # an override of it is refused for the robot that sets it only
+    lines = site_problems(
+        variant("0.05", "overrides:\n  executor: {max_speed: 0.08}\n"), "emulated"
+    )
+    assert len(lines) == 1 and "overrides.executor.max_speed = 0.08: the graph sets it" in lines[0]
+    # checked as the parameter is declared, naming the site's field
+    lines = site_problems(variant("fast"), "emulated")
+    assert len(lines) == 1 and "robots[1].max_speed = 'fast': expected a number" in lines[0]
+    lines = site_problems(variant("9.0"), "emulated")
+    assert len(lines) == 1 and "robots[1].max_speed = 9.0: must be <= 5.0" in lines[0]
+    lines = site_problems(variant("0.2"), "emulated")  # above throttle_speed 0.15
+    assert lines == [
+        f"{tmp_path / '0.20.yaml'}: node executor_1 would refuse its parameters: "
+        "throttle_speed 0.15 < max_speed 0.2"
+    ]
+    assert "`robots[k].max_speed` | `executor` `max_speed`" in site_block()

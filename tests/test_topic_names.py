@@ -85,7 +85,7 @@ def test_ant_dome_check_runs_the_nodes_start_up_checks_on_the_graph(tmp_path):
     from pathlib import Path
 
     from excavation_bringup import site as sitefile
-    from excavation_bringup.dome import dome_graph, start_problems
+    from excavation_bringup.dome import dome_graph, site_problems, start_problems
 
     config = Path(__file__).resolve().parents[1] / "ros2_ws/src/excavation_bringup/config"
     for name, hardware in (("site_sim", "sim"), ("site_rehearsal", "emulated")):
@@ -96,12 +96,19 @@ def test_ant_dome_check_runs_the_nodes_start_up_checks_on_the_graph(tmp_path):
         graph = dome_graph(site, tmp_path / name, hardware)
         assert start_problems(graph, name) == []
     base = next(i for i, n in enumerate(graph.nodes) if n.kind == "emulated_base")
-    bad = dataclasses.replace(
-        graph.nodes[base],
-        params=graph.nodes[base].params | {"base_frame_id": "/base_link"},
-        remaps=(*graph.nodes[base].remaps, "/x:=/2x"),
-    )
+    with pytest.raises(ParameterError, match="base_frame_id = '/base_link': is not a tf2 frame"):
+        graph.nodes[base].params.updated(graph.nodes[base].name, base_frame_id="/base_link")
+    bad = dataclasses.replace(graph.nodes[base], remaps=(*graph.nodes[base].remaps, "/x:=/2x"))
     graph.nodes[base] = bad
     problems = start_problems(graph, "site.yaml")
-    assert any(f"node {bad.name} would refuse" in p and "base_frame_id" in p for p in problems)
+    # a site's override of it is refused when the graph is built, naming the field
+    text = (
+        (config / "site_rehearsal.yaml")
+        .read_text()
+        .replace("../../../../", str(config.parents[3]) + "/")
+    )
+    text += "overrides:\n  emulated_base: {base_frame_id: /base_link}\n"
+    (tmp_path / "bad.yaml").write_text(text)
+    lines = site_problems(tmp_path / "bad.yaml", "emulated")
+    assert len(lines) == 1 and "overrides.emulated_base.base_frame_id = '/base_link'" in lines[0]
     assert any("remapping /x to '/2x'" in p for p in problems)

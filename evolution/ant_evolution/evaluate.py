@@ -29,7 +29,6 @@ import numpy as np
 from ant_evolution import randomise
 from ant_evolution.kernel import (
     DecisionProgram,
-    ScenarioArrays,
     run_episode,
     run_physical_episode,
     run_physical_scenarios,
@@ -39,7 +38,7 @@ from blueprint_server.blueprint import Blueprint
 from excavation_sim import cell_soil
 from excavation_sim.rules import DEFAULT_RULES, WorldRules
 from excavation_sim.soil import SoilParams
-from excavation_sim.world import World, placement_zones, scenario_start
+from excavation_sim.world import World, WorldArrays, placement_zones, scenario_start
 
 DEFAULT_STEPS = 300
 """Timesteps per scenario. Long enough for the hand-coded controller's fitness to level
@@ -52,15 +51,14 @@ class ScenarioSet:
     """Starting states of ``S`` scenarios on one blueprint, stacked for the kernels.
 
     Attributes:
-        heights: ``int32 [S, rows, cols]`` starting terrain.
-        zones: ``uint8 [rows, cols]`` blueprint zones.
-        goal: ``int32 [rows, cols]`` goal heights.
-        robots: ``int64 [S, N_max, 6]`` robot states.
-        active: ``bool [S, N_max]`` robots taking part.
-        rng: ``uint64 [S]`` random-turn generator states.
+        start: The scenarios' starting worlds, stacked
+            (:class:`~excavation_sim.world.WorldArrays`: ``heights [S, rows, cols]``, shared
+            ``zones`` and ``goal``, ``robots [S, N_max, 6]``, ``active [S, N_max]``, ``rng
+            [S]``); its ``params [S, N_PACKED]`` are each scenario's packed rules:
+            ``params`` in every row, or each randomised scenario's draw
+            (:mod:`ant_evolution.randomise`). Read through the properties of the same names
+            (``scenario_params`` for ``start.params``).
         params: Packed world rules (:meth:`~excavation_sim.rules.WorldRules.as_array`).
-        scenario_params: ``int64 [S, N_PACKED]`` each scenario's packed rules: ``params``
-            in every row, or each randomised scenario's draw (:mod:`ant_evolution.randomise`).
         steps: Timesteps per scenario.
         seed: The seed the scenarios were drawn from (scenario i: ``scenario_start(..., seed, i)``).
         robot_counts: The robot counts scenarios alternate between.
@@ -76,14 +74,8 @@ class ScenarioSet:
             fitness ``floor``); ``None``: the soil is scored, not held.
     """
 
-    heights: np.ndarray
-    zones: np.ndarray
-    goal: np.ndarray
-    robots: np.ndarray
-    active: np.ndarray
-    rng: np.ndarray
+    start: WorldArrays
     params: np.ndarray
-    scenario_params: np.ndarray
     steps: int
     seed: int = 0
     robot_counts: tuple[int, ...] = ()
@@ -149,15 +141,18 @@ class ScenarioSet:
         else:
             scenario_params = np.tile(rules.as_array(), (scenarios, 1))
             physics = np.tile(base, (scenarios, 1)) if base.size else no_soil
-        return cls(
+        start = WorldArrays(
             heights=np.zeros((scenarios, *shape), dtype=np.int32),
             zones=blueprint.zones,
             goal=blueprint.goal,
             robots=all_robots,
             active=active,
             rng=rng_states,
+            params=scenario_params,
+        )
+        return cls(
+            start=start,
             params=rules.as_array(),
-            scenario_params=scenario_params,
             steps=steps,
             seed=seed,
             robot_counts=tuple(counts),
@@ -165,6 +160,41 @@ class ScenarioSet:
             physics=physics,
             randomised=randomised,
         )
+
+    @property
+    def heights(self) -> np.ndarray:
+        """``int32 [S, rows, cols]`` starting terrain."""
+        return self.start.heights
+
+    @property
+    def zones(self) -> np.ndarray:
+        """``uint8 [rows, cols]`` blueprint zones."""
+        return self.start.zones
+
+    @property
+    def goal(self) -> np.ndarray:
+        """``int32 [rows, cols]`` goal heights."""
+        return self.start.goal
+
+    @property
+    def robots(self) -> np.ndarray:
+        """``int64 [S, N_max, 6]`` robot states."""
+        return self.start.robots
+
+    @property
+    def active(self) -> np.ndarray:
+        """``bool [S, N_max]`` robots taking part."""
+        return self.start.active
+
+    @property
+    def rng(self) -> np.ndarray:
+        """``uint64 [S]`` random-turn generator states."""
+        return self.start.rng
+
+    @property
+    def scenario_params(self) -> np.ndarray:
+        """``int64 [S, N_PACKED]`` each scenario's packed rules."""
+        return self.start.params
 
     @property
     def physical(self) -> bool:
@@ -188,7 +218,7 @@ class ScenarioSet:
             params=_read_only(self.scenario_params[i]),
         )
 
-    def arrays(self) -> ScenarioArrays:
+    def arrays(self) -> WorldArrays:
         """The starting states as the kernel takes them: read-only views, always.
 
         numba compiles a kernel once per argument type, and a read-only array is another
@@ -196,20 +226,7 @@ class ScenarioSet:
         differ in which arrays are writable, and each kind would compile the kernel again
         (about a minute per decision program). The kernel only reads them.
         """
-        return ScenarioArrays(
-            *(
-                _read_only(a)
-                for a in (
-                    self.heights,
-                    self.zones,
-                    self.goal,
-                    self.robots,
-                    self.active,
-                    self.rng,
-                    self.scenario_params,
-                )
-            )
-        )
+        return WorldArrays(*(_read_only(a) for a in self.start))
 
     def score(self, program: DecisionProgram, n_robots: int = 0) -> np.ndarray:
         """Final fitness of ``program`` on every scenario (``n_robots``: the N gene, 0: none)."""

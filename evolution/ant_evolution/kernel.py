@@ -20,7 +20,8 @@ lookup and skip it).
 
 :func:`run_episode` steps one world (:class:`excavation_sim.world.WorldArrays`) and
 :func:`run_scenarios` scores one program on every scenario of a set
-(:class:`ScenarioArrays`); both run the same per-step loop, one timestep being
+(the same :class:`~excavation_sim.world.WorldArrays`, stacked); both run the same per-step
+loop, one timestep being
 
 1. every active robot senses the same snapshot (:func:`excavation_sim.world.sense_robot`;
    a switched-off robot, such as those beyond a genome's N gene, is skipped);
@@ -64,29 +65,6 @@ class DecisionProgram(Protocol):
 
     def record(self) -> TissueRecord | HandCodedRules | NetworkRecord:
         """The program as the kernels take it."""
-
-
-class ScenarioArrays(NamedTuple):
-    """The starting states of ``S`` scenarios on one blueprint, stacked for the kernel.
-
-    Attributes:
-        heights: ``int32 [S, rows, cols]`` starting terrain.
-        zones: ``uint8 [rows, cols]`` blueprint zones.
-        goal: ``int32 [rows, cols]`` goal heights.
-        robots: ``int64 [S, N_max, 6]`` robot states.
-        active: ``bool [S, N_max]`` robots taking part.
-        rng: ``uint64 [S]`` random-turn generator states.
-        params: ``int64 [S, N_PACKED]`` each scenario's packed world parameters (the same
-            row everywhere unless the scenarios are randomised).
-    """
-
-    heights: np.ndarray
-    zones: np.ndarray
-    goal: np.ndarray
-    robots: np.ndarray
-    active: np.ndarray
-    rng: np.ndarray
-    params: np.ndarray
 
 
 # --- decision programs ---------------------------------------------------------------------

@@ -32,7 +32,7 @@ def compute(controller, ctx: Context, progress: Progress) -> list[dict]:
         ctx: The context (scale and world switches; nothing is read or written).
         progress: Called after each cell.
     """
-    return robot_grid(lambda a, n: score_cell(controller, ctx, a, n), ctx.scale.areas, "pit",
+    return robot_grid(lambda a, n: score_cell(controller, ctx, a, n), ctx.scale.areas,
                       ctx.scale.eval_robots, progress)  # fmt: skip
 
 

@@ -596,6 +596,44 @@ def scale_dict(scale: Scale) -> dict:
 
 
 @dataclass(frozen=True)
+class GridRow:
+    """One cell of a robot grid: a key (a pit, a depth, a setting, a controller) and a team.
+
+    Attributes:
+        key: The cell's key; the grid's ``key_label`` names its column.
+        robots: The team size.
+        mean: Mean fitness over the cell's scenarios.
+        std: Its standard deviation.
+        run: In the grid of every run's controller: the run's index (else ``None``).
+        training_fitness: There: the run's best training fitness.
+    """
+
+    key: object
+    robots: int
+    mean: float
+    std: float
+    run: int | None = None
+    training_fitness: float | None = None
+
+    def csv(self, key_label: str) -> dict:
+        """The row as ``NAME.csv`` holds it.
+
+        ``run`` and ``training_fitness`` (in the grid of every run's controller only), the
+        key under ``key_label``, ``robots``, ``mean``, ``std``.
+        """
+        head = {}
+        if self.run is not None:
+            head = {"run": self.run, "training_fitness": self.training_fitness}
+        cell = {"robots": self.robots, "mean": self.mean, "std": self.std}
+        return head | {key_label: self.key} | cell
+
+
+def write_grid_csv(path: Path, rows: Sequence[GridRow], key_label: str) -> None:
+    """A grid's rows as a CSV file, the key's column named ``key_label``."""
+    write_csv(path, [r.csv(key_label) for r in rows])
+
+
+@dataclass(frozen=True)
 class EveryRunGroup:
     """One key's runs in the grid of every run's controller.
 

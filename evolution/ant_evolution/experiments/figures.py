@@ -7,11 +7,11 @@ counts, one line per key, for one controller and for every run's controller.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from ant_evolution.experiments.core import EveryRunGroup, pyplot
+from ant_evolution.experiments.core import EveryRunGroup, GridRow, pyplot
 
 
 @contextmanager
@@ -36,13 +36,15 @@ def finish(ax, legend: float = 8) -> None:
     ax.legend(fontsize=legend)
 
 
-def robot_grid_figure(path: Path, rows: list[dict], keys, key_label: str, ylabel: str) -> None:
+def robot_grid_figure(
+    path: Path, rows: Sequence[GridRow], keys, key_label: str, ylabel: str
+) -> None:
     """Fitness (mean +- std over scenarios) by robot count, one line per key."""
     with figure(path, figsize=(6, 4), dpi=100) as (_, ax):
         for key in keys:
-            sel = [r for r in rows if r[key_label] == key]
-            ax.errorbar([r["robots"] for r in sel], [r["mean"] for r in sel],
-                        yerr=[r["std"] for r in sel], marker="o", ms=3, capsize=2,
+            sel = [r for r in rows if r.key == key]
+            ax.errorbar([r.robots for r in sel], [r.mean for r in sel],
+                        yerr=[r.std for r in sel], marker="o", ms=3, capsize=2,
                         label=f"{key_label} {key}")  # fmt: skip
         ax.set(xlabel="robots", ylabel=ylabel, ylim=(0, 1.05))
         finish(ax)

@@ -22,12 +22,13 @@ from ant_evolution.experiments import figures, sections
 from ant_evolution.experiments.core import (
     Context,
     EveryRunGroup,
+    GridRow,
     compare_robots,
     finished_runs,
     four_robot_genome,
     load_controller,
     training_fitness,
-    write_csv,
+    write_grid_csv,
 )
 from excavation_common.progress import tqdm
 from excavation_sim.world import PlacementError
@@ -56,16 +57,14 @@ def cell_stats(scores: Callable[[], np.ndarray]) -> tuple[float, float]:
 def robot_grid(
     score_cell: Callable[[object, int], np.ndarray],
     keys: Sequence,
-    key_label: str,
     robots: Sequence[int],
     progress: Progress = _no_progress,
-) -> list[dict]:
+) -> list[GridRow]:
     """One row per (key, robot count): mean and std of ``score_cell(key, robots)``.
 
     Args:
         score_cell: Per-scenario fitness of one cell.
         keys: The keys, in order (rows come key by key).
-        key_label: The key's column name.
         robots: The robot counts.
         progress: Called after each cell.
     """
@@ -73,7 +72,7 @@ def robot_grid(
     for key in keys:
         for n in robots:
             mean, std = cell_stats(lambda: score_cell(key, n))  # noqa: B023 (called at once)
-            rows.append({key_label: key, "robots": n, "mean": mean, "std": std})
+            rows.append(GridRow(key, n, mean, std))
             progress()
     return rows
 
@@ -102,16 +101,14 @@ def load_runs(groups: RunGroups) -> LoadedGroups:
 def every_run_grid(
     groups: LoadedGroups,
     score_cell: Callable[[object, object, int], np.ndarray],
-    key_label: str,
     robots: Sequence[int],
     progress: Progress = _no_progress,
-) -> list[dict]:
+) -> list[GridRow]:
     """The grid for every run's controller, group by group (``NAME_runs.csv``'s rows).
 
     Args:
         groups: :func:`load_runs`'s answer.
         score_cell: ``score_cell(controller, key, robots)``: per-scenario fitness of a cell.
-        key_label: The key's column name (``pit``, ``depth``, ``setting``).
         robots: The robot counts.
         progress: Called after each cell.
     """
@@ -120,8 +117,7 @@ def every_run_grid(
         for k, ctl, fit in runs:
             for n in robots:
                 mean, std = cell_stats(lambda: score_cell(ctl, key, n))  # noqa: B023
-                rows.append({"run": k, "training_fitness": fit, key_label: key, "robots": n,
-                             "mean": mean, "std": std})  # fmt: skip
+                rows.append(GridRow(key, n, mean, std, run=k, training_fitness=fit))
                 progress()
     return rows
 
@@ -132,18 +128,17 @@ def every_run_wanted(groups: Sequence[tuple[object, Sequence]]) -> bool:
 
 
 def every_run_summary(
-    rows: list[dict], groups: Sequence[tuple[object, Sequence]], key_label: str, robots
+    rows: Sequence[GridRow], groups: Sequence[tuple[object, Sequence]], robots
 ) -> list[EveryRunGroup]:
     """:func:`every_run_grid`'s rows per group (groups without a run are left out).
 
     Args:
         rows: :func:`every_run_grid`'s rows.
         groups: ``[(key, [(run, ...), ...]), ...]``: which runs each key has.
-        key_label: The key's column name.
         robots: The robot counts.
     """
     robots = list(robots)
-    grid = {(r["run"], r[key_label], r["robots"]): r["mean"] for r in rows}
+    grid = {(r.run, r.key, r.robots): r.mean for r in rows}
     out = []
     for key, runs in groups:
         if not runs:
@@ -206,10 +201,10 @@ def every_run(
     loaded = load_runs(groups)
     total = sum(len(runs) for _, runs in groups) * len(s.eval_robots)
     with tqdm(total=total, desc=f"{name}, every run", unit="setting") as bar:
-        rows = every_run_grid(loaded, score_cell, key_label, s.eval_robots, bar.update)
+        rows = every_run_grid(loaded, score_cell, s.eval_robots, bar.update)
     stem = name.replace("-", "_")
-    write_csv(ctx.dir(name) / f"{stem}_runs.csv", rows)
-    summary = every_run_summary(rows, groups, key_label, s.eval_robots)
+    write_grid_csv(ctx.dir(name) / f"{stem}_runs.csv", rows, key_label)
+    summary = every_run_summary(rows, groups, s.eval_robots)
     title = f"best genome of every finished run of {what} ({s.name} scale)"
     figures.every_run_figure(ctx.dir(name) / f"{stem}_runs.png", summary, key_label,
                              s.eval_robots, ylabel, title)  # fmt: skip
@@ -219,7 +214,7 @@ def every_run(
 def write_grid(
     ctx: Context,
     name: str,
-    rows: list[dict],
+    rows: list[GridRow],
     keys: Sequence,
     key_label: str,
     score_cell: Callable[[object, object, int], np.ndarray],
@@ -234,7 +229,7 @@ def write_grid(
     ``section.md``: ``title``, the paragraph ``what_ran``, the table of peaks, the figure.
     """
     out = ctx.dir(name)
-    write_csv(out / f"{name}.csv", rows)
+    write_grid_csv(out / f"{name}.csv", rows, key_label)
     figures.robot_grid_figure(out / f"{name}.png", rows, keys, key_label, ylabel)
     every = every_run(ctx, name, four_robot_runs(ctx, keys), key_label, score_cell, ylabel,
                       "the 4-robot ANT runs")  # fmt: skip

@@ -110,8 +110,7 @@ def compute(controller, ctx: Context, sweep: Sweep, progress: Progress) -> list[
         progress: Called after each cell.
     """
     return robot_grid(lambda key, n: score_cell(controller, ctx, sweep, key, n),
-                      sweep.keys(ctx.scale), sweep.key_label, ctx.scale.eval_robots,
-                      progress)  # fmt: skip
+                      sweep.keys(ctx.scale), ctx.scale.eval_robots, progress)  # fmt: skip
 
 
 def run(ctx: Context, name: str) -> None:

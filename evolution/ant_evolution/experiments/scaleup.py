@@ -14,6 +14,7 @@ from ant_controller.controller import Controller
 from ant_evolution.experiments.core import (
     METHOD_LABELS,
     Context,
+    GridRow,
     best_of_runs,
     finished_runs,
     load_controller,
@@ -21,7 +22,7 @@ from ant_evolution.experiments.core import (
     setting_label,
     train_all,
     training_jobs,
-    write_csv,
+    write_grid_csv,
 )
 from ant_evolution.experiments.figures import figure, finish
 from ant_evolution.experiments.grids import Progress, every_run, robot_grid
@@ -39,7 +40,9 @@ NAME = "scaleup"
 HAND_CODED = "hand-coded"
 
 
-def compute(ctx: Context, controllers: list[tuple[str, object]], progress: Progress) -> list[dict]:
+def compute(
+    ctx: Context, controllers: list[tuple[str, object]], progress: Progress
+) -> list[GridRow]:
     """Each controller on the scale's robot counts, 8 x 8 pit, scenarios split over depths.
 
     Args:
@@ -48,9 +51,9 @@ def compute(ctx: Context, controllers: list[tuple[str, object]], progress: Progr
         progress: Called after each (controller, robot count).
     """
     by_label = dict(controllers)
-    return robot_grid(lambda label, n: score_depths(by_label[label], ctx, n),
-                      [label for label, _ in controllers], "controller", ctx.scale.eval_robots,
-                      progress)  # fmt: skip
+    labels = [label for label, _ in controllers]
+    return robot_grid(lambda label, n: score_depths(by_label[label], ctx, n), labels,
+                      ctx.scale.eval_robots, progress)  # fmt: skip
 
 
 def run(ctx: Context) -> None:
@@ -65,14 +68,14 @@ def run(ctx: Context) -> None:
     with tqdm(total=len(controllers) * len(s.eval_robots), desc=NAME, unit="setting") as bar:
         rows = compute(ctx, controllers, bar.update)
     out = ctx.dir(NAME)
-    write_csv(out / "scaleup.csv", rows)
+    write_grid_csv(out / "scaleup.csv", rows, "controller")
     labels = [label for label, _ in controllers]
-    by = {(r["controller"], r["robots"]): r for r in rows}
+    by = {(r.key, r.robots): r for r in rows}
     with figure(out / "scaleup.png", 1, 2, figsize=(11, 4), dpi=100, sharey=True) as (_, axes):
         for ax, prefix in zip(axes, ("ANT", "fixed network"), strict=True):
             for lab in labels:
                 if lab.startswith(prefix) or lab == HAND_CODED:
-                    ys = [by[(lab, n)]["mean"] for n in s.eval_robots]
+                    ys = [by[(lab, n)].mean for n in s.eval_robots]
                     ax.plot(s.eval_robots, ys, marker="o", ms=3,
                             label=lab.replace(prefix + " ", ""),
                             ls="--" if lab == HAND_CODED else "-")  # fmt: skip
@@ -80,7 +83,7 @@ def run(ctx: Context) -> None:
             finish(ax, legend=7)
         axes[0].set_ylabel(f"fitness after {s.steps} steps (8 x 8 pit)")
     head = ["controller", *(str(n) for n in s.eval_robots)]
-    body = [[lab, *(fmt(by[(lab, n)]["mean"]) for n in s.eval_robots)] for lab in labels]
+    body = [[lab, *(fmt(by[(lab, n)].mean) for n in s.eval_robots)] for lab in labels]
     every = every_run(
         ctx, NAME, [(label, finished_runs(ctx, m, r)) for label, m, r in plan], "setting",
         lambda c, _label, n: score_depths(c, ctx, n), f"fitness after {s.steps} steps (8 x 8)",

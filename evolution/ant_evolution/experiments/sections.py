@@ -15,6 +15,7 @@ from ant_evolution.experiments.core import (
     METHOD_LABELS,
     Context,
     EveryRunGroup,
+    GridRow,
     setting_label,
 )
 
@@ -103,16 +104,16 @@ def scale_note(ctx: Context, runs: dict | None = None) -> str:
     return note
 
 
-def peak_table(rows: list[dict], keys, key_label: str, robots) -> str:
+def peak_table(rows: Sequence[GridRow], keys, key_label: str, robots) -> str:
     """Mean fitness per key (row) and robot count (column), and the robot count of the peak."""
     body = []
     for key in keys:
-        sel = {r["robots"]: r["mean"] for r in rows if r[key_label] == key}
+        sel = {r.robots: r.mean for r in rows if r.key == key}
         peak = list(robots)[peak_index([sel[n] for n in robots])]
         body.append([str(key), *(fmt(sel[n]) for n in robots), f"{peak} robots"])
     head = [key_label, *(str(n) for n in robots), "peak at"]
     text = table(head, "l" + "r" * (len(robots) + 1), body)
-    if any(r["mean"] != r["mean"] for r in rows):
+    if any(r.mean != r.mean for r in rows):
         text += "\n\n" + UNPLACED_NOTE
     return text
 

@@ -23,7 +23,7 @@ reading received since the last tick decided, and with the latest one.
 
 Disabled robots are absent (docs/operator.md): their poses are neither needed
 nor fresh-checked, and :meth:`InputGate.active` leaves them out of the sensor vector (the
-core's ``active`` mask), so one robot the localiser loses no longer freezes the team. A
+core's ``active`` mask), so one robot the localiser loses does not freeze the team. A
 robot never heard of on ``enabled`` counts as enabled (a team without a supervisor).
 """
 

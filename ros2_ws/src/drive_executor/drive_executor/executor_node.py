@@ -332,12 +332,11 @@ class ExecutorNode(LifecycleNode):
     def run_cancels(self) -> None:
         """Stop the goals whose cancel was accepted (their state is now CANCELING)."""
         cancels, self.cancels = self.cancels, []
-        for handle in cancels:
-            for goal, h in list(self.handles.values()):
-                if h is handle and self.core.goal is goal:
-                    self.core.abort("canceled by the client")
-                elif h is handle:  # not the core's any more: ends as canceled
-                    self.end_goal(goal, CANCELED, True, "canceled by the client")
+        # only the core's running goal has a handle (end_goal drops a goal's once it ends)
+        goal = self.core.goal
+        entry = self.handles.get(id(goal)) if goal is not None else None
+        if entry is not None and any(handle is entry[1] for handle in cancels):
+            self.core.abort("canceled by the client")
         self.publish_events()
 
     def publish_feedback(self) -> None:

@@ -17,6 +17,7 @@ from excavation_interfaces.msg import DriveGoal as DriveGoalMsg
 from excavation_interfaces.msg import DriveStatus
 
 from drive_executor.errors import GoalError
+from excavation_common.messages import DRIVE_ENDED
 
 RIGHT, LEFT = DriveGoalMsg.TURN_RIGHT, DriveGoalMsg.TURN_LEFT
 TURNS = (DriveGoalMsg.TURN_DRAW, RIGHT, LEFT)
@@ -25,7 +26,7 @@ EXECUTING = DriveStatus.STATUS_EXECUTING
 SUCCEEDED = DriveStatus.STATUS_SUCCEEDED
 ABORTED = DriveStatus.STATUS_ABORTED
 CANCELED = DriveStatus.STATUS_CANCELED
-TERMINAL = (SUCCEEDED, ABORTED, CANCELED)
+TERMINAL = DRIVE_ENDED
 
 
 @dataclass(frozen=True)

@@ -63,7 +63,7 @@ from pathlib import Path
 
 from excavation_bringup import site as sitefile
 from excavation_bringup.deployment import Deployment
-from excavation_bringup.graph import Graph, continuous
+from excavation_bringup.graph import Graph, GraphError, continuous
 from excavation_bringup.launch import ProcessLauncher
 from excavation_bringup.nodes import RunFiles
 
@@ -77,16 +77,51 @@ def dome_graph(
     ticks: int | None = None,
     view_port: int = 8765,
     domain: int | None = None,
+    check: bool = True,
 ) -> Graph:
     """Every process of the dome, in start order (stopped in reverse).
 
     ``hardware``: ``dome`` (``up``), ``sim`` (``up --sim``) or ``emulated`` (``rehearse``).
     Writes the files the nodes read into ``run_dir`` (the site's LED table, and with a
     ``simulated`` calibration the synthetic camera's model).
+
+    Raises:
+        excavation_bringup.graph.GraphError: ``check`` and a node would refuse its
+            parameters (the site's ``overrides:``); without ``check`` the graph is returned
+            and :meth:`~excavation_bringup.graph.Graph.problems` lists them.
     """
     dep = Deployment.from_site(site, hardware, ticks, record, domain)
     dep.check()
-    return continuous(dep, run_dir, view, view_port)
+    graph = continuous(dep, run_dir, view, view_port)
+    return graph.check() if check else graph
+
+
+def site_problems(path: str | Path, hardware: str = "dome") -> list[str]:
+    """Every problem of site file ``path`` for ``hardware``, one line each (empty: usable).
+
+    The site's own checks (:func:`excavation_bringup.site.check_site`), then, on the graph it
+    would start, the nodes' parameters with the site's ``overrides:`` applied
+    (:meth:`~excavation_bringup.graph.Graph.problems`) and the remappings
+    (:func:`start_problems`).
+    """
+    import tempfile
+
+    site, errors = sitefile.check_site(path, sim=hardware == "sim", emulated=hardware == "emulated")
+    if errors:
+        return [str(e) for e in errors]
+    from excavation_common.params import ParameterError
+
+    with tempfile.TemporaryDirectory(prefix="ant-dome-check-") as tmp:
+        try:
+            graph = dome_graph(site, Path(tmp), hardware, check=False)
+        except ParameterError as exc:  # what the site sets breaks a rule of a node's own
+            what = (
+                exc.reason
+                if exc.field == "parameters"
+                else f"{exc.field} = {exc.value!r}: {exc.reason}"
+            )
+            return [f"{path}: node {exc.path} would refuse its parameters: {what}"]
+    return [str(e) for e in graph.problems()] + start_problems(graph, str(path))
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
@@ -95,12 +130,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
     hardware = "sim" if args.sim else "emulated" if args.rehearse else "dome"
     site, errors = sitefile.check_site(args.site, sim=args.sim, emulated=args.rehearse)
+    try:
+        if not errors:
+            with tempfile.TemporaryDirectory(prefix="ant-dome-plan-") as tmp:
+                graph = dome_graph(site, Path(tmp), hardware)
+    except GraphError as exc:
+        errors = exc.problems
     if errors:
         for e in errors:
             print(f"ant-dome: error: {e}", file=sys.stderr)
         return 2
-    with tempfile.TemporaryDirectory(prefix="ant-dome-plan-") as tmp:
-        graph = dome_graph(site, Path(tmp), hardware)
     env = sitefile.environment(site)
     addresses = {h.name: h.address for h in site.hosts}
     shares = {host: [n.name for n in graph.share(host)] for host in graph.hosts}
@@ -120,25 +159,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 
 def start_problems(graph: Graph, where: str) -> list[str]:
-    """What the nodes of ``graph`` would refuse at start, one line each.
+    """The remappings of ``graph`` a node would refuse at start, one line each.
 
-    Every node's parameters go through its parameter classes' own checks (as the node
-    runs them when it starts: types, ranges, choices, topic names, frame ids, rules across
-    fields) and every remapping's target must be a topic name; ``where`` (the site file)
-    begins each line.
+    Every remapping's target must be a topic name; ``where`` (the site file) begins each
+    line. (Every node's parameters went through its parameter classes' own checks when the
+    graph was built: :class:`~excavation_bringup.node_params.NodeParams`.)
     """
-    from excavation_bringup.kinds import kind
-    from excavation_common.params import ParameterError, specs, validate
     from excavation_common.topics import topic_name_problem
 
     out = []
     for spec in graph.nodes:
-        for cls in kind(spec.kind).param_classes():
-            own = {n: v for n, v in spec.params.items() if n in specs(cls)}
-            try:
-                validate(cls, own, spec.name)
-            except ParameterError as exc:
-                out.append(f"{where}: node {spec.name} would refuse to start: {exc}")
         for remap in spec.remaps:
             source, _, target = remap.partition(":=")
             problem = topic_name_problem(target)
@@ -152,20 +182,17 @@ def start_problems(graph: Graph, where: str) -> list[str]:
 def cmd_check(args: argparse.Namespace) -> int:
     """``ant-dome check``: the site's checks, then the nodes' start-up checks.
 
-    The start-up checks run on the graph the site would start in the mode asked for.
+    The start-up checks run on the graph the site would start in the mode asked for
+    (:func:`site_problems`).
     """
-    import tempfile
-
-    site, errors = sitefile.check_site(args.site, sim=args.sim, emulated=args.rehearse)
-    if not errors:
-        hardware = "sim" if args.sim else "emulated" if args.rehearse else "dome"
-        with tempfile.TemporaryDirectory(prefix="ant-dome-check-") as tmp:
-            errors = start_problems(dome_graph(site, Path(tmp), hardware), str(args.site))
+    hardware = "sim" if args.sim else "emulated" if args.rehearse else "dome"
+    errors = site_problems(args.site, hardware)
     for e in errors:
-        print(str(e))
+        print(e)
     if errors:
         print(f"ant-dome: {len(errors)} problem(s) in {args.site}", file=sys.stderr)
         return 1
+    site = sitefile.load_site(args.site, sim=args.sim, emulated=args.rehearse)
     hardware = "simulated" if args.sim else "emulated" if args.rehearse else "dome"
     print(
         f"ant-dome: {args.site} is consistent ({site.n_robots} robots, domain "
@@ -237,13 +264,12 @@ def bring_up(args: argparse.Namespace, hardware: str) -> int:
     A rehearsal of a site with robots on their own hosts (and no ``--host``) runs each host
     in a network namespace of its own (:mod:`excavation_bringup.host_rehearsal`).
     """
-    site, errors = sitefile.check_site(
-        args.site, sim=hardware == "sim", emulated=hardware == "emulated"
-    )
+    errors = site_problems(args.site, hardware)
     if errors:
         for e in errors:
             print(f"ant-dome: error: {e}", file=sys.stderr)
         return 2
+    site = sitefile.load_site(args.site, sim=hardware == "sim", emulated=hardware == "emulated")
     run_dir = Path(args.run_dir or Path("dome_runs") / time.strftime("%Y%m%d-%H%M%S")).resolve()
     several = hardware == "emulated" and len(site.hosts) > 1 and not args.host
     if several and not args.netns:

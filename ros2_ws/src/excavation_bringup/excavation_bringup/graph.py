@@ -34,7 +34,21 @@ from excavation_bringup import nodes
 from excavation_bringup import site as sitefile
 from excavation_bringup.deployment import Deployment
 from excavation_bringup.profiles import PROFILES, TimingProfile
+from excavation_common.errors import FieldError
 from excavation_common.files import write_text_atomic
+
+
+class GraphError(ValueError):
+    """A graph whose nodes would refuse their parameters: every problem, one per line.
+
+    Attributes:
+        problems: One :class:`~excavation_common.errors.FieldError` each (a site's refused
+            ``overrides:`` name the file and ``overrides.KIND.NAME``).
+    """
+
+    def __init__(self, problems: list[FieldError]) -> None:
+        self.problems = list(problems)
+        super().__init__("\n".join(map(str, self.problems)))
 
 
 @dataclass
@@ -79,6 +93,40 @@ class Graph:
         """The site's hosts, the dome PC first (``["dome"]`` without a site)."""
         site = self.deployment.site
         return [h.name for h in site.hosts] if site is not None else [sitefile.DOME_PC.name]
+
+    def problems(self) -> list[FieldError]:
+        """What its nodes would refuse, one error each.
+
+        The site's refused overrides (one refused on each robot's node is listed once) and a
+        second ``/worksite/map_info`` publisher (only the blueprint server publishes it).
+        """
+        out: list[FieldError] = []
+        for spec in self.nodes:
+            out += [e for e in spec.params.problems if str(e) not in map(str, out)]
+            publishes = "publish_map_info" in spec.params and spec.params["publish_map_info"]
+            if spec.kind != sitefile.MAP_INFO_OWNER and publishes:
+                site = self.deployment.site
+                out.append(
+                    sitefile.SiteError(
+                        site.path if site is not None else "",
+                        f"overrides.{spec.kind}.publish_map_info",
+                        True,
+                        "more than one map_info publisher: the blueprint server publishes "
+                        "/worksite/map_info",
+                    )
+                )
+        return out
+
+    def check(self) -> Graph:
+        """This graph, if no node would refuse its parameters.
+
+        Raises:
+            GraphError: Every problem of :meth:`problems`.
+        """
+        problems = self.problems()
+        if problems:
+            raise GraphError(problems)
+        return self
 
     def share(self, host: str) -> list[nodes.NodeSpec]:
         """The nodes ``host`` runs, in start order (the dome PC: every node of no host).
@@ -204,8 +252,9 @@ def build(dep: Deployment, run_dir: str | Path, view: bool = False, view_port: i
 
     Raises:
         excavation_bringup.deployment.DeploymentError: ``dep`` cannot run.
+        GraphError: A node would refuse its parameters (a site's overrides).
     """
     dep.check()
     if dep.drive == "grid":
-        return lockstep(dep, run_dir)
-    return continuous(dep, run_dir, view, view_port)
+        return lockstep(dep, run_dir).check()
+    return continuous(dep, run_dir, view, view_port).check()

@@ -81,7 +81,9 @@ def compose(graph: Graph, context, source: str = "") -> dict[str, Any]:
             cls = node_kind(spec.kind).load_class()
             kwargs: dict[str, Any] = {
                 "context": context,
-                "parameter_overrides": [Parameter(k, value=v) for k, v in spec.params.items()],
+                "parameter_overrides": [
+                    Parameter(k, value=v) for k, v in spec.ros_params().items()
+                ],
             }
             if spec.namespace:
                 kwargs["namespace"] = spec.namespace
@@ -206,14 +208,18 @@ class ProcessLauncher:
 
     def write_params(self, name: str) -> None:
         """Write node ``name``'s parameter file from its spec."""
-        params = self.specs[name].params
+        params = self.specs[name].ros_params()
         doc = {"/**": {"ros__parameters": params}} if params else {}
         write_text_atomic(self.params_file(name), yaml.safe_dump(doc, sort_keys=False))
 
     def set_params(self, name: str, **values) -> None:
-        """Change node ``name``'s parameters before it (re)starts."""
+        """Change node ``name``'s parameters before it (re)starts (each value checked).
+
+        Raises:
+            excavation_common.params.ParameterError: A value the node would refuse.
+        """
         spec = self.specs[name]
-        self.specs[name] = replace(spec, params={**spec.params, **values})
+        self.specs[name] = replace(spec, params=spec.params.updated(name, **values))
         self.write_params(name)
 
     def command(self, name: str) -> list[str]:

@@ -26,6 +26,7 @@ from typing import Any
 from excavation_bringup import site as sitefile
 from excavation_bringup.deployment import Deployment
 from excavation_bringup.kinds import kind as node_kind
+from excavation_bringup.node_params import NodeParams
 from excavation_bringup.profiles import TimingProfile
 from excavation_common.topics import DOME_BLADE_OUT, tick_remaps
 
@@ -64,10 +65,6 @@ DOME_BLADE_IN = "blade/joint_states"
 # republishes per tick, the controller's (remapped): the serial driver's own joint state is
 # stamped on the wall clock, never with a tick.
 
-SIM_CLOCK = {"use_sim_time": True}
-"""With the continuous-motion simulator every node but ``dynamics`` (the clock), the
-recorder and the view runs on the simulator's ``/clock``."""
-
 SIM_EXECUTOR: dict[str, Any] = {
     "cmd_vel_stamp": "pose",
     "future_tolerance": 10.0,
@@ -104,7 +101,8 @@ class NodeSpec:
     Attributes:
         name: Unique label (log file, state, reports), e.g. ``controller_1``.
         kind: Its node kind (:data:`excavation_bringup.kinds.KINDS`).
-        params: ROS parameters (a process gets them as ``RUN/params/NAME.yaml``).
+        params: Its parameters, typed (:class:`~excavation_bringup.node_params.NodeParams`;
+            a process gets them as ``RUN/params/NAME.yaml``, :meth:`ros_params`).
         diagnostics: ``/diagnostics`` status names (or prefixes ending in ``*``) that show
             the node is up.
         args: Command-line arguments before ``--ros-args``.
@@ -115,11 +113,14 @@ class NodeSpec:
         module: ``python -m`` module, when not the kind's (the recorder runs through
             ``ant-bag record``).
         host: The site's host that runs it (``ant-dome up --host``); empty: the dome PC.
+        sim_time: It runs on the simulator's ``/clock`` (``use_sim_time``): with the
+            continuous-motion simulator, every node but ``dynamics`` (the clock), the
+            recorder and the view.
     """
 
     name: str
     kind: str
-    params: dict[str, Any]
+    params: NodeParams
     diagnostics: tuple[str, ...]
     args: tuple[str, ...] = ()
     namespace: str = ""
@@ -128,6 +129,11 @@ class NodeSpec:
     remaps: tuple[str, ...] = ()
     module: str = ""
     host: str = ""
+    sim_time: bool = False
+
+    def ros_params(self) -> dict[str, Any]:
+        """What its parameter file holds: the given parameters, and ``use_sim_time``."""
+        return self.params.ros() | ({"use_sim_time": True} if self.sim_time else {})
 
     def command(self, params_file: str | Path) -> list[str]:
         """The command line that starts it (this interpreter, as ``ros2 run`` would)."""
@@ -242,14 +248,29 @@ def _continuous_sim(dep: Deployment) -> bool:
     return dep.drive == "continuous" and dep.sim
 
 
-def _finish(dep: Deployment, node: str, params: dict[str, Any], clock: bool = True) -> dict:
-    """``params`` with the site's ``overrides:`` for ``node`` and the simulator's clock."""
-    out = dict(params)
-    if dep.site is not None:
-        out.update(dep.site.overrides.get(node, {}))
-    if clock and _continuous_sim(dep):
-        out.update(SIM_CLOCK)
-    return out
+def _params(
+    dep: Deployment,
+    kind: str,
+    name: str,
+    derived: dict[str, Any],
+    tuned: dict[str, Any] | None = None,
+    robot: int | None = None,
+) -> NodeParams:
+    """Node ``name``'s parameters: ``derived`` and ``tuned`` with the site's ``overrides:``.
+
+    ``derived`` is what the run fixes (from the site or the options: no override may change
+    it), with what the site's node-parameter fields set (robot ``robot``'s, for a per-robot
+    node: :func:`excavation_bringup.site.node_values`); ``tuned`` the mode's or profile's
+    choices (a site may override them);
+    :class:`~excavation_bringup.node_params.NodeParams` checks every value.
+    """
+    site = dep.site
+    if site is None:
+        return NodeParams.build(kind, name, derived, tuned)
+    fields = sitefile.node_values(site, kind, robot)
+    tuned = {n: v for n, v in (tuned or {}).items() if n not in fields}
+    overrides = site.overrides.get(kind, {})
+    return NodeParams.build(kind, name, derived | fields, tuned, overrides, site.path)
 
 
 def _sim_deadman(dep: Deployment, profile: TimingProfile) -> dict[str, Any]:
@@ -289,13 +310,12 @@ def recorder(dep: Deployment, geometry: Geometry) -> NodeSpec:
     From a site it records the site's topics too (:func:`site_topics`). Not restartable: a
     second recorder cannot reopen the bag.
     """
-    params: dict[str, Any] = {"out": str(dep.record), "height_unit": geometry.height_unit}
-    if dep.site is not None:
-        params["topics"] = site_topics(dep.site)
+    derived: dict[str, Any] = {"out": str(dep.record), "height_unit": geometry.height_unit}
+    tuned = {"topics": site_topics(dep.site)} if dep.site is not None else {}
     return NodeSpec(
         "recorder",
         "recorder",
-        _finish(dep, "recorder", params, clock=False),
+        _params(dep, "recorder", "recorder", derived, tuned),
         ("/bag_recorder",),
         args=("record", "--out", str(dep.record)),
         restart=False,
@@ -313,14 +333,16 @@ def supervisor(dep: Deployment) -> NodeSpec:
     simulator publishes a tick's poses together, and a busy supervisor could only misjudge
     a robot from their order).
     """
-    params: dict[str, Any] = {"robots": dep.robots}
+    derived: dict[str, Any] = {"robots": dep.robots, "arm_at_start": dep.sim}
+    tuned: dict[str, Any] = {}
     if dep.sim:
-        params |= {"lost_timeout": LOST_TIMEOUT, "lost_grace": LOST_GRACE}
-    params["arm_at_start"] = dep.sim
+        tuned |= {"lost_timeout": LOST_TIMEOUT, "lost_grace": LOST_GRACE}
     if dep.drive == "grid":
-        params["watch_poses"] = dep.full
-    params = _finish(dep, "supervisor", params)
-    return NodeSpec("supervisor", "supervisor", params, ("/supervisor",))
+        tuned["watch_poses"] = dep.full
+    params = _params(dep, "supervisor", "supervisor", derived, tuned)
+    return NodeSpec(
+        "supervisor", "supervisor", params, ("/supervisor",), sim_time=_continuous_sim(dep)
+    )
 
 
 def server(dep: Deployment) -> NodeSpec:
@@ -328,8 +350,9 @@ def server(dep: Deployment) -> NodeSpec:
     return NodeSpec(
         "server",
         "server",
-        _finish(dep, "server", {"blueprint": dep.blueprint}),
+        _params(dep, "server", "server", {"blueprint": dep.blueprint}),
         ("/blueprint_server", "blueprint_server: *"),
+        sim_time=_continuous_sim(dep),
     )
 
 
@@ -355,7 +378,9 @@ def sim(dep: Deployment, files: RunFiles, processes: bool) -> NodeSpec:
         params |= {"result_file": str(files.result), "wait_for_recorder": bool(dep.record)}
     if dep.full:
         params["truth_prefix"] = TRUTH_PREFIX
-    return NodeSpec("sim", "sim", params, ("/sim",), restart=False, final=True)
+    return NodeSpec(
+        "sim", "sim", _params(dep, "sim", "sim", params), ("/sim",), restart=False, final=True
+    )
 
 
 def dynamics(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeSpec:
@@ -366,10 +391,19 @@ def dynamics(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeSp
     camera and laser render). It writes ``world.json`` at every snapshot. Not restartable:
     a new one would start the world over.
     """
+    derived, tuned = _dynamics_values(dep, profile, files)
+    params = _params(dep, "dynamics", "dynamics", derived, tuned)
+    return NodeSpec("dynamics", "dynamics", params, ("/dynamics",), restart=False)
+
+
+def _dynamics_values(
+    dep: Deployment, profile: TimingProfile, files: RunFiles
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``dynamics``' derived and tuned values (its physics and timing are tuned)."""
     from excavation_sim.dynamics import DynamicsParams
 
     physics = DynamicsParams.exact() if dep.exact else DynamicsParams()
-    params: dict[str, Any] = {
+    derived: dict[str, Any] = {
         "blueprint": dep.blueprint,
         "robots": dep.robots,
         "seed": dep.seed,
@@ -377,20 +411,18 @@ def dynamics(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeSp
         "noise_seed": dep.seed,
         "pose_prefix": TRUTH_PREFIX if dep.full else "",
         "snapshot_prefix": SNAPSHOT_PREFIX if dep.full else "",
-        "idle_time_factor": profile.idle_time_factor,
         "soil": dep.soil,
         # the synthetic laser of full perception sees the physical soil's fine field
         "fine_height_map": dep.full and dep.soil != "grid" and dep.sim,
-    } | vars(physics)
+        "time_factor": float(dep.time_factor),
+        "result_file": str(files.world),
+    }
+    tuned: dict[str, Any] = {"idle_time_factor": profile.idle_time_factor} | vars(physics)
     if profile.dynamics_command_timeout is not None:
-        params["command_timeout"] = min(
-            float(dep.command_timeout), profile.dynamics_command_timeout
-        )
+        tuned["command_timeout"] = min(float(dep.command_timeout), profile.dynamics_command_timeout)
     if profile.max_time_factor is not None:
-        params["max_time_factor"] = profile.max_time_factor
-    params["time_factor"] = float(dep.time_factor)
-    params["result_file"] = str(files.world)
-    return NodeSpec("dynamics", "dynamics", params, ("/dynamics",), restart=False)
+        tuned["max_time_factor"] = profile.max_time_factor
+    return derived, tuned
 
 
 def sensors(dep: Deployment, geometry: Geometry) -> NodeSpec:
@@ -399,7 +431,7 @@ def sensors(dep: Deployment, geometry: Geometry) -> NodeSpec:
     A lockstep trial renders ``/truth`` every tick, a continuous one the snapshot
     ``dynamics`` took for the team tick (``/snapshot``).
     """
-    params: dict[str, Any] = {
+    derived: dict[str, Any] = {
         "robots": dep.robots,
         "seed": dep.seed,
         "truth_prefix": SNAPSHOT_PREFIX if dep.drive == "continuous" else TRUTH_PREFIX,
@@ -407,11 +439,11 @@ def sensors(dep: Deployment, geometry: Geometry) -> NodeSpec:
         "cell_size": geometry.cell_size,
         "rows": geometry.rows,
         "cols": geometry.cols,
-        "reliable": True,
     }
     if dep.occlude:
-        params["occlude"] = dep.occlude
-    return NodeSpec("sensors", "sensors", _finish(dep, "sensors", params), ("/sensors",))
+        derived["occlude"] = dep.occlude
+    params = _params(dep, "sensors", "sensors", derived, {"reliable": True})
+    return NodeSpec("sensors", "sensors", params, ("/sensors",), sim_time=_continuous_sim(dep))
 
 
 def localizer(dep: Deployment, files: RunFiles, view: bool = False) -> NodeSpec:
@@ -420,21 +452,25 @@ def localizer(dep: Deployment, files: RunFiles, view: bool = False) -> NodeSpec:
     Simulated, the synthetic camera is reliable, renders one frame per tick and answers
     retakes (:data:`RETAKES`). With the live view it publishes annotated frames.
     """
-    params: dict[str, Any] = {"robots": dep.robots, "calibration": files.calibration}
+    derived: dict[str, Any] = {"robots": dep.robots, "calibration": files.calibration}
     site = dep.site
     if site is not None:
         c = site.camera
-        params |= {
+        derived |= {
             "beacons": str(files.beacons),
             "image_topic": c.image_topic,
             "compressed": c.compressed,
             "camera_info_topic": c.camera_info_topic,
         }
-    params |= {"reliable": dep.sim, "retakes": RETAKES if dep.sim else 0}
+    tuned: dict[str, Any] = {"reliable": dep.sim, "retakes": RETAKES if dep.sim else 0}
     if view:
-        params["annotated_period"] = 0.5
+        tuned["annotated_period"] = 0.5
     return NodeSpec(
-        "localizer", "localizer", _finish(dep, "localizer", params), ("/localizer", "localizer: *")
+        "localizer",
+        "localizer",
+        _params(dep, "localizer", "localizer", derived, tuned),
+        ("/localizer", "localizer: *"),
+        sim_time=_continuous_sim(dep),
     )
 
 
@@ -468,7 +504,7 @@ def mapper(dep: Deployment, profile: TimingProfile, geometry: Geometry) -> NodeS
         laser = {"sweep_scans": geometry.sweep_scans}
         prior = {"prior_known": True, "prior_height": 0.0}
         robot_height = geometry.laser.robot_height
-    params: dict[str, Any] = {
+    derived: dict[str, Any] = {
         "robots": dep.robots,
         "rows": geometry.rows,
         "cols": geometry.cols,
@@ -479,12 +515,20 @@ def mapper(dep: Deployment, profile: TimingProfile, geometry: Geometry) -> NodeS
         **laser,
         **prior,
         "robot_height": float(robot_height),
+    }
+    tuned = {
         "publish_map_info": False,
         "pose_wait": profile.pose_wait,
         "mount_wait": profile.mount_wait,
         "reliable": dep.sim,
     }
-    return NodeSpec("mapper", "mapper", _finish(dep, "mapper", params), ("/mapper", "mapper"))
+    return NodeSpec(
+        "mapper",
+        "mapper",
+        _params(dep, "mapper", "mapper", derived, tuned),
+        ("/mapper", "mapper"),
+        sim_time=_continuous_sim(dep),
+    )
 
 
 def controller_remaps(dep: Deployment, k: int) -> tuple[str, ...]:
@@ -512,23 +556,24 @@ def controller(dep: Deployment, k: int, geometry: Geometry) -> NodeSpec:
     a site robot without one (``imu: false``) takes R1 from the height map.
     """
     ns = robot_namespace(k)
-    params: dict[str, Any] = {
+    derived: dict[str, Any] = {
         "robot_id": k,
         "robots": dep.robots,
         "height_unit": geometry.height_unit,
-        "lockstep": True,
     }
     if dep.drive == "continuous":
         imu = dep.site is None or dep.site.robots[k].imu
-        params["tilt_source"] = "imu" if imu else "height_map"
+        derived["tilt_source"] = "imu" if imu else "height_map"
+    name = f"controller_{k}"
     return NodeSpec(
-        f"controller_{k}",
+        name,
         "controller",
-        _finish(dep, "controller", params),
+        _params(dep, "controller", name, derived, {"lockstep": True}, robot=k),
         (f"{ns}/controller",),
         args=controller_args(dep.robot_controller(k)),
         namespace=ns,
         remaps=controller_remaps(dep, k),
+        sim_time=_continuous_sim(dep),
     )
 
 
@@ -557,21 +602,24 @@ def blade_driver(dep: Deployment, k: int, profile: TimingProfile, files: RunFile
     ns = robot_namespace(k)
     robot = dep.site.robots[k] if dep.site is not None else None
     backend = "sim" if dep.sim or robot is None else robot.backend
-    params: dict[str, Any] = {"backend": backend}
+    derived: dict[str, Any] = {"backend": backend}
+    tuned: dict[str, Any] = {}
     if dep.drive == "continuous":
-        params["blade_after_motion"] = True
+        tuned["blade_after_motion"] = True
     if backend == "serial":
-        params["port"] = str(files.board_link(k)) if dep.emulated else robot.port
-    params |= _sim_deadman(dep, profile)
+        derived["port"] = str(files.board_link(k)) if dep.emulated else robot.port
+    tuned |= _sim_deadman(dep, profile)
     if robot_host(dep, k):
-        params["rearm_after_loss"] = True
+        derived["rearm_after_loss"] = True
+    name = f"blade_driver_{k}"
     return NodeSpec(
-        f"blade_driver_{k}",
+        name,
         "blade_driver",
-        _finish(dep, "blade_driver", params),
+        _params(dep, "blade_driver", name, derived, tuned, robot=k),
         (f"{ns}/blade_driver",),
         namespace=ns,
         host=robot_host(dep, k),
+        sim_time=_continuous_sim(dep),
     )
 
 
@@ -587,31 +635,35 @@ def executor(dep: Deployment, k: int, profile: TimingProfile, geometry: Geometry
     """
     ns = robot_namespace(k)
     pose = f"{TRUTH_PREFIX}/robot_{k}/pose" if dep.full and dep.sim else "pose"
-    params: dict[str, Any] = {
+    derived: dict[str, Any] = {
         "cell_size": geometry.cell_size,
         "pose_topic": pose,
         "seed": dep.seed * 1000 + k,
     }
-    params |= _sim_deadman(dep, profile)
+    tuned = _sim_deadman(dep, profile)
     remaps: tuple[str, ...] = ()
     if dep.sim:
-        params |= SIM_EXECUTOR
+        derived["cmd_vel_stamp"] = SIM_EXECUTOR["cmd_vel_stamp"]
+        tuned |= {n: v for n, v in SIM_EXECUTOR.items() if n != "cmd_vel_stamp"}
     else:
         robot = dep.site.robots[k]
-        params |= DOME_EXECUTOR | {"drive_type": robot.drive_type}
+        derived["drive_type"] = robot.drive_type
+        tuned |= DOME_EXECUTOR
         remaps = (f"{ns}/cmd_vel:={robot.drive_topic}",)
     if robot_host(dep, k):
-        params["rearm_after_loss"] = True
+        derived["rearm_after_loss"] = True
     if profile.pose_timeout is not None:
-        params["pose_timeout"] = profile.pose_timeout
+        tuned["pose_timeout"] = profile.pose_timeout
+    name = f"executor_{k}"
     return NodeSpec(
-        f"executor_{k}",
+        name,
         "executor",
-        _finish(dep, "executor", params),
+        _params(dep, "executor", name, derived, tuned, robot=k),
         (f"{ns}/executor",),
         namespace=ns,
         remaps=remaps,
         host=robot_host(dep, k),
+        sim_time=_continuous_sim(dep),
     )
 
 
@@ -624,7 +676,7 @@ def team_tick(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeS
     its snapshot requests (the camera and the laser run anyway). Not restartable: a new one
     would start the ticks over.
     """
-    params: dict[str, Any] = {
+    derived: dict[str, Any] = {
         "robots": dep.robots,
         "steps": dep.steps,
         "seed": dep.seed,
@@ -636,21 +688,23 @@ def team_tick(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeS
         "result_file": str(files.result),
     }
     if not dep.sim:
-        params |= {"blade_in": DOME_BLADE_IN, "blade_out": DOME_BLADE_OUT, "snapshot_ack": False}
+        derived |= {"blade_in": DOME_BLADE_IN, "blade_out": DOME_BLADE_OUT, "snapshot_ack": False}
+    tuned: dict[str, Any] = {}
     if profile.blade_wait is not None:
-        params["blade_wait"] = profile.blade_wait
+        tuned["blade_wait"] = profile.blade_wait
     if profile.snapshot_retry is not None:
-        params["snapshot_retry"] = profile.snapshot_retry
+        tuned["snapshot_retry"] = profile.snapshot_retry
     first = dep.first_command_timeout or profile.first_word_timeout
     if first is not None:
-        params["first_word_timeout"] = float(first)
+        derived["first_word_timeout"] = float(first)
     return NodeSpec(
         "team_tick",
         "team_tick",
-        _finish(dep, "team_tick", params),
+        _params(dep, "team_tick", "team_tick", derived, tuned),
         ("/team_tick",),
         restart=False,
         final=dep.steps > 0,
+        sim_time=_continuous_sim(dep),
     )
 
 
@@ -659,7 +713,7 @@ def view(dep: Deployment, port: int) -> NodeSpec:
     return NodeSpec(
         "view",
         "view",
-        {},
+        NodeParams(),
         ("/ant_view",),
         args=(
             "--site",
@@ -686,14 +740,14 @@ def world(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeSpec:
     republish, the plant states the boards measure, and its clock (every node of the dome
     runs on the wall clock).
     """
-    spec = dynamics(dep, profile, files)
-    params = spec.params | {
+    derived, tuned = _dynamics_values(dep, profile, files)
+    derived |= {
         "pose_prefix": TRUTH_PREFIX,
         "snapshot_prefix": TRUTH_PREFIX,
-        "snapshot_period": WORLD_SNAPSHOT_PERIOD,
         "time_factor": 1.0,
         "blade_after_motion": False,
     }
+    tuned["snapshot_period"] = WORLD_SNAPSHOT_PERIOD
     remaps = [f"/clock:={WORLD_PREFIX}/clock"]
     for k in range(dep.robots):
         ns = robot_namespace(k)
@@ -702,7 +756,7 @@ def world(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeSpec:
     return NodeSpec(
         "world",
         "dynamics",
-        _finish(dep, "dynamics", params),
+        _params(dep, "dynamics", "world", derived, tuned),
         ("/dynamics",),
         restart=False,
         remaps=tuple(remaps),
@@ -717,7 +771,7 @@ def emulated_base(dep: Deployment, k: int) -> NodeSpec:
     """
     ns = robot_namespace(k)
     robot = dep.site.robots[k]
-    params = {"drive_type": robot.drive_type, "publish_imu": bool(robot.imu)}
+    derived = {"drive_type": robot.drive_type, "publish_imu": bool(robot.imu)}
     remaps = (
         f"{ns}/cmd_vel:={robot.drive_topic_resolved}",
         f"{ns}/world/cmd_vel:={WORLD_PREFIX}{ns}/cmd_vel",
@@ -726,7 +780,7 @@ def emulated_base(dep: Deployment, k: int) -> NodeSpec:
     return NodeSpec(
         f"base_{k}",
         "emulated_base",
-        _finish(dep, "emulated_base", params),
+        _params(dep, "emulated_base", f"base_{k}", derived, robot=k),
         (f"{ns}/base",),
         namespace=ns,
         remaps=remaps,
@@ -737,7 +791,7 @@ def emulated_base(dep: Deployment, k: int) -> NodeSpec:
 def emulated_servo_board(dep: Deployment, k: int, files: RunFiles) -> NodeSpec:
     """Robot ``k``'s blade servo board on a pseudo-terminal, its port a link in the run dir."""
     ns = robot_namespace(k)
-    params = {"link": str(files.board_link(k)), "force_source": "world", "seed": dep.seed + k}
+    derived = {"link": str(files.board_link(k)), "force_source": "world", "seed": dep.seed + k}
     remaps = (
         f"{ns}/world/servo_command:={WORLD_PREFIX}{ns}/blade/servo_command",
         f"{ns}/world/plant_state:={WORLD_PREFIX}{ns}/blade/plant_state",
@@ -745,7 +799,7 @@ def emulated_servo_board(dep: Deployment, k: int, files: RunFiles) -> NodeSpec:
     return NodeSpec(
         f"servo_board_{k}",
         "emulated_servo_board",
-        _finish(dep, "emulated_servo_board", params),
+        _params(dep, "emulated_servo_board", f"servo_board_{k}", derived, robot=k),
         (f"{ns}/servo_board",),
         namespace=ns,
         remaps=remaps,
@@ -763,7 +817,7 @@ def emulated_camera(dep: Deployment, geometry: Geometry) -> NodeSpec:
     """The overhead camera driver on the site's topics and encoding, rendering ``/truth``."""
     c = dep.site.camera
     ns = EMULATED_CAMERA_NS
-    params: dict[str, Any] = {
+    derived: dict[str, Any] = {
         "robots": dep.robots,
         "truth_prefix": TRUTH_PREFIX,
         "rows": geometry.rows,
@@ -779,7 +833,7 @@ def emulated_camera(dep: Deployment, geometry: Geometry) -> NodeSpec:
     return NodeSpec(
         "camera",
         "emulated_camera",
-        _finish(dep, "emulated_camera", params),
+        _params(dep, "emulated_camera", "camera", derived),
         (f"{ns}/camera",),
         namespace=ns,
         remaps=tuple(remaps),
@@ -790,7 +844,7 @@ def emulated_laser(dep: Deployment, geometry: Geometry) -> NodeSpec:
     """The tilting laser and its mount where the site puts them, rendering ``/truth``."""
     las = dep.site.laser
     ns = EMULATED_LASER_NS
-    params: dict[str, Any] = {
+    derived: dict[str, Any] = {
         "robots": dep.robots,
         "truth_prefix": TRUTH_PREFIX,
         "rows": geometry.rows,
@@ -808,7 +862,7 @@ def emulated_laser(dep: Deployment, geometry: Geometry) -> NodeSpec:
     return NodeSpec(
         "laser",
         "emulated_laser",
-        _finish(dep, "emulated_laser", params),
+        _params(dep, "emulated_laser", "laser", derived),
         (f"{ns}/laser",),
         namespace=ns,
         remaps=remaps,

@@ -97,6 +97,25 @@ def safe_load_unique(text: str, path: str) -> Any:
 # --- the model --------------------------------------------------------------------------------
 
 
+def node_param(kind: str, name: str) -> Any:
+    """A site field that sets parameter ``name`` of node kind ``kind`` (default: unset).
+
+    Declared once: the reader reads and checks it as that parameter is declared (its type,
+    range and choices, :mod:`excavation_common.params`), the node spec functions give it to
+    the node as derived (:func:`node_values`, so an ``overrides:`` entry cannot contradict
+    it), and ``make params`` lists it in docs/dome.md. Unset (``None``), the node keeps the
+    graph's value. A field of :class:`Robot` goes to that robot's node.
+    """
+    return field(default=None, metadata={"node_param": (kind, name)})
+
+
+def node_fields(cls: type) -> list[tuple[str, str, str]]:
+    """``(field, kind, parameter)`` of each :func:`node_param` field of dataclass ``cls``."""
+    from dataclasses import fields
+
+    return [(f.name, *f.metadata["node_param"]) for f in fields(cls) if "node_param" in f.metadata]
+
+
 @dataclass(frozen=True)
 class Worksite:
     """The grid the robots dig: blueprint spec (or absolute file), its size and units."""
@@ -144,7 +163,8 @@ class Robot:
     """One robot: ``robot_k``, its LED pair, blade backend and port, drive topic, genome.
 
     ``drive_type``: the message its base takes on ``drive_topic`` (:data:`DRIVE_TYPES`);
-    ``imu``: it carries an IMU on ``/robot_k/imu`` (its controller's R1 source).
+    ``imu``: it carries an IMU on ``/robot_k/imu`` (its controller's R1 source). The fields
+    after ``host`` each set one parameter of the robot's own node (:func:`node_param`).
     """
 
     name: str
@@ -156,6 +176,8 @@ class Robot:
     drive_type: str = "twist_stamped"
     imu: bool = True
     host: str = ""
+    max_speed: float | None = node_param("executor", "max_speed")
+    max_turn_rate: float | None = node_param("executor", "max_turn_rate")
 
     @property
     def drive_topic_resolved(self) -> str:
@@ -373,6 +395,7 @@ def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
         return ()
     out = []
     keys = {"name", "leds", "blade", "drive_topic", "drive_type", "imu", "genome", "host"}
+    keys |= {name for name, _, _ in node_fields(Robot)}
     for k, entry in enumerate(entries):
         where = f"robots[{k}]"
         if not isinstance(entry, dict):
@@ -418,9 +441,49 @@ def _robots(r: _Reader, doc: dict) -> tuple[Robot, ...]:
                 r.text(entry, where, "drive_type", "twist_stamped", DRIVE_TYPES),
                 imu,
                 r.text(entry, where, "host", ""),
+                **_node_values(r, entry, where, Robot),
             )
         )
     return tuple(out)
+
+
+def _node_values(r: _Reader, entry: dict, where: str, cls: type) -> dict[str, Any]:
+    """The :func:`node_param` fields of ``cls`` given in ``entry``, each checked.
+
+    Each is checked as its node parameter is declared; a rule across the node's parameters
+    is judged on the graph.
+    """
+    from excavation_bringup.kinds import kind as node_kind
+    from excavation_common.params import ParameterError, specs, validate
+
+    out = {}
+    for name, kind, param in node_fields(cls):
+        if name not in entry:
+            continue
+        target = next(c for c in node_kind(kind).param_classes() if param in specs(c))
+        try:
+            value = getattr(validate(target, {param: entry[name]}, kind), param)
+        except ParameterError as exc:
+            if exc.field == param:
+                r.error(f"{where}.{name}", entry[name], exc.reason)
+                continue
+            value = entry[name]  # a rule across fields: the graph judges it
+        out[name] = value
+    return out
+
+
+def node_values(site: Site, kind: str, k: int | None = None) -> dict[str, Any]:
+    """What ``site``'s :func:`node_param` fields set of node kind ``kind``'s parameters.
+
+    Robot ``k``'s fields for a per-robot node (``k`` given); only the fields given.
+    """
+    out = {}
+    if k is not None:
+        robot = site.robots[k]
+        for name, node, param in node_fields(Robot):
+            if node == kind and getattr(robot, name) is not None:
+                out[param] = getattr(robot, name)
+    return out
 
 
 def _network(r: _Reader, doc: dict) -> Network:
@@ -515,51 +578,31 @@ def _sim(r: _Reader, doc: dict) -> SimSettings:
 
 
 def _overrides(r: _Reader, doc: dict) -> dict[str, dict[str, Any]]:
+    """``overrides:``: node kind -> {parameter: value}, of kinds and parameters that exist.
+
+    The values are judged when the graph is built, against the node's parameter dataclasses
+    and what the graph derives from the site (:class:`excavation_bringup.node_params.NodeParams`).
+    """
+    from excavation_bringup.kinds import KINDS
+
     raw = doc.get("overrides", {})
     if not isinstance(raw, dict):
         r.error("overrides", raw, "expected a mapping node -> {parameter: value}")
         return {}
     out = {}
     for node, values in raw.items():
-        if node not in OVERRIDABLE:
-            r.error(f"overrides.{node}", values, f"unknown node (known: {sorted(OVERRIDABLE)})")
+        if node not in KINDS:
+            r.error(f"overrides.{node}", values, f"unknown node kind (known: {sorted(KINDS)})")
             continue
         if not isinstance(values, dict):
             r.error(f"overrides.{node}", values, "expected a mapping parameter: value")
             continue
         known = node_parameter_names(node)
-        checked = {}
         for name, value in values.items():
             if name not in known:
                 r.error(f"overrides.{node}.{name}", value, f"{node} has no such parameter")
-                checked[name] = value
-                continue
-            checked[name] = _typed_override(r, node, name, value)
-        out[node] = checked
+        out[node] = dict(values)
     return out
-
-
-def _typed_override(r: _Reader, node: str, name: str, value: Any) -> Any:
-    """``value`` checked against parameter ``name``'s declaration (type, range, choices).
-
-    Returns it as the node declares it (an integer given for a double becomes a double, as
-    rclpy, strict about types, would otherwise refuse it at start); a refused value is an
-    error and is kept as given.
-    """
-    from excavation_bringup.kinds import kind
-    from excavation_common.params import ParameterError, specs, validate
-
-    for cls in kind(node).param_classes():
-        if name not in specs(cls):
-            continue
-        try:
-            result = getattr(validate(cls, {name: value}, node), name)
-        except ParameterError as exc:
-            if exc.field == name:
-                r.error(f"overrides.{node}.{name}", value, exc.reason)
-            return value  # else a rule across fields: judged with every override
-        return list(result) if isinstance(result, tuple) else result
-    return value
 
 
 def parse_site(text: str, path: str) -> tuple[Site | None, list[SiteError]]:
@@ -644,7 +687,6 @@ def consistency(site: Site, sim: bool = False, emulated: bool = False) -> list[S
     errors += _check_laser(site, sim, emulated)
     errors += _check_robots(site, sim, emulated)
     errors += _check_hosts(site, emulated)
-    errors += _check_overrides(site)
     return errors
 
 
@@ -845,106 +887,6 @@ def _check_robots(site: Site, sim: bool, emulated: bool = False) -> list[SiteErr
     return out
 
 
-DERIVED = {
-    "server": {"blueprint": "worksite.blueprint"},
-    "localizer": {
-        "robots": "robots",
-        "calibration": "camera.calibration",
-        "beacons": "robots[k].leds",
-        "image_topic": "camera.image_topic",
-        "compressed": "camera.encoding",
-        "camera_info_topic": "camera.camera_info_topic",
-    },
-    "mapper": {
-        "robots": "robots",
-        "rows": "worksite.rows",
-        "cols": "worksite.cols",
-        "cell_size": "worksite.cell_size",
-        "mount_x": "laser.mount",
-        "mount_y": "laser.mount",
-        "mount_z": "laser.mount",
-        "pan_offset": "laser.offsets.pan",
-        "tilt_offset": "laser.offsets.tilt",
-        "roll_offset": "laser.offsets.roll",
-        "sweep_scans": "laser.sweep_scans",
-        "scan_topic": "laser.scan_topic",
-        "mount_topic": "laser.mount_state_topic",
-        "robot_height": "laser.robot_height",
-        "prior_known": "worksite.prior_height",
-        "prior_height": "worksite.prior_height",
-    },
-    "controller": {
-        "robot_id": "robots[k]",
-        "robots": "robots",
-        "height_unit": "worksite.soil_unit",
-        "tilt_source": "robots[k].imu",
-    },
-    "blade_driver": {
-        "backend": "robots[k].blade.backend",
-        "port": "robots[k].blade.port",
-        "rearm_after_loss": "robots[k].host (on the robot's own computer)",
-    },
-    "executor": {
-        "cell_size": "worksite.cell_size",
-        "seed": "sim.seed",
-        "pose_topic": "robots (the localiser's /robot_k/pose)",
-        "drive_type": "robots[k].drive_type",
-        "rearm_after_loss": "robots[k].host (on the robot's own computer)",
-        "cmd_vel_stamp": "--sim (now in the dome; the simulator's step with --sim)",
-    },
-    "team_tick": {
-        "robots": "robots",
-        "steps": "sim.ticks (--ticks)",
-        "seed": "sim.seed",
-        "scenario": "sim.scenario",
-        "blueprint": "worksite.blueprint",
-        "word_timeout": "sim.command_timeout",
-        "first_word_timeout": "sim.first_command_timeout",
-        "output_prefix": "robots (the controllers read /tick)",
-        "blade_in": "--sim (the dome: each blade driver's joint state)",
-        "blade_out": "--sim (the dome: the controllers' blade/tick_state)",
-        "snapshot_ack": "--sim (the dome: nothing acknowledges)",
-        "wait_for_ready": "robots (tick 0 waits for every controller)",
-        "wait_for_recorder": "--record",
-        "result_file": "--run-dir",
-    },
-    "recorder": {"out": "--record", "height_unit": "worksite.soil_unit"},
-    "supervisor": {"robots": "robots", "arm_at_start": "--sim"},
-    "emulated_camera": {
-        "robots": "robots",
-        "truth_prefix": "rehearse (the world's /truth)",
-        "rows": "worksite.rows",
-        "cols": "worksite.cols",
-        "cell_size": "worksite.cell_size",
-        "seed": "sim.seed",
-        "encoding": "camera.encoding",
-    },
-    "emulated_laser": {
-        "robots": "robots",
-        "truth_prefix": "rehearse (the world's /truth)",
-        "rows": "worksite.rows",
-        "cols": "worksite.cols",
-        "cell_size": "worksite.cell_size",
-        "mount": "laser.mount",
-        "sweep_scans": "laser.sweep_scans",
-        "robot_height": "laser.robot_height",
-        "seed": "sim.seed",
-    },
-    "emulated_base": {"drive_type": "robots[k].drive_type", "publish_imu": "robots[k].imu"},
-    "emulated_servo_board": {
-        "link": "--run-dir (the blade driver's port)",
-        "force_source": "rehearse (the world's blade force)",
-        "seed": "sim.seed",
-    },
-}
-"""Per node, the parameters the site file sets, or the graph sets from it (an override of
-one is an inconsistency). Every other parameter of these nodes may be tuned under
-``overrides:`` (the executors' tolerances, the team tick's waits...)."""
-
-OVERRIDABLE = tuple(DERIVED)
-"""Nodes whose other parameters a site may set under ``overrides:``."""
-
-
 def node_parameter_names(node: str) -> set[str]:
     """Every parameter node kind ``node`` declares (its parameter dataclasses)."""
     from dataclasses import fields
@@ -952,42 +894,6 @@ def node_parameter_names(node: str) -> set[str]:
     from excavation_bringup.kinds import kind
 
     return {f.name for cls in kind(node).param_classes() for f in fields(cls)}
-
-
-def _check_overrides(site: Site) -> list[SiteError]:
-    from excavation_bringup.kinds import kind
-    from excavation_common.params import ParameterError, specs, validate
-
-    out = []
-    for node, values in site.overrides.items():
-        for cls in kind(node).param_classes():
-            own = {n: v for n, v in values.items() if n in specs(cls) and n not in DERIVED[node]}
-            try:
-                validate(cls, own, node)
-            except ParameterError as exc:
-                if exc.field == "parameters":  # a rule across fields (each value is typed)
-                    out.append(SiteError(site.path, f"overrides.{node}", own, exc.reason))
-        for name, value in values.items():
-            if name in DERIVED[node]:
-                out.append(
-                    SiteError(
-                        site.path,
-                        f"overrides.{node}.{name}",
-                        value,
-                        f"set by the site file's {DERIVED[node][name]}",
-                    )
-                )
-            if node != MAP_INFO_OWNER and name == "publish_map_info" and value is True:
-                out.append(
-                    SiteError(
-                        site.path,
-                        f"overrides.{node}.{name}",
-                        value,
-                        "more than one map_info publisher: the blueprint server publishes "
-                        "/worksite/map_info",
-                    )
-                )
-    return out
 
 
 def check_site(

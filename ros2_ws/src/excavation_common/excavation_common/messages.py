@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from excavation_interfaces.msg import DriveStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import MapMetaData
 from sensor_msgs.msg import Image, Imu, JointState
@@ -32,6 +33,15 @@ from excavation_common.constants import MAX_LOAD, BladeGeometry
 from excavation_common.errors import FieldError
 from excavation_common.frames import heading_to_yaw, robot_anchor, robot_center, yaw_to_heading
 from excavation_common.limits import MAX_GRID_CELLS, MAX_GRID_SIDE
+
+DRIVE_ENDED = (
+    DriveStatus.STATUS_SUCCEEDED,
+    DriveStatus.STATUS_ABORTED,
+    DriveStatus.STATUS_CANCELED,
+)
+"""``DriveStatus`` codes of a drive goal that has ended (``action_msgs/GoalStatus``'s terminal
+states): the executor reports one per goal, the team tick, ``dynamics`` and the field report
+read it."""
 
 _ENCODINGS = {"32FC1": (np.float32, 4), "mono8": (np.uint8, 1)}
 

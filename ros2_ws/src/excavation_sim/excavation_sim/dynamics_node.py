@@ -86,7 +86,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from excavation_common.constants import BladeGeometry
 from excavation_common.files import write_text_atomic
-from excavation_common.messages import blade_joint, grid_to_image, imu_message
+from excavation_common.messages import DRIVE_ENDED, blade_joint, grid_to_image, imu_message
 from excavation_common.params import param
 from excavation_common.ros import LATCHED, declare_params, diagnostics, spin_node
 from excavation_common.tf import TfBroadcaster, base_frame, pose_transform
@@ -95,8 +95,6 @@ from excavation_sim.sim_node import TILT_PITCH, scenario_world
 from excavation_sim.soil import SoilParams
 from excavation_sim.step_clock import Next, StepClock
 from excavation_sim.world import BLADE
-
-TERMINAL = (DriveStatus.STATUS_SUCCEEDED, DriveStatus.STATUS_ABORTED, DriveStatus.STATUS_CANCELED)
 
 
 @dataclass(frozen=True)
@@ -270,7 +268,7 @@ class DynamicsNode(Node):
 
     def on_status(self, k: int, msg: DriveStatus) -> None:
         """Robot k's drive status: a terminal one releases that tick's blade set-point."""
-        if msg.status in TERMINAL:
+        if msg.status in DRIVE_ENDED:
             self.done_tick[k] = max(self.done_tick[k], _key(msg.goal.stamp))
             self.apply_blade(k)
 

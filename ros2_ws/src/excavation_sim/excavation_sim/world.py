@@ -31,7 +31,6 @@ run whole episodes without Python in the loop:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numba as nb
@@ -603,20 +602,9 @@ def placement_zones(rules: WorldRules, zones: np.ndarray) -> np.ndarray | None:
 
 
 class WorldArrays(NamedTuple):
-    """One world's arrays as the episode kernels take them (fields by name; see World)."""
+    """The grid world's state, declared once: what every kernel steps, senses and scores.
 
-    heights: np.ndarray
-    zones: np.ndarray
-    goal: np.ndarray
-    robots: np.ndarray
-    active: np.ndarray
-    rng: np.ndarray
-    params: np.ndarray
-
-
-@dataclass
-class World:
-    """A worksite ready to step: arrays plus the blueprint they are measured against.
+    One world (:class:`World`, :func:`ant_evolution.kernel.run_episode`):
 
     Attributes:
         heights: Soil heights, ``int32 [rows, cols]``.
@@ -625,7 +613,12 @@ class World:
         robots: Robot states, ``int64 [n, ROBOT_FIELDS]``.
         active: Robots taking part, ``bool [n]``.
         rng: xorshift64* state, ``uint64 [1]``.
-        params: Packed :class:`~excavation_sim.rules.WorldRules`.
+        params: Packed :class:`~excavation_sim.rules.WorldRules`, ``int64 [N_PACKED]``.
+
+    ``S`` scenarios stacked on one blueprint (the evaluator's starting states,
+    :class:`ant_evolution.evaluate.ScenarioSet`): ``heights [S, rows, cols]``, ``robots
+    [S, n, ROBOT_FIELDS]``, ``active [S, n]``, ``rng [S]`` and ``params [S, N_PACKED]``
+    (each scenario's rules) gain a leading scenario axis; ``zones`` and ``goal`` are shared.
     """
 
     heights: np.ndarray
@@ -635,6 +628,15 @@ class World:
     active: np.ndarray
     rng: np.ndarray
     params: np.ndarray
+
+
+class World(WorldArrays):
+    """A worksite ready to step: one world's :class:`WorldArrays` and what to do with them.
+
+    The arrays are stepped in place (:meth:`step`); the tuple itself never changes.
+    """
+
+    __slots__ = ()
 
     @classmethod
     def create(
@@ -693,10 +695,11 @@ class World:
         return self.robots.shape[0]
 
     def arrays(self) -> WorldArrays:
-        """The arrays themselves (not copies) for a kernel that steps this world in place."""
-        return WorldArrays(
-            self.heights, self.zones, self.goal, self.robots, self.active, self.rng, self.params
-        )
+        """The arrays themselves (not copies) for a kernel that steps this world in place.
+
+        A plain :class:`WorldArrays`, so that a compiled kernel sees one argument type.
+        """
+        return WorldArrays(*self)
 
     def sense(self) -> np.ndarray:
         """Sensor vectors of all robots from the current snapshot, ``int64 [n, 14]``."""
@@ -721,4 +724,4 @@ class World:
 
     def copy(self) -> World:
         """A deep copy (arrays included)."""
-        return World(*(np.array(a, copy=True) for a in self.__dict__.values()))
+        return World(*(np.array(a, copy=True) for a in self))

@@ -26,7 +26,7 @@ spot washing out one of its LEDs) publishes nothing yet: the node asks for anoth
 the same instant on ``retake_topic`` (excavation_interfaces/Retake: the frame's stamp and
 the robots not seen), up to ``retakes`` times, and publishes the poses of the first frame
 that shows every tracked robot, or of the last one. The trials' synthetic camera
-(``excavation_sim sensors``) answers; a lockstep team then no longer waits a whole tick
+(``excavation_sim sensors``) answers, so a lockstep team does not wait a whole tick
 timeout for a pose that one frame's glare hid.
 
 The node refuses to start (one line on stderr, exit code 2) without ``calibration``, or

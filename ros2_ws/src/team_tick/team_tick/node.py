@@ -32,8 +32,7 @@ a request again only while it is not acknowledged.
 A robot whose executor is replaced while its goal runs (a new writer on its
 ``drive/status``: the old one crashed and ``ant-dome`` restarted it) is done for the tick
 and stuck at once (:meth:`~team_tick.core.TeamTick.executor_restarted`): the new executor
-never heard that goal, and the tick would otherwise wait ``motion_limit`` for it (120 s,
-seen in a rehearsal that killed a robot computer's processes).
+never heard that goal, and the tick would otherwise wait ``motion_limit`` (120 s) for it.
 
 With ``result_file`` set, the node writes :meth:`TeamTick.summary` (and its reports) there
 when the last tick ends, then exits (``ant-trial --drive continuous --processes``, ``ant-dome
