@@ -6,13 +6,13 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers.rigs import controller_node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.serialization import serialize_message
 from std_msgs.msg import UInt16
 
 from ant_controller.controller import Controller
-from ant_controller.controller_node import ControllerNode
 from excavation_bags.cli import main as ant_bag
 from excavation_bags.errors import MissingTopicError
 from excavation_bags.metadata import qos_from_profile
@@ -45,19 +45,7 @@ def test_lockstep_replay_into_fresh_controllers_reproduces_behaviours(ros):
     assert robots == 4
     ctl = Controller.from_file(ROOT / "genomes" / "best.json")
     for k in range(robots):
-        ros.add(
-            ControllerNode(
-                ctl,
-                context=ros.context,
-                namespace=f"/robot_{k}",
-                parameter_overrides=[
-                    Parameter("robot_id", value=k),
-                    Parameter("robots", value=robots),
-                    Parameter("height_unit", value=0.05),
-                    Parameter("lockstep", value=True),
-                ],
-            )
-        )
+        controller_node(ros, k, robots, ctl, height_unit=0.05)
     replayed = {t: [] for t in recorded}
     probe = ros.add(__import__("rclpy").create_node("probe", context=ros.context))
     for t in recorded:

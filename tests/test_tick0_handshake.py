@@ -14,6 +14,7 @@ import time
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PoseWithCovarianceStamped
+from helpers.rigs import controller_node
 from nav_msgs.msg import MapMetaData
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -97,21 +98,7 @@ def controller_inputs(node: Node) -> list:
 
 
 def test_controller_is_ready_once_every_input_is_connected(ros):
-    from ant_controller.controller import Controller
-    from ant_controller.controller_node import ControllerNode
-
-    controller = ros.add(
-        ControllerNode(
-            Controller.hand_coded(),
-            context=ros.context,
-            namespace="/robot_0",
-            parameter_overrides=[
-                Parameter("robot_id", value=0),
-                Parameter("robots", value=1),
-                Parameter("lockstep", value=True),
-            ],
-        )
-    )
+    controller = controller_node(ros, 0, 1)
     said: list[bool] = []
     inputs = ros.add(Node("inputs", context=ros.context))
     inputs.create_subscription(Bool, "/robot_0/ready", lambda m: said.append(m.data), LATCHED)

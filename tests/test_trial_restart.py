@@ -13,30 +13,18 @@ from __future__ import annotations
 
 import pytest
 from helpers.diagnostics import DiagnosticsProbe
+from helpers.rigs import controller_node
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import UInt16
 
-from ant_controller.controller import Controller
-from ant_controller.controller_node import ControllerNode
 from ant_controller.layout import BLADE_HOME
 from blueprint_server.server_node import BlueprintServer
 from excavation_sim.sim_node import SimNode
 
 
 def controller(ros, k):
-    return ros.add(
-        ControllerNode(
-            Controller.hand_coded(),
-            context=ros.context,
-            namespace=f"/robot_{k}",
-            parameter_overrides=[
-                Parameter("robot_id", value=k),
-                Parameter("robots", value=2),
-                Parameter("lockstep", value=True),
-            ],
-        )
-    )
+    return controller_node(ros, k, 2)
 
 
 @pytest.mark.parametrize("drivers", [False, True])

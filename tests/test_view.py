@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.rigs import controller_node
 from helpers.view_client import Client
 from rclpy.parameter import Parameter
 
@@ -23,8 +24,6 @@ LAYOUT = (
 def test_client_decodes_robots_and_height_map_of_a_running_trial(ros):
     import foxglove
 
-    from ant_controller.controller import Controller
-    from ant_controller.controller_node import ControllerNode
     from blueprint_server.server_node import BlueprintServer
     from excavation_sim.sim_node import SimNode
 
@@ -44,18 +43,7 @@ def test_client_decodes_robots_and_height_map_of_a_running_trial(ros):
             )
         )
         for k in range(2):
-            ros.add(
-                ControllerNode(
-                    Controller.hand_coded(),
-                    context=ros.context,
-                    namespace=f"/robot_{k}",
-                    parameter_overrides=[
-                        Parameter("robot_id", value=k),
-                        Parameter("robots", value=2),
-                        Parameter("lockstep", value=True),
-                    ],
-                )
-            )
+            controller_node(ros, k, 2)
         v = view.ViewNode(2, 0.05, period=0.2, context=ros.context)
         ros.add(v.node)
         topics = ["/view/robots", "/view/height_map", "/view/blueprint", "/view/fitness", "/tf"]

@@ -1,10 +1,14 @@
-"""The mapper rig: a mapper node and a probe that feeds it laser scans and mount states.
+"""Node rigs shared by tests: a lockstep controller node, and the mapper rig.
 
-Shared by the mapper node's tests and the mount synchronisation's tests; the rig takes the
-``ros`` fixture (``tests/conftest.py``) and adds both nodes to its executor.
+:func:`controller_node` adds robot k's controller (lockstep, as in every trial) to the
+``ros`` fixture's executor (``tests/conftest.py``). :class:`MapperRig` is a mapper node and
+a probe that feeds it laser scans and mount states, shared by the mapper node's tests and
+the mount synchronisation's tests.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 from excavation_sim.laser import LaserParams
 
@@ -13,6 +17,28 @@ LASER = LaserParams(sweep_scans=16)
 
 EPOCH_S = 100
 """Sim second that :meth:`MapperRig.mount` and :meth:`MapperRig.scan` count from."""
+
+
+def controller_node(ros, k: int, robots: int, controller=None, **params: Any):
+    """Robot ``k``'s controller node of a team of ``robots``, lockstep, added to ``ros``.
+
+    ``controller``: an ``ant_controller.controller.Controller`` (default: the hand-coded
+    rules); ``params``: further node parameters.
+    """
+    from rclpy.parameter import Parameter
+
+    from ant_controller.controller import Controller
+    from ant_controller.controller_node import ControllerNode
+
+    values = {"robot_id": k, "robots": robots, "lockstep": True} | params
+    return ros.add(
+        ControllerNode(
+            controller if controller is not None else Controller.hand_coded(),
+            context=ros.context,
+            namespace=f"/robot_{k}",
+            parameter_overrides=[Parameter(n, value=v) for n, v in values.items()],
+        )
+    )
 
 
 class MapperRig:
