@@ -25,7 +25,7 @@ each node as a process with its parameters in a file.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import yaml
@@ -36,6 +36,11 @@ from excavation_bringup.deployment import Deployment
 from excavation_bringup.profiles import PROFILES, TimingProfile
 from excavation_common.errors import FieldError
 from excavation_common.files import write_text_atomic
+
+OWN_CLOCK = ("dynamics", "recorder", "view")
+"""Node kinds on their own clock beside the continuous-motion simulator: ``dynamics`` is
+the clock, the recorder and the live view stamp what they see on the wall clock; every
+other node runs on the simulator's ``/clock`` (``use_sim_time``)."""
 
 
 class GraphError(ValueError):
@@ -244,6 +249,8 @@ def continuous(
     add(nodes.team_tick(dep, profile, graph.files))
     if view:
         add(nodes.view(dep, view_port))
+    if dep.sim:  # the continuous-motion simulator is the clock of every other node
+        graph.nodes = [replace(n, sim_time=n.kind not in OWN_CLOCK) for n in graph.nodes]
     return graph
 
 

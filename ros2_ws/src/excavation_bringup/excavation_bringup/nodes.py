@@ -113,9 +113,8 @@ class NodeSpec:
         module: ``python -m`` module, when not the kind's (the recorder runs through
             ``ant-bag record``).
         host: The site's host that runs it (``ant-dome up --host``); empty: the dome PC.
-        sim_time: It runs on the simulator's ``/clock`` (``use_sim_time``): with the
-            continuous-motion simulator, every node but ``dynamics`` (the clock), the
-            recorder and the view.
+        sim_time: It runs on the simulator's ``/clock`` (``use_sim_time``); the graph sets
+            it (:func:`excavation_bringup.graph.continuous`).
     """
 
     name: str
@@ -340,9 +339,7 @@ def supervisor(dep: Deployment) -> NodeSpec:
     if dep.drive == "grid":
         tuned["watch_poses"] = dep.full
     params = _params(dep, "supervisor", "supervisor", derived, tuned)
-    return NodeSpec(
-        "supervisor", "supervisor", params, ("/supervisor",), sim_time=_continuous_sim(dep)
-    )
+    return NodeSpec("supervisor", "supervisor", params, ("/supervisor",))
 
 
 def server(dep: Deployment) -> NodeSpec:
@@ -352,7 +349,6 @@ def server(dep: Deployment) -> NodeSpec:
         "server",
         _params(dep, "server", "server", {"blueprint": dep.blueprint}),
         ("/blueprint_server", "blueprint_server: *"),
-        sim_time=_continuous_sim(dep),
     )
 
 
@@ -443,7 +439,7 @@ def sensors(dep: Deployment, geometry: Geometry) -> NodeSpec:
     if dep.occlude:
         derived["occlude"] = dep.occlude
     params = _params(dep, "sensors", "sensors", derived, {"reliable": True})
-    return NodeSpec("sensors", "sensors", params, ("/sensors",), sim_time=_continuous_sim(dep))
+    return NodeSpec("sensors", "sensors", params, ("/sensors",))
 
 
 def localizer(dep: Deployment, files: RunFiles, view: bool = False) -> NodeSpec:
@@ -470,7 +466,6 @@ def localizer(dep: Deployment, files: RunFiles, view: bool = False) -> NodeSpec:
         "localizer",
         _params(dep, "localizer", "localizer", derived, tuned),
         ("/localizer", "localizer: *"),
-        sim_time=_continuous_sim(dep),
     )
 
 
@@ -527,7 +522,6 @@ def mapper(dep: Deployment, profile: TimingProfile, geometry: Geometry) -> NodeS
         "mapper",
         _params(dep, "mapper", "mapper", derived, tuned),
         ("/mapper", "mapper"),
-        sim_time=_continuous_sim(dep),
     )
 
 
@@ -573,7 +567,6 @@ def controller(dep: Deployment, k: int, geometry: Geometry) -> NodeSpec:
         args=controller_args(dep.robot_controller(k)),
         namespace=ns,
         remaps=controller_remaps(dep, k),
-        sim_time=_continuous_sim(dep),
     )
 
 
@@ -619,7 +612,6 @@ def blade_driver(dep: Deployment, k: int, profile: TimingProfile, files: RunFile
         (f"{ns}/blade_driver",),
         namespace=ns,
         host=robot_host(dep, k),
-        sim_time=_continuous_sim(dep),
     )
 
 
@@ -663,7 +655,6 @@ def executor(dep: Deployment, k: int, profile: TimingProfile, geometry: Geometry
         namespace=ns,
         remaps=remaps,
         host=robot_host(dep, k),
-        sim_time=_continuous_sim(dep),
     )
 
 
@@ -704,7 +695,6 @@ def team_tick(dep: Deployment, profile: TimingProfile, files: RunFiles) -> NodeS
         ("/team_tick",),
         restart=False,
         final=dep.steps > 0,
-        sim_time=_continuous_sim(dep),
     )
 
 
