@@ -342,7 +342,9 @@ def test_the_combined_fitness_is_the_lower_soils_mean(tmp_path):
     assert both.run_key() != dataclasses.replace(cfg, seed=3).run_key()
     sets = scenario_sets(both, 0, blueprints_of(both))
     assert [s.soil for s in sets] == ["grid", "physical:dome"]
-    assert np.array_equal(sets[0].robots, sets[1].robots)  # the same scenarios on each soil
+    assert np.array_equal(
+        sets[0].start.robots, sets[1].start.robots
+    )  # the same scenarios on each soil
     genome = Controller.from_file("genomes/best.json")
     grid, dome = (float(s.score(genome).mean()) for s in sets)
     assert grid > dome
