@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from helpers.figures import assert_figure
 
+from ant_controller.controller import Controller
 from ant_evolution.evaluate import evaluate
-from ant_evolution.horizons import PRESETS, Curve, controller_of, main
+from ant_evolution.horizons import PRESETS, Curve, main
 from blueprint_server.blueprint import resolve_blueprint
 
 
@@ -35,7 +36,7 @@ def test_the_curves_are_the_evaluators_on_the_same_scenarios(tmp_path):
     assert len(rows) == 2 * len(PRESETS) * 7  # steps 0, 10, ..., 60
     blueprint = resolve_blueprint("default", 1)
     for spec in ("genomes/best.json", "hand-coded"):
-        program = controller_of(spec)
+        program = Controller.from_spec(spec)
         grid = evaluate(program, blueprint, 4, 2, 20, 5)
         f0, fg = grid.curves[:, 0].mean(), grid.mean
         for soil in PRESETS:

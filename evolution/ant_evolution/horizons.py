@@ -76,13 +76,6 @@ class Curve:
         return int(hits[0]) if hits.size else None
 
 
-def controller_of(spec: str):
-    """``hand-coded`` or a genome file, as a decision program."""
-    from ant_controller.controller import Controller
-
-    return Controller.hand_coded() if spec == "hand-coded" else Controller.from_file(spec)
-
-
 def curves(
     programs: dict, scenarios: int, base: int, steps: int, seed: int, robots: int
 ) -> list[Curve]:
@@ -176,6 +169,7 @@ def plot(found: list[Curve], base: int, path: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m ant_evolution.horizons``: the curves, their table and figure."""
+    from ant_controller.controller import Controller
     from ant_controller.errors import GenomeFormatError
     from excavation_common.limits import int_in
 
@@ -194,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.steps < args.base:
         ap.error(f"--steps {args.steps} must be at least --base {args.base}")
     try:  # every genome is read before the long part starts
-        programs = {spec: controller_of(spec) for spec in args.controller}
+        programs = {spec: Controller.from_spec(spec) for spec in args.controller}
     except (OSError, GenomeFormatError) as e:
         print(f"horizons: {e}", file=sys.stderr)
         return 2
