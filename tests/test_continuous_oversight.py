@@ -26,6 +26,7 @@ import time
 
 import numpy as np
 import pytest
+from helpers.diagnostics import DiagnosticsProbe
 from helpers.trials import GENOME, ROBOTS, offline_trace
 from helpers.watchers import OperatorWatcher, occlude
 
@@ -112,7 +113,6 @@ class Watcher(OperatorWatcher):
     topics)."""
 
     def __init__(self, domain: int):
-        from diagnostic_msgs.msg import DiagnosticArray
         from excavation_interfaces.msg import DriveStatus, TeamState, Tick
         from geometry_msgs.msg import TwistStamped
 
@@ -122,7 +122,6 @@ class Watcher(OperatorWatcher):
         self.cmd = {k: [] for k in range(ROBOTS)}  # (wall, stamp, vx, wz)
         self.goals = {k: [] for k in range(ROBOTS)}  # wall
         self.poses: list[tuple[float, float, float, float]] = []  # robot 0: (stamp, x, y, yaw)
-        self.supervisor: list[tuple[float, dict]] = []  # (stamp, values)
         sub = self.node.create_subscription
 
         def stamp(header) -> float:
@@ -131,12 +130,6 @@ class Watcher(OperatorWatcher):
         def on_tick(msg):
             self.team_tick = int(msg.tick)
 
-        def on_diag(msg):
-            for status in msg.status:
-                if status.name.endswith("supervisor"):
-                    values = {v.key: v.value for v in status.values}
-                    self.supervisor.append((stamp(msg.header), values))
-
         sub(Tick, "/team/tick", on_tick, 10)
         sub(
             TeamState,
@@ -144,7 +137,7 @@ class Watcher(OperatorWatcher):
             lambda m: self.heartbeats.append((time.monotonic(), stamp(m), m.state)),
             50,
         )
-        sub(DiagnosticArray, "/diagnostics", on_diag, 50)
+        self.diagnostics = DiagnosticsProbe(self.node)
         for k in range(ROBOTS):
             ns = f"/robot_{k}"
             sub(
@@ -193,9 +186,9 @@ class Watcher(OperatorWatcher):
         """Sim stamp of the supervisor's first diagnostics after ``since`` on which robot
         ``robot``'s line starts with ``prefix``."""
         return next(
-            s
-            for s, v in self.supervisor
-            if s > since and v.get(f"robot_{robot}", "").startswith(prefix)
+            h.stamp
+            for h in self.diagnostics.heard(lambda name: name.endswith("supervisor"))
+            if h.stamp > since and h.values.get(f"robot_{robot}", "").startswith(prefix)
         )
 
     def spin_for(self, seconds: float) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
-from helpers.diagnostics import DiagnosticsProbe
+from helpers.diagnostics import DiagnosticsProbe, values
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image, Imu, JointState
@@ -157,8 +157,8 @@ def test_a_disabled_robot_is_absent_and_does_not_freeze_the_controller(ros):
 
     assert ros.spin_until(acting)
     assert seen["behaviour"][-1] == alone
-    values = {v.key: v.value for v in seen["diag"][-1].values}
-    assert values["absent_robots"] == "[1]"
+    said = values(seen["diag"][-1])
+    assert said["absent_robots"] == "[1]"
 
 
 def test_bad_parameters_exit_2_with_one_line(capsys):

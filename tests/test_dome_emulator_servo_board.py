@@ -15,7 +15,7 @@ from dome_emulator.servo_board import (
     ServoBoard,
     ServoBoardParams,
 )
-from helpers.diagnostics import DiagnosticsProbe
+from helpers.diagnostics import DiagnosticsProbe, values
 
 from blade_driver.errors import BoardError
 from blade_driver.fake_board import FakeBoard
@@ -196,7 +196,7 @@ def test_the_serial_blade_driver_moves_the_world_blade_through_the_board(ros, tm
     assert ros.spin_until(lambda: bool(commands))
     assert commands[-1].position == pytest.approx(0.10) and not commands[-1].held
     assert ros.spin_until(lambda: any(port in s.message for s in diags))
-    assert {v.key: v.value for v in diags[-1].values}["port"] == port
+    assert values(diags[-1])["port"] == port
 
     # A word with the blade below: the driver sets 78 deg, the servo slews, the world follows.
     below = UInt16(data=word(BLADE_BELOW_CMD))

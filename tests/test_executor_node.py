@@ -17,7 +17,7 @@ from excavation_interfaces.action import Drive
 from excavation_interfaces.msg import DriveStatus as GoalStatus
 from excavation_interfaces.msg import TeamArmed, TeamState
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
-from helpers.diagnostics import DiagnosticsProbe
+from helpers.diagnostics import DiagnosticsProbe, values
 from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -448,7 +448,7 @@ def test_a_pose_clock_ahead_is_reported_with_its_offset(ros):
     assert ros.spin_until(warned, 5), [d.message for d in probe.diagnostics]
     status = next(d for d in probe.diagnostics if "0.030 s ahead" in d.message)
     assert status.level == DiagnosticStatus.WARN and "pose clock offset" in status.message
-    assert {v.key: v.value for v in status.values}["pose_clock_ahead"] == "0.030"
+    assert values(status)["pose_clock_ahead"] == "0.030"
 
 
 def test_poses_all_older_than_the_timeout_are_reported_as_a_lag_or_a_clock_ahead(ros):

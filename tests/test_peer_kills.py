@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 import pytest
+from helpers.diagnostics import DiagnosticsProbe
 from helpers.trials import GENOME, ROBOTS, finish, offline, start_trial
 from helpers.watchers import OperatorWatcher
 
@@ -30,19 +31,17 @@ STEPS = 120
 
 
 def test_recorders_killed_ten_times_cost_the_trial_nothing(tmp_path, domain):
-    from diagnostic_msgs.msg import DiagnosticArray
-
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
     watch = OperatorWatcher(domain)
-    recording: list[tuple[float, int]] = []  # (wall, messages) of the recorder's statuses
+    diagnostics = DiagnosticsProbe(watch.node)
 
-    def on_diagnostics(msg):
-        for s in msg.status:
-            if s.name == "/bag_recorder":
-                values = {v.key: v.value for v in s.values}
-                recording.append((time.monotonic(), int(values.get("messages", 0))))
+    def recording(since: float) -> bool:
+        """Whether a recorder reported messages recorded in a status heard after ``since``."""
+        return any(
+            h.wall > since and int(h.values.get("messages", 0)) > 0
+            for h in diagnostics.heard(lambda name: name == "/bag_recorder")
+        )
 
-    watch.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
     recorder = None
     kills = []
     try:
@@ -58,9 +57,9 @@ def test_recorders_killed_ten_times_cost_the_trial_nothing(tmp_path, domain):
                  str(tmp_path / f"bag{n}")],
                 env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
             )  # fmt: skip
-            assert watch.spin_until(
-                lambda started=started: any(w > started and m > 0 for w, m in recording), 120
-            ), f"recorder {n} never recorded"
+            assert watch.spin_until(lambda started=started: recording(started), 120), (
+                f"recorder {n} never recorded"
+            )
             tick = watch.tick
             assert watch.call("/supervisor/resume")[0].success
             assert watch.spin_until(lambda tick=tick: watch.tick >= tick + 3)

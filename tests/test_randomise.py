@@ -44,10 +44,11 @@ def test_randomised_scenarios_keep_the_starts_and_change_the_world(soil):
     blueprint = resolve_blueprint("default", 1)
     plain = ScenarioSet.create(blueprint, 4, 6, 40, 5, soil=soil)
     drawn = ScenarioSet.create(blueprint, 4, 6, 40, 5, soil=soil, randomised=True)
-    assert np.array_equal(plain.robots, drawn.robots) and np.array_equal(plain.rng, drawn.rng)
-    assert (plain.scenario_params == plain.params).all()
-    assert len({tuple(row) for row in drawn.scenario_params}) == 6
-    assert (drawn.scenario_params[:, P_MISREAD] > 0).all()
+    assert np.array_equal(plain.start.robots, drawn.start.robots)
+    assert np.array_equal(plain.start.rng, drawn.start.rng)
+    assert (plain.start.params == plain.params).all()
+    assert len({tuple(row) for row in drawn.start.params}) == 6
+    assert (drawn.start.params[:, P_MISREAD] > 0).all()
     if soil != "grid":
         assert (plain.physics == plain.physics[0]).all()
         base = plain.physics[0]

@@ -135,7 +135,7 @@ def test_scenario_arrays_have_one_type_however_the_set_arrived():
     here, there = batch.arrays(), pickle.loads(pickle.dumps(batch)).arrays()
     assert numba.typeof(here) == numba.typeof(there)
     assert all(not a.flags.writeable for a in here)
-    assert batch.heights.flags.writeable  # the set's own arrays are left as they were
+    assert batch.start.heights.flags.writeable  # the set's own arrays are left as they were
 
 
 def test_the_cache_key_covers_every_file_with_kernels(monkeypatch):

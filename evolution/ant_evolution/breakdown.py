@@ -134,20 +134,21 @@ def phase_times(program, batch: ScenarioSet, repeats: int = 3) -> dict[str, floa
         RuntimeError: When a replayed phase does not reproduce the recording.
     """
     record = program.record()
+    start = batch.start
     n_robots = program.robots or 0
     steps = batch.steps
     s_count = batch.size
-    n = batch.robots.shape[1]
-    shape = batch.zones.shape
+    n = start.robots.shape[1]
+    shape = start.zones.shape
     recs = []
     work = new_workspace(record, n, *shape)
     for s in range(s_count):
-        heights = batch.heights[s].copy()
-        robots = batch.robots[s].copy()
-        active = batch.active[s].copy()
+        heights = start.heights[s].copy()
+        robots = start.robots[s].copy()
+        active = start.active[s].copy()
         if n_robots > 0:
             active[:] = np.arange(n) < n_robots
-        rng = batch.rng[s : s + 1].copy()
+        rng = start.rng[s : s + 1].copy()
         rec = (
             np.empty((steps, *shape), dtype=np.int32),
             np.empty((steps, n, robots.shape[1]), dtype=np.int64),
@@ -156,7 +157,7 @@ def phase_times(program, batch: ScenarioSet, repeats: int = 3) -> dict[str, floa
             np.empty((steps, n), dtype=np.int64),
         )
         ran = record_scenario(
-            heights, batch.zones, batch.goal, robots, active, rng, batch.params, steps, record,
+            heights, start.zones, start.goal, robots, active, rng, batch.params, steps, record,
             work, *rec,
         )  # fmt: skip
         recs.append((active, tuple(a[:ran] for a in rec)))
@@ -166,7 +167,7 @@ def phase_times(program, batch: ScenarioSet, repeats: int = 3) -> dict[str, floa
 
     state = (
         np.empty(shape, dtype=np.int32),
-        np.empty((n, batch.robots.shape[2]), dtype=np.int64),
+        np.empty((n, start.robots.shape[2]), dtype=np.int64),
         np.empty(shape, dtype=np.int16),
         np.empty(1, dtype=np.uint64),
     )
@@ -190,12 +191,12 @@ def phase_times(program, batch: ScenarioSet, repeats: int = 3) -> dict[str, floa
     sensing = world = copies = 0.0
     params = batch.params
     for active, (h, r, g, _, masks) in recs:  # one scenario at a time (its states fit in L2)
-        sensing += best_of(replay_sense, h, batch.zones, batch.goal, r, active, params, out_codes)
+        sensing += best_of(replay_sense, h, start.zones, start.goal, r, active, params, out_codes)
         copies += best_of(replay_apply, h, r, g, active, masks, params, state, False)
         world += best_of(replay_apply, h, r, g, active, masks, params, state, True)
     check = new_workspace(record, n, *shape)
     for active, (h, r, g, codes, masks) in recs:  # the replays reproduce the recording
-        replay_sense(h, batch.zones, batch.goal, r, active, batch.params, out_codes)
+        replay_sense(h, start.zones, start.goal, r, active, batch.params, out_codes)
         bad = not np.array_equal(out_codes[: len(h)][:, active], codes[:, active])
         replay_decide(codes, active, record, check, out_masks)
         bad = bad or not np.array_equal(out_masks[: len(h)], masks)

@@ -56,8 +56,7 @@ class ScenarioSet:
             ``zones`` and ``goal``, ``robots [S, N_max, 6]``, ``active [S, N_max]``, ``rng
             [S]``); its ``params [S, N_PACKED]`` are each scenario's packed rules:
             ``params`` in every row, or each randomised scenario's draw
-            (:mod:`ant_evolution.randomise`). Read through the properties of the same names
-            (``scenario_params`` for ``start.params``).
+            (:mod:`ant_evolution.randomise`).
         params: Packed world rules (:meth:`~excavation_sim.rules.WorldRules.as_array`).
         steps: Timesteps per scenario.
         seed: The seed the scenarios were drawn from (scenario i: ``scenario_start(..., seed, i)``).
@@ -162,41 +161,6 @@ class ScenarioSet:
         )
 
     @property
-    def heights(self) -> np.ndarray:
-        """``int32 [S, rows, cols]`` starting terrain."""
-        return self.start.heights
-
-    @property
-    def zones(self) -> np.ndarray:
-        """``uint8 [rows, cols]`` blueprint zones."""
-        return self.start.zones
-
-    @property
-    def goal(self) -> np.ndarray:
-        """``int32 [rows, cols]`` goal heights."""
-        return self.start.goal
-
-    @property
-    def robots(self) -> np.ndarray:
-        """``int64 [S, N_max, 6]`` robot states."""
-        return self.start.robots
-
-    @property
-    def active(self) -> np.ndarray:
-        """``bool [S, N_max]`` robots taking part."""
-        return self.start.active
-
-    @property
-    def rng(self) -> np.ndarray:
-        """``uint64 [S]`` random-turn generator states."""
-        return self.start.rng
-
-    @property
-    def scenario_params(self) -> np.ndarray:
-        """``int64 [S, N_PACKED]`` each scenario's packed rules."""
-        return self.start.params
-
-    @property
     def physical(self) -> bool:
         """Whether the scenarios run on the physical soil."""
         return self.physics.shape[0] > 0
@@ -204,18 +168,18 @@ class ScenarioSet:
     @property
     def size(self) -> int:
         """Number of scenarios."""
-        return int(self.heights.shape[0])
+        return int(self.start.heights.shape[0])
 
     def world(self, i: int) -> World:
         """Scenario ``i`` as a :class:`World` ready to step (a copy)."""
         return World(
-            heights=self.heights[i].copy(),
-            zones=self.zones,
-            goal=self.goal,
-            robots=self.robots[i].copy(),
-            active=self.active[i].copy(),
-            rng=self.rng[i : i + 1].copy(),
-            params=_read_only(self.scenario_params[i]),
+            heights=self.start.heights[i].copy(),
+            zones=self.start.zones,
+            goal=self.start.goal,
+            robots=self.start.robots[i].copy(),
+            active=self.start.active[i].copy(),
+            rng=self.start.rng[i : i + 1].copy(),
+            params=_read_only(self.start.params[i]),
         )
 
     def arrays(self) -> WorldArrays:

@@ -129,7 +129,7 @@ class RosEvaluator:
                 (robot counts that alternate, or a genome with an N gene).
         """
         for s in sets:
-            if len(set(s.robot_counts)) != 1 or s.robot_counts[0] != s.robots.shape[1]:
+            if len(set(s.robot_counts)) != 1 or s.robot_counts[0] != s.start.robots.shape[1]:
                 raise TrialError(
                     f"robot_counts = {s.robot_counts}: trials need one robot count per "
                     "scenario set (no --robots-mix or --evolve-robots with --evaluator ros)"
@@ -143,7 +143,9 @@ class RosEvaluator:
             blueprints = []
             for j, s in enumerate(sets):
                 path = Path(tmp) / f"blueprint_{j}.yaml"
-                path.write_text(Blueprint(zones=s.zones, goal=s.goal, name=f"set {j}").to_yaml())
+                path.write_text(
+                    Blueprint(zones=s.start.zones, goal=s.start.goal, name=f"set {j}").to_yaml()
+                )
                 blueprints.append(str(path))
             jobs = []
             for i, g in enumerate(genomes):

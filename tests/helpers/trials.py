@@ -26,7 +26,7 @@ ROBOTS = 4
 def _controller(spec: str):
     from ant_controller.controller import Controller
 
-    return Controller.hand_coded() if spec == "hand-coded" else Controller.from_file(spec)
+    return Controller.from_spec(spec)
 
 
 def offline(spec: str, robots: int, steps: int, seed: int):

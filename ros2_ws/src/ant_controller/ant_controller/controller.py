@@ -61,6 +61,16 @@ class Controller:
         return cls.from_genome(load_genome(path), name=str(path))
 
     @classmethod
+    def from_spec(cls, spec: str) -> Controller:
+        """``hand-coded`` (the appendix's rules) or a genome file's path, as the CLIs take it.
+
+        Raises:
+            GenomeFormatError: A bad genome file.
+            OSError: A genome file that cannot be read.
+        """
+        return cls.hand_coded() if spec == "hand-coded" else cls.from_file(spec)
+
+    @classmethod
     def hand_coded(cls, reading: str = "chain") -> Controller:
         """The appendix's hand-coded controller (``reading``: ``"chain"`` or ``"union"``).
 

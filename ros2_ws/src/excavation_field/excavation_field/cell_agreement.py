@@ -85,9 +85,7 @@ def offline(soil: str, controller: str, robots: int, scenarios: list[int], seed:
     from blueprint_server.blueprint import resolve_blueprint
     from excavation_sim.cell_soil import C_REFUSED, C_STALLS
 
-    program = (
-        Controller.hand_coded() if controller == "hand-coded" else Controller.from_file(controller)
-    )
+    program = Controller.from_spec(controller)
     blueprint = resolve_blueprint("default", 1)
     batch = ScenarioSet.create(blueprint, robots, max(scenarios) + 1, steps, seed, soil=soil)
     scores, counters = batch.run(program)

@@ -233,7 +233,7 @@ def results(seeds: int = 5, specs: tuple[str, ...] = ("hand-coded", GENOME)) -> 
     )
     print("|---|---|---|---|---|---|---|")
     for spec in specs:
-        ctl = Controller.hand_coded() if spec == "hand-coded" else Controller.from_file(spec)
+        ctl = Controller.from_spec(spec)
         grid_all, cont_all = [], []
         for seed in range(seeds):
             world = ScenarioSet.create(default_blueprint(1), 4, 1, 300, seed).world(0)

@@ -106,9 +106,7 @@ def grid_decisions(controller: str, robots: int, steps: int, seed: int, scenario
     from ant_evolution.evaluate import ScenarioSet
     from blueprint_server.blueprint import default_blueprint
 
-    ctl = (
-        Controller.hand_coded() if controller == "hand-coded" else Controller.from_file(controller)
-    )
+    ctl = Controller.from_spec(controller)
     world = ScenarioSet.create(default_blueprint(1), robots, scenario + 1, steps, seed).world(
         scenario
     )
@@ -240,9 +238,7 @@ def physical_decisions(
     from excavation_sim import cell_soil
     from excavation_sim.world import occupancy
 
-    ctl = (
-        Controller.hand_coded() if controller == "hand-coded" else Controller.from_file(controller)
-    )
+    ctl = Controller.from_spec(controller)
     batch = ScenarioSet.create(default_blueprint(1), robots, scenario + 1, steps, seed, soil=soil)
     world = batch.world(scenario)
     ground = batch.soil_of(world, scenario)

@@ -1,75 +1,21 @@
-"""Physical soil for the continuous-motion simulator (``soil: physical``; docs/world-model.md).
+"""Physical soil for the continuous-motion simulator (``soil: physical``).
 
-The grid world moves soil by the paper's blade equations, whole cells at a time; the
-continuous-motion simulator in ``soil: grid`` mode applies those same rules, so it can only
-disagree with a grid trial through a different grid event. This module is the soil that can
-disagree: a height field ``subcells`` times finer than the grid, cut and pushed by a blade
-that moves with the robot's continuous pose, held at an angle of repose, and resisting the
-blade with a published earth-moving model.
+The soil that can disagree with the grid: a height field ``subcells`` times finer than the
+grid in whole quanta (conserved exactly), cut and pushed by a blade that moves with the
+robot's continuous pose, held at an angle of repose, resisting the blade with McKyes's
+earth-moving equation plus a drag prism, against a robot whose push comes from its motors
+and traction. docs/world-model.md, "Physical soil", is the specification: the blade, repose,
+resistance, calibration, traction, force control, the presets and their sources, and which
+departures from the grid are physics.
 
-* **Height field.** ``fine``: ``int64 [rows * S, cols * S]``, the soil height of each
-  sub-cell in quanta (``quanta`` per soil unit). Every sub-cell has the same area, so the
-  total volume is the sum of ``fine``: every change below moves whole quanta from one
-  sub-cell to another and the sum is conserved exactly. A grid cell's height is the mean of
-  its S x S sub-cells (:func:`cell_sums`); the controllers' 14 inputs read it rounded to a
-  whole unit, the fitness reads the mean itself.
-* **Blade.** The blade is the 2-cell-wide front edge of the robot's 2 x 2 body. Its edge
-  stands ``b_h`` units (below -1, level 0, above +1, the grid's offsets) off the mean ground
-  under the front axle (the rear half of the body's front row), as measured when the
-  setting is applied and again at each grid move (the servo holds the edge in between, as
-  the grid's blade equations take the cutting level once per move; measured continuously,
-  a blade below ground would follow the front wheels down into its own cut and dig on
-  deeper). While the robot advances,
-  every sub-cell just behind the edge (within one sub-cell) is set to the edge's height: soil
-  above it is carried onto the sub-cell one step ahead (the cut joins the pile in front of
-  the blade), and a sub-cell below it takes soil from the one ahead if that holds any above
-  the edge (a blade carrying a pile fills hollows). Soil that stands in front of the blade
-  higher than ``blade_height`` above the edge falls over the top, behind the blade. Nothing
-  is cut while the robot stands, reverses or turns in place; a retracted blade (home) does
-  not touch the soil; a pile left behind (blade lifted, robot backing off) stays where it is.
-* **Repose.** :func:`relax` moves soil between 4-neighbour sub-cells whose heights differ
-  by more than ``tan(repose_angle)`` times the sub-cell size, half the excess at a time,
-  sweeping the field in alternating directions; sub-cells under a robot's body neither give
-  nor take (the body and its blade are a wall), so the pile in front of a blade slumps
-  forwards and sideways. Soil that slumps sideways past the blade's ends is not swept again:
-  that is the side spillage of a pushed pile, with no separate rule. ``end_plates`` (cells)
-  adds plates ahead of a lowered blade's ends, which the pile cannot slump through (a
-  U-blade's wings); the default 0 is the straight blade of the paper's robots.
-* **Resistance.** McKyes's universal earth-moving equation (McKyes 1985, *Soil Cutting and
-  Tillage*, ch. 4; used for lunar regolith by Wilkinson & DeGennaro 2007, J.
-  Terramechanics 44): ``F = w (gamma d^2 N_gamma + c d N_c + q d N_q)`` with ``d`` the
-  cutting depth, ``w`` the blade width, ``gamma`` the soil's unit weight, ``c`` its
-  cohesion and ``q`` the surcharge on the failure wedge, plus the drag of the prism of loose
-  soil beyond the wedge (its weight times ``tan(friction_angle)``; :func:`blade_force`).
-  ``loose`` (same shape as ``fine``) counts the quanta of each sub-cell that a blade, a
-  slope or a wheel has moved, lying over the firm ground the site started with: every
-  move takes from the top, loose first, and what arrives is loose (:func:`_move`). ``d``
-  is the firm ground above the edge just ahead of it; the loose soil above the edge on the
-  wedge is the surcharge, beyond it the drag prism (:func:`blade_load`). The N factors
-  follow from the rake angle, the soil's friction angle and the soil-blade friction angle,
-  with the failure plane angle that minimises ``N_gamma`` (:func:`n_factors`). Validated
-  against measured soil-bin forces (:mod:`excavation_sim.soil_bin`). A push is resisted by
-  that force plus the grade (``m g sin(pitch)``); the robot gives ``min(motor force,
-  wheel_friction m g)``. Where the resistance is larger, the wheels slip and the robot
-  does not advance (:meth:`~excavation_sim.dynamics.Dynamics.step`): the executor sees no
-  progress, as on a real robot.
-* **Calibration.** The motor forces are not free parameters. ``calibration: grid`` (the
-  preset ``grid``, what ``physical`` alone means): a level blade pushing a pile of N units
-  on flat ground stalls where the grid refuses the push, above the world profile's
-  capacities (12 and 24 under ``v1``; :func:`calibrate`); the robot's mass is what lets
-  its wheels give that force with ``traction_margin`` to spare. ``calibration: robot``
-  (the presets ``dome`` and ``lunar``, :func:`robot_physics`): the forces come from the
-  robot's power, speed, mass and traction and its blade's limit, and the pile it stalls
-  at is measured (:func:`stall_capacity`).
-* **Traction.** ``coulomb``: ``wheel_friction m g``, all or nothing. ``terramechanics``
-  (:class:`Terrain`): Bekker's sinkage and rolling resistance, Janosi-Hanamoto's thrust
-  against slip; a heavier push slips more and advances less.
-* **Force control** (``force_control``, the dome robots' blade PID): over ``blade_limit``
-  the edge rises until the blade's force is within it (:meth:`Soil.relief`).
-* **Specs and presets.** ``soil`` is ``grid`` or ``physical[:PRESET][,KEY=VALUE...]``
-  (:func:`parse_soil`); the presets are ``soil_presets.yaml`` beside this module, each
-  value with its source. The switches ``fill``, ``epsilon``, ``refusals``, ``load``,
-  ``fitness_heights`` and ``repose`` turn each departure from the grid on or off.
+Use: :func:`parse_soil` / :func:`soil_arg` read a spec (``grid`` or
+``physical[:PRESET][,KEY=VALUE...]``; the presets live in ``soil_presets.yaml`` beside this
+module, each value with its source) into :class:`SoilParams`; :class:`Soil` holds a site's
+field and moves it (``cut``, ``relax``, ``relief``); :func:`blade_force` and
+:func:`n_factors` are the force model, :func:`calibrate` and :func:`stall_capacity` tie it to
+the grid's capacities or measure the robot's. The numba kernels here are shared with the
+offline physical world (:mod:`excavation_sim.cell_soil`); ``python -m
+excavation_sim.presets`` prints the presets' tables.
 
 Pure module (numpy, numba); no ``rclpy``.
 """
