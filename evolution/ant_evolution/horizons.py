@@ -35,13 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ant_evolution.transfer import GOAL_PROGRESS, PRESETS, TRANSFER_SEED
 from excavation_common.files import write_text_atomic
 from excavation_common.progress import tqdm
 
-PRESETS = ("physical:dome", "physical:lunar")
-"""The soils of the paper's two real worlds."""
-GOAL_PROGRESS = 0.8
-"""The goal's share of the grid progress (:data:`ant_evolution.transfer.GOAL_PROGRESS`)."""
 MULTIPLES = (1, 3, 10, 40)
 """Horizons the table reads, in multiples of the base."""
 
@@ -182,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--base", type=int_in(1, 100_000), default=300, help="the grid's steps")
     ap.add_argument("--steps", type=int_in(1, 1_000_000), default=12_000, help="on the presets")
     ap.add_argument("--every", type=int_in(1, 1_000_000), default=50, help="CSV row spacing")
-    ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--seed", type=int, default=TRANSFER_SEED)
     ap.add_argument("--robots", type=int_in(1, 10), default=4)
     args = ap.parse_args(argv)
     if args.steps < args.base:
