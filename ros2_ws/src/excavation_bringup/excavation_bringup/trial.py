@@ -526,31 +526,33 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     from excavation_common.errors import FieldError
-    from excavation_common.signals import interrupt_on_sigint
+    from excavation_common.signals import interrupt_on_sigint, keep_interrupts
 
     interrupt_on_sigint()  # Ctrl-C stops it even when a script started it in the background
 
     try:
-        result = run_trial(
-            "hand-coded" if args.hand_coded else args.genome,
-            args.robots,
-            args.steps,
-            args.seed,
-            args.blueprint,
-            args.domain,
-            blade_driver=not args.no_blade_driver,
-            processes=args.processes,
-            record=args.record,
-            perception=args.perception,
-            scenario=args.scenario,
-            supervisor=args.supervisor,
-            occlude=args.occlude,
-            command_timeout=args.command_timeout or (30.0 if args.perception == "full" else 2.0),
-            timeout=args.timeout or max(600.0, 10.0 * args.steps),
-            drive=args.drive,
-            exact=args.no_slip,
-            soil=args.soil,
-        )
+        with keep_interrupts():
+            result = run_trial(
+                "hand-coded" if args.hand_coded else args.genome,
+                args.robots,
+                args.steps,
+                args.seed,
+                args.blueprint,
+                args.domain,
+                blade_driver=not args.no_blade_driver,
+                processes=args.processes,
+                record=args.record,
+                perception=args.perception,
+                scenario=args.scenario,
+                supervisor=args.supervisor,
+                occlude=args.occlude,
+                command_timeout=args.command_timeout
+                or (30.0 if args.perception == "full" else 2.0),
+                timeout=args.timeout or max(600.0, 10.0 * args.steps),
+                drive=args.drive,
+                exact=args.no_slip,
+                soil=args.soil,
+            )
     except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
         print(f"ant-trial: error: {exc}", file=sys.stderr)
         return 2

@@ -757,7 +757,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
-    from excavation_common.signals import interrupt_on_sigint
+    from excavation_common.signals import interrupt_on_sigint, keep_interrupts
 
     interrupt_on_sigint()  # Ctrl-C stops it even when a script started it in the background
     if not args.hand_coded and not args.genome.is_file():
@@ -784,10 +784,18 @@ def main(argv: list[str] | None = None) -> int:
 
     started = time.monotonic()
     try:
-        d = run(setup, progress=not args.no_progress)
+        with keep_interrupts():
+            d = run(setup, progress=not args.no_progress)
     except (FieldError, TimeoutError, RuntimeError, ValueError) as exc:
         print(f"ant-field-experiment: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(
+            f"ant-field-experiment: interrupted: finished trials are kept under {args.out}; "
+            "the same command resumes",
+            file=sys.stderr,
+        )
+        return 130
     print(f"ant-field-experiment: wrote {d} ({time.monotonic() - started:.0f} s)")
     return 0
 
