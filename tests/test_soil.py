@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ant_controller.layout import BLADE_ABOVE, BLADE_BELOW, BLADE_HOME, BLADE_LEVEL
 from blueprint_server.blueprint import default_blueprint
@@ -16,8 +18,11 @@ from excavation_sim.soil import (
     Soil,
     SoilError,
     SoilParams,
+    _local,
+    _rect,
     blade_force,
     calibrate,
+    cos_sin,
     level_pile_force,
     mckyes_force,
     n_factors,
@@ -253,3 +258,47 @@ def test_end_plates_keep_more_of_a_pushed_pile():
         held[plates] = lane[:, px > x + CELL].sum() / (s.q * s.s**2)
         assert x - x0 == pytest.approx(1.2)
     assert held[0.0] < 0.4 * 12 < 0.6 * 12 < held[1.0] < 12
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    x=st.floats(-0.5, 4.5),
+    y=st.floats(-0.5, 4.5),
+    yaw=st.one_of(st.sampled_from([0.0, math.pi / 2, -math.pi / 2, math.pi]), st.floats(-4, 4)),
+    u0=st.floats(-0.6, 0.6),
+    length=st.floats(0.0, 0.8),
+    half_width=st.floats(0.0, 0.4),
+    sub=st.sampled_from([0.0625, 0.25 / 3, 0.05]),
+)
+def test_a_kernels_window_holds_every_sub_cell_its_rectangle_holds(
+    x, y, yaw, u0, length, half_width, sub
+):
+    """The kernels visit only ``_rect``'s window: it must hold every sub-cell whose centre
+    lies in the robot's rectangle (tested against all sub-cells of the field), and for a
+    robot square to the grid nothing else."""
+    rows = cols = 80
+    cy, sy = cos_sin(yaw)
+    u1 = u0 + length
+    i0, i1, j0, j1 = _rect(x, y, cy, sy, u0, u1, -half_width, half_width, sub, rows, cols)
+    inside = set()
+    for i in range(rows):
+        for j in range(cols):
+            u, v = _local(i, j, sub, x, y, cy, sy)
+            if u0 <= u <= u1 and abs(v) <= half_width:
+                inside.add((i, j))
+    window = {(i, j) for i in range(i0, i1) for j in range(j0, j1)}
+    assert inside <= window
+    if yaw in (0.0, math.pi / 2, -math.pi / 2, math.pi):
+        margin = 1e-6 * sub + 1e-12
+        near = set()
+        for i in range(rows):
+            for j in range(cols):
+                u, v = _local(i, j, sub, x, y, cy, sy)
+                if u0 - margin <= u <= u1 + margin and abs(v) <= half_width + margin:
+                    near.add((i, j))
+        assert window <= near
+
+
+def test_cos_sin_of_a_square_heading_is_maths_own():
+    for yaw in (0.0, math.pi / 2, -math.pi / 2, math.pi, 0.3, -2.0):
+        assert cos_sin(yaw) == (math.cos(yaw), math.sin(yaw))

@@ -77,6 +77,7 @@ from excavation_sim.soil import (
     band_ground,
     blade_load,
     body_window,
+    cos_sin,
     cut,
     dig_wheels,
     firm_above,
@@ -278,7 +279,7 @@ def _place(soil, robots, k):
     soil.bodies[k, 2] = _YAW[h]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def reset(soil, heights, robots, active):
     """Start the soil from the whole-unit ``heights`` (each cell's sub-cells level, all firm).
 
@@ -321,7 +322,7 @@ def _unchanged(soil, active, k):
     )  # fmt: skip
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def _mask(soil, active):
     """Mark the sub-cells under the bodies (and lowered blades' end plates) as blocked.
 
@@ -406,8 +407,7 @@ def _relax_band(soil, k, u0, u1):
     half = ph[X_CELL] + sub
     x = soil.bodies[k, 0]
     y = soil.bodies[k, 1]
-    c = math.cos(soil.bodies[k, 2])
-    sn = math.sin(soil.bodies[k, 2])
+    c, sn = cos_sin(soil.bodies[k, 2])
     xa = x + u0 * c
     xb = x + u1 * c
     ya = y + u0 * sn
@@ -458,7 +458,7 @@ def _edge(soil, k):
     return soil.ground[k] + soil.lift[k]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def _measure(soil, robots, k):
     """Robot k's blade edge, set against its front axle's ground where it stands now."""
     ph = soil.physics
@@ -478,7 +478,7 @@ def _measure(soil, robots, k):
             soil.lift[k] = 0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def force_at(soil, x, y, yaw, edge):
     """The blade's force (N) at ``(x, y, yaw)`` with its edge at ``edge`` quanta."""
     ph = soil.physics
@@ -510,7 +510,7 @@ def _load_force(ph, depth, over, beyond):
     return force
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def _gather(soil, x, y, yaw, edge):
     """Store the sub-cells :func:`excavation_sim.soil.blade_load` reads at ``edge``.
 
@@ -529,7 +529,7 @@ def _gather(soil, x, y, yaw, edge):
     length = depth * ph[X_WEDGE_Q]
     far = length if length > reach else reach
     rows, cols = soil.fine.shape
-    cy, sy = math.cos(yaw), math.sin(yaw)
+    cy, sy = cos_sin(yaw)
     i0, i1, j0, j1 = _rect(
         x, y, cy, sy, front, front + far, -half_width, half_width, sub, rows, cols
     )
@@ -546,7 +546,7 @@ def _gather(soil, x, y, yaw, edge):
     return m
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def _near_force(soil, m, edge):
     """:func:`force_at` from the ``m`` sub-cells :func:`_gather` stored (at an edge as high).
 
@@ -583,7 +583,7 @@ def _near_force(soil, m, edge):
     return _load_force(ph, depth, over, beyond)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def _blade_force(soil, robots, k):
     """Robot k's blade force where it stands (0 with the blade home); force control on."""
     if robots[k, BLADE] == BLADE_HOME:
@@ -620,7 +620,7 @@ def _blade_force(soil, robots, k):
     return force
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def _pitch(soil, x, y, yaw):
     """The body's nose-up pitch (rad): front row's mean ground against the rear row's."""
     ph = soil.physics
@@ -715,7 +715,7 @@ def _cut(soil, k):
     )  # fmt: skip
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def drive(heights, robots, active, occ, k, sign, throttle, soil):
     """Drive robot k to the centre of the cell ahead (``sign`` 1) or behind (-1).
 
@@ -785,7 +785,7 @@ def drive(heights, robots, active, occ, k, sign, throttle, soil):
     return moved, changed, stalled
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def step_robot(heights, robots, active, occ, k, mask, rng, soil):
     """Run robot k's selected behaviours (bit mask) in Table 2 order on the physical soil.
 
@@ -833,7 +833,7 @@ def step_robots(heights, robots, active, occ, masks, rng, soil):
     return changed
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def load_volume(soil, heights, robots, k):
     """What L1 reads for robot k: the blade's force rescaled to units, or the grid's volume."""
     ph = soil.physics
@@ -849,7 +849,7 @@ def load_volume(soil, heights, robots, k):
     return int(np.rint(max(force, 0.0) / ph[X_LOAD_SCALE] * MAX_LOAD))  # as messages.py
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def sense_robot(heights, zones, goal, robots, active, k, out, params, soil):
     """Robot k's sensor vector on the physical soil (the rounded heights; L1 as it reads)."""
     row = robots[k, ROW]
@@ -872,7 +872,7 @@ def sense_robot(heights, zones, goal, robots, active, k, out, params, soil):
     )
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def soil_fitness(soil, heights, zones, goal):
     """The paper's fitness of the physical world (``fitness_heights``: means or rounded)."""
     if soil.physics[X_FIT_MEAN] != 0:

@@ -559,14 +559,39 @@ def round_heights(sums, per_cell, out):
             out[r, c] = (2 * sums[r, c] + per_cell) // (2 * per_cell)
 
 
+_SQUARE = tuple((yaw, math.cos(yaw), math.sin(yaw)) for yaw in (0.0, math.pi / 2, -math.pi / 2))
+_COS_PI, _SIN_PI = math.cos(math.pi), math.sin(math.pi)
+
+
+@nb.njit(cache=True, inline="always")
+def cos_sin(yaw):
+    """``(cos(yaw), sin(yaw))``: for a heading square to the grid, the same values from a table.
+
+    Every robot of the offline world and most of ``dynamics``' stand square; their kernels
+    call this several times a sub-step.
+    """
+    for square, c, s in _SQUARE:
+        if yaw == square:
+            return c, s
+    if yaw == math.pi:
+        return _COS_PI, _SIN_PI
+    return math.cos(yaw), math.sin(yaw)
+
+
+_SPARE = 1e-6
+"""Sub-cells :func:`_rect` reaches beyond a rectangle's bounding box, against rounding."""
+
+
 @nb.njit(cache=True, inline="always")
 def _rect(x, y, cy, sy, u0, u1, v0, v1, sub, rows, cols):
     """Row and column bounds ``(i0, i1, j0, j1)`` of the sub-cells a robot's rectangle covers.
 
     The rectangle: ``u0 <= u <= u1``, ``v0 <= v <= v1`` in the robot's frame (:func:`_local`);
-    the bounds: its bounding box on the field, a sub-cell wider on each side: a kernel that
-    tests each centre against the rectangle visits only these (in the same order as over
-    a larger window, so its result is the same).
+    the bounds: the sub-cells whose centres lie in its bounding box on the field (with a
+    millionth of a sub-cell to spare against rounding): a kernel that tests each centre
+    against the rectangle visits only these, in the same order as over a larger window, so
+    its result is the same. For a robot square to the grid (every robot of the offline
+    world) that is the rectangle's own sub-cells.
     """
     x0 = x1 = x + u0 * cy - v0 * sy
     y0 = y1 = y + u0 * sy + v0 * cy
@@ -577,10 +602,11 @@ def _rect(x, y, cy, sy, u0, u1, v0, v1, sub, rows, cols):
         x1 = max(x1, px)
         y0 = min(y0, py)
         y1 = max(y1, py)
-    i0 = max(int(math.floor(y0 / sub)) - 1, 0)
-    i1 = min(int(math.floor(y1 / sub)) + 2, rows)
-    j0 = max(int(math.floor(x0 / sub)) - 1, 0)
-    j1 = min(int(math.floor(x1 / sub)) + 2, cols)
+    # sub-cell i's centre is (i + 0.5) * sub
+    i0 = max(int(math.ceil(y0 / sub - 0.5 - _SPARE)), 0)
+    i1 = min(int(math.floor(y1 / sub - 0.5 + _SPARE)) + 1, rows)
+    j0 = max(int(math.ceil(x0 / sub - 0.5 - _SPARE)), 0)
+    j1 = min(int(math.floor(x1 / sub - 0.5 + _SPARE)) + 1, cols)
     return i0, i1, j0, j1
 
 
@@ -598,7 +624,7 @@ def _local(i, j, sub, x, y, cy, sy):
 @nb.njit(cache=True, inline="always")
 def body_window(x, y, yaw, sub, half_length, half_width, wing, rows, cols):
     """The window ``(i0, i1, j0, j1)`` :func:`stamp_body` visits for a body at ``(x, y, yaw)``."""
-    cy, sy = math.cos(yaw), math.sin(yaw)
+    cy, sy = cos_sin(yaw)
     side = half_width + sub
     return _rect(x, y, cy, sy, -half_length, half_length + wing, -side, side, sub, rows, cols)
 
@@ -610,7 +636,7 @@ def stamp_body(mask, x, y, yaw, sub, half_length, half_width, wings_on, wing):
     :func:`body_mask` stamps each active robot with it.
     """
     rows, cols = mask.shape
-    cy, sy = math.cos(yaw), math.sin(yaw)
+    cy, sy = cos_sin(yaw)
     ahead = half_length + wing
     side = half_width + sub
     i0, i1, j0, j1 = _rect(x, y, cy, sy, -half_length, ahead, -side, side, sub, rows, cols)
@@ -736,16 +762,17 @@ def _settle_pair(fine, loose, blocked, max_diff, i, j, ni, nj):
     return 0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, touched):
     """Settle every slope steeper than ``max_diff`` that sub-cells ``[i0:i1, j0:j1]`` start.
 
-    A worklist avalanche: each queued sub-cell that is not ``blocked`` is compared with its
-    4-neighbours that are not ``blocked``; where the slope exceeds ``max_diff``, half the
-    excess (rounded up) moves from the higher to the lower (:func:`_move`) and both are
-    queued again, wherever they lie. It ends where no slope exceeds ``max_diff`` around any
-    sub-cell it touched (each move lowers the sum of squared heights when ``max_diff >=
-    1``), at a cost in proportion to the avalanche, not the field. ``stack`` (``int64``,
+    A worklist avalanche: each queued sub-cell (never a ``blocked`` one: a move involves
+    none) is compared with its 4-neighbours that are not ``blocked``; where the slope
+    exceeds ``max_diff``, half the excess (rounded up) moves from the higher to the lower
+    (:func:`_move`) and both are queued again, wherever they lie. It ends where no slope
+    exceeds ``max_diff`` around any sub-cell it touched (each move lowers the sum of
+    squared heights when ``max_diff >= 1``), at a cost in proportion to the avalanche, not
+    the field. ``stack`` (``int64``,
     one slot per sub-cell) and ``queued`` (``bool`` like ``fine``, all False) are scratch;
     ``queued`` is all False again on return. ``touched`` (``int64 [4]``: first row, last
     row, first column, last column) grows to cover every sub-cell that changed. Returns the
@@ -755,7 +782,8 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
     top = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
-            top = _push(stack, queued, top, i, j, cols)
+            if not blocked[i, j]:
+                top = _push(stack, queued, top, i, j, cols)
     moved = 0
     low = 0xFFFFFFFF
     r0 = touched[0]
@@ -767,8 +795,6 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
         i = stack[top] >> 32
         j = stack[top] & low
         queued[i, j] = False
-        if blocked[i, j]:
-            continue
         # the neighbours in the order below, above, right, left
         if i + 1 < rows:
             t = _settle_pair(fine, loose, blocked, max_diff, i, j, i + 1, j)
@@ -827,7 +853,7 @@ def _index(x, y, sub, rows, cols):
     return i, j
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def band_ground(fine, x, y, yaw, sub, near, far, half_width):
     """Summed height (quanta) and count of the sub-cells in a band of a robot's body.
 
@@ -835,7 +861,7 @@ def band_ground(fine, x, y, yaw, sub, near, far, half_width):
     and less than ``half_width`` m to either side. ``n`` is 0 when none lies on the field.
     """
     rows, cols = fine.shape
-    cy, sy = math.cos(yaw), math.sin(yaw)
+    cy, sy = cos_sin(yaw)
     i0, i1, j0, j1 = _rect(x, y, cy, sy, near, far, -half_width, half_width, sub, rows, cols)
     total = 0
     n = 0
@@ -848,7 +874,7 @@ def band_ground(fine, x, y, yaw, sub, near, far, half_width):
     return total, n
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def dig_wheels(fine, loose, x, y, yaw, sub, length, half_width, take):
     """Slipping wheels carry soil back: ``take`` quanta from each sub-cell under the rear half.
 
@@ -859,7 +885,7 @@ def dig_wheels(fine, loose, x, y, yaw, sub, length, half_width, take):
     moved.
     """
     rows, cols = fine.shape
-    cy, sy = math.cos(yaw), math.sin(yaw)
+    cy, sy = cos_sin(yaw)
     i0, i1, j0, j1 = _rect(x, y, cy, sy, -length, 0.0, -half_width, half_width, sub, rows, cols)
     moved = 0
     for i in range(i0, i1):
@@ -877,7 +903,7 @@ def dig_wheels(fine, loose, x, y, yaw, sub, length, half_width, take):
     return moved
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def volume_above(fine, x, y, yaw, sub, front, half_width, reach, edge):
     """Soil above ``edge`` (quanta, summed over sub-cells) up to ``reach`` m ahead of a blade.
 
@@ -885,7 +911,7 @@ def volume_above(fine, x, y, yaw, sub, front, half_width, reach, edge):
     y)`` along ``yaw``) and ``reach`` m beyond it, within ``half_width`` to either side.
     """
     rows, cols = fine.shape
-    cy, sy = math.cos(yaw), math.sin(yaw)
+    cy, sy = cos_sin(yaw)
     i0, i1, j0, j1 = _rect(
         x, y, cy, sy, front, front + reach, -half_width, half_width, sub, rows, cols
     )
@@ -923,7 +949,7 @@ def pile_above(fine, loose, edge):
     return loose if pile > loose else pile
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedge):
     """``(cut, over, beyond)``: what a blade at ``(x, y, yaw)``, edge at ``edge``, meets.
 
@@ -935,7 +961,7 @@ def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedg
     ``reach`` m ahead, the drag prism the blade pushes along the ground.
     """
     rows, cols = fine.shape
-    cy, sy = math.cos(yaw), math.sin(yaw)
+    cy, sy = cos_sin(yaw)
     i0, i1, j0, j1 = _rect(
         x, y, cy, sy, front, front + sub, -half_width, half_width, sub, rows, cols
     )
@@ -971,7 +997,7 @@ def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedg
     return depth, over, beyond
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def cut(fine, loose, blocked, x, y, yaw, sub, front, half_width, edge, top, fill=True):
     """The blade at ``(x, y, yaw)`` levels the sub-cells just behind its edge to ``edge``.
 
@@ -983,7 +1009,7 @@ def cut(fine, loose, blocked, x, y, yaw, sub, front, half_width, edge, top, fill
     below the edge stays as it is. Returns the quanta cut.
     """
     rows, cols = fine.shape
-    cy, sy = math.cos(yaw), math.sin(yaw)
+    cy, sy = cos_sin(yaw)
     i0, i1, j0, j1 = _rect(
         x, y, cy, sy, front - sub, front + sub, -half_width, half_width, sub, rows, cols
     )
