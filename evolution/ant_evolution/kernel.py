@@ -297,7 +297,7 @@ def run_scenarios(start, steps, program, n_robots, scores):
 # --- the physical soil (excavation_sim.cell_soil) ----------------------------------------------
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, _nrt=False, error_model="numpy")
 def _run_physical_steps(world, soil, steps, program, work, trace):
     """:func:`_run_steps` on the physical soil (:mod:`excavation_sim.cell_soil`).
 
