@@ -559,8 +559,9 @@ def round_heights(sums, per_cell, out):
             out[r, c] = (2 * sums[r, c] + per_cell) // (2 * per_cell)
 
 
-_SQUARE = tuple((yaw, math.cos(yaw), math.sin(yaw)) for yaw in (0.0, math.pi / 2, -math.pi / 2))
-_COS_PI, _SIN_PI = math.cos(math.pi), math.sin(math.pi)
+_SQUARE = tuple(
+    (yaw, math.cos(yaw), math.sin(yaw)) for yaw in (0.0, math.pi / 2, -math.pi / 2, math.pi)
+)
 
 
 @nb.njit(cache=True, inline="always")
@@ -573,8 +574,6 @@ def cos_sin(yaw):
     for square, c, s in _SQUARE:
         if yaw == square:
             return c, s
-    if yaw == math.pi:
-        return _COS_PI, _SIN_PI
     return math.cos(yaw), math.sin(yaw)
 
 
