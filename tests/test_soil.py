@@ -26,6 +26,7 @@ from excavation_sim.soil import (
     level_pile_force,
     mckyes_force,
     n_factors,
+    relax_local,
 )
 from excavation_sim.world import BLADE, World
 
@@ -302,3 +303,77 @@ def test_a_kernels_window_holds_every_sub_cell_its_rectangle_holds(
 def test_cos_sin_of_a_square_heading_is_maths_own():
     for yaw in (0.0, math.pi / 2, -math.pi / 2, math.pi, 0.3, -2.0):
         assert cos_sin(yaw) == (math.cos(yaw), math.sin(yaw))
+
+
+def _worklist(fine, loose, blocked, max_diff, i0, i1, j0, j1, touched):
+    """``relax_local`` as first written: every window sub-cell pushed, then popped (LIFO)."""
+    rows, cols = fine.shape
+    stack, queued = [], np.zeros(fine.shape, dtype=bool)
+
+    def push(i, j):
+        if not queued[i, j]:
+            queued[i, j] = True
+            stack.append((i, j))
+
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            if not blocked[i, j]:
+                push(i, j)
+    moved = 0
+    while stack:
+        i, j = stack.pop()
+        queued[i, j] = False
+        for ni, nj in ((i + 1, j), (i - 1, j), (i, j + 1), (i, j - 1)):
+            if not (0 <= ni < rows and 0 <= nj < cols):
+                continue
+            diff = fine[i, j] - fine[ni, nj]
+            if abs(diff) <= max_diff or blocked[ni, nj]:
+                continue
+            src, dst = ((i, j), (ni, nj)) if diff > 0 else ((ni, nj), (i, j))
+            t = (abs(diff) - max_diff + 1) // 2
+            fine[src] -= t
+            fine[dst] += t
+            loose[src] -= min(t, loose[src])
+            loose[dst] += t
+            moved += t
+            touched[:] = (
+                min(touched[0], i, ni), max(touched[1], i, ni),
+                min(touched[2], j, nj), max(touched[3], j, nj),
+            )  # fmt: skip
+            push(i, j)
+            push(ni, nj)
+    return moved
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    rows=st.integers(1, 9),
+    cols=st.integers(1, 9),
+    spread=st.sampled_from([3, 10, 40]),
+    max_diff=st.integers(1, 6),
+    blocked_share=st.sampled_from([0.0, 0.2, 0.5]),
+)
+def test_the_avalanche_settles_as_a_plain_worklist_does(
+    seed, rows, cols, spread, max_diff, blocked_share
+):
+    """``relax_local`` passes over the window's quiet sub-cells instead of queuing them; it
+    must leave the field, its loose soil, ``touched`` and the quanta moved exactly as the
+    worklist that queues every one of them (slopes that settle in cascades, blocked cells,
+    windows at the field's border)."""
+    rng = np.random.default_rng(seed)
+    fine = rng.integers(0, spread, (rows, cols)).astype(np.int64)
+    loose = (fine * rng.random((rows, cols))).astype(np.int64)
+    blocked = rng.random((rows, cols)) < blocked_share
+    i0, i1 = sorted(rng.integers(0, rows + 1, 2))
+    j0, j1 = sorted(rng.integers(0, cols + 1, 2))
+    big = rows + cols
+    want = [fine.copy(), loose.copy(), np.array([big, -1, big, -1])]
+    moved = _worklist(*want[:2], blocked, max_diff, i0, i1, j0, j1, want[2])
+    got = [fine.copy(), loose.copy(), np.array([big, -1, big, -1])]
+    stack = np.zeros(fine.size, dtype=np.int64)
+    queued = np.zeros(fine.shape, dtype=bool)
+    assert relax_local(*got[:2], blocked, max_diff, i0, i1, j0, j1, stack, queued, got[2]) == moved
+    for a, b in zip(got, want, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not queued.any()
