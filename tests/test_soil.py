@@ -18,6 +18,7 @@ from excavation_sim.soil import (
     Soil,
     SoilError,
     SoilParams,
+    _band,
     _local,
     _rect,
     blade_force,
@@ -27,11 +28,13 @@ from excavation_sim.soil import (
     mckyes_force,
     n_factors,
     relax_local,
+    stamp_body,
 )
 from excavation_sim.world import BLADE, World
 
 CELL, UNIT = 0.25, 0.05
 PHYSICAL = SoilParams(soil="physical")
+SQUARE = (0.0, math.pi / 2, -math.pi / 2, math.pi)
 
 
 def flat_world(robots: int = 1, seed: int = 0) -> World:
@@ -300,8 +303,11 @@ def test_a_kernels_window_holds_every_sub_cell_its_rectangle_holds(
         assert window <= near
 
 
-def test_cos_sin_of_a_square_heading_is_maths_own():
-    for yaw in (0.0, math.pi / 2, -math.pi / 2, math.pi, 0.3, -2.0):
+def test_cos_sin_is_exact_for_a_square_heading_and_maths_own_otherwise():
+    for yaw, exact in zip(SQUARE, ((1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (-1.0, 0.0)), strict=True):
+        assert cos_sin(yaw) == exact
+        assert cos_sin(yaw) == pytest.approx((math.cos(yaw), math.sin(yaw)), abs=1e-15)
+    for yaw in (0.3, -2.0, math.pi / 2 + 1e-12, 1e-300):
         assert cos_sin(yaw) == (math.cos(yaw), math.sin(yaw))
 
 
@@ -377,3 +383,60 @@ def test_the_avalanche_settles_as_a_plain_worklist_does(
     for a, b in zip(got, want, strict=True):
         np.testing.assert_array_equal(a, b)
     assert not queued.any()
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    x=st.floats(-0.5, 4.5),
+    y=st.floats(-0.5, 4.5),
+    aligned=st.booleans(),
+    yaw=st.sampled_from(SQUARE),
+    u0=st.floats(-0.6, 0.6),
+    length=st.floats(0.0, 0.8),
+    half_width=st.floats(0.0, 0.4),
+    sub=st.sampled_from([0.0625, 0.25 / 3, 0.05]),
+)
+def test_a_square_robots_band_is_the_sub_cells_its_test_selects(
+    x, y, aligned, yaw, u0, length, half_width, sub
+):
+    """For a square heading ``_band`` gives whole rows and columns without testing each
+    sub-cell: they must be exactly the sub-cells the per-sub-cell test selects (robots on
+    sub-cell corners, as offline, or anywhere, as in ``dynamics``)."""
+    if aligned:
+        x, y = round(x / sub) * sub, round(y / sub) * sub
+    rows = cols = 80
+    cy, sy = cos_sin(yaw)
+    u1 = u0 + length
+    i0, i1, j0, j1, every = _band(x, y, cy, sy, u0, u1, half_width, sub, rows, cols)
+    assert every
+    selected = set()
+    for i in range(rows):
+        for j in range(cols):
+            u, v = _local(i, j, sub, x, y, cy, sy)
+            if u0 <= u < u1 and abs(v) < half_width:
+                selected.add((i, j))
+    assert {(i, j) for i in range(i0, i1) for j in range(j0, j1)} == selected
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    x=st.floats(-0.3, 3.3),
+    y=st.floats(-0.3, 3.3),
+    yaw=st.sampled_from(SQUARE),
+    wings=st.booleans(),
+    wing=st.sampled_from([0.0, 0.05, 0.25]),
+)
+def test_a_square_bodys_stamp_is_the_sub_cells_under_it(x, y, yaw, wings, wing):
+    """``stamp_body`` marks a square body by rows and columns: the same sub-cells as the
+    test of each sub-cell's centre against the body and its end plates."""
+    sub, half = 0.0625, CELL
+    mask = np.zeros((48, 48), dtype=bool)
+    stamp_body(mask, x, y, yaw, sub, half, half, wings, wing)
+    cy, sy = cos_sin(yaw)
+    want = np.zeros_like(mask)
+    for i in range(48):
+        for j in range(48):
+            u, v = _local(i, j, sub, x, y, cy, sy)
+            plate = wings and half <= u < half + wing and half <= abs(v) < half + sub
+            want[i, j] = (abs(u) < half and abs(v) < half) or plate
+    np.testing.assert_array_equal(mask, want)

@@ -72,8 +72,8 @@ from excavation_sim.soil import (
     Site,
     Soil,
     SoilParams,
+    _band,
     _local,
-    _rect,
     band_ground,
     blade_load,
     body_window,
@@ -530,14 +530,12 @@ def _gather(soil, x, y, yaw, edge):
     far = length if length > reach else reach
     rows, cols = soil.fine.shape
     cy, sy = cos_sin(yaw)
-    i0, i1, j0, j1 = _rect(
-        x, y, cy, sy, front, front + far, -half_width, half_width, sub, rows, cols
-    )
+    i0, i1, j0, j1, every = _band(x, y, cy, sy, front, front + far, half_width, sub, rows, cols)
     m = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
             u, v = _local(i, j, sub, x, y, cy, sy)
-            if abs(v) >= half_width or u < front or u >= front + far:
+            if not every and (abs(v) >= half_width or u < front or u >= front + far):
                 continue
             soil.near_u[m] = u
             soil.near_fine[m] = soil.fine[i, j]

@@ -559,17 +559,23 @@ def round_heights(sums, per_cell, out):
             out[r, c] = (2 * sums[r, c] + per_cell) // (2 * per_cell)
 
 
-_SQUARE = tuple(
-    (yaw, math.cos(yaw), math.sin(yaw)) for yaw in (0.0, math.pi / 2, -math.pi / 2, math.pi)
+_SQUARE = (
+    (0.0, 1.0, 0.0),
+    (math.pi / 2, 0.0, 1.0),
+    (-math.pi / 2, 0.0, -1.0),
+    (math.pi, -1.0, 0.0),
 )
+"""The square headings and their exact cosines and sines (``math.cos(pi / 2)`` is 6e-17)."""
 
 
 @nb.njit(cache=True, inline="always")
 def cos_sin(yaw):
-    """``(cos(yaw), sin(yaw))``: for a heading square to the grid, the same values from a table.
+    """``(cos(yaw), sin(yaw))``; exactly 0 and +-1 for a heading square to the grid.
 
     Every robot of the offline world and most of ``dynamics``' stand square; their kernels
-    call this several times a sub-step.
+    call this several times a sub-step. With exact values a sub-cell's ``u`` in such a
+    robot's frame depends on its column only (or its row only), so a rectangle's sub-cells
+    are a window of whole rows and columns (:func:`_band`).
     """
     for square, c, s in _SQUARE:
         if yaw == square:
@@ -621,11 +627,77 @@ def _local(i, j, sub, x, y, cy, sy):
 
 
 @nb.njit(cache=True, inline="always")
+def _on(k, origin, sign, sub, lo, hi, open_lo):
+    """Whether index k's coordinate ``((k + 0.5) * sub - origin) * sign`` lies in ``[lo, hi)``.
+
+    The same float :func:`_local` computes along an axis of a square heading (``sign``: its
+    +-1 cosine or sine; the other term is an exact zero). ``open_lo``: ``(lo, hi)``.
+    """
+    w = ((k + 0.5) * sub - origin) * sign
+    return (w > lo if open_lo else w >= lo) and w < hi
+
+
+@nb.njit(cache=True, inline="always")
+def _span(count, origin, sign, sub, lo, hi, open_lo):
+    """The indices ``[a, b)`` of ``[0, count)`` that are :func:`_on` (a range: monotone).
+
+    Solved for the bounds, then each bound is moved while the exact test says so (the
+    solution is at most one index off), so the range is exactly the indices the test takes.
+    """
+    if sign > 0.0:
+        a = math.ceil((origin + lo) / sub - 0.5)
+        b = math.ceil((origin + hi) / sub - 0.5)
+    else:
+        a = math.floor((origin - hi) / sub - 0.5) + 1
+        b = math.floor((origin - lo) / sub - 0.5) + 1
+    a = min(max(a, 0), count)
+    b = min(max(b, a), count)
+    while a > 0 and _on(a - 1, origin, sign, sub, lo, hi, open_lo):
+        a -= 1
+    while a < b and not _on(a, origin, sign, sub, lo, hi, open_lo):
+        a += 1
+    while b < count and _on(b, origin, sign, sub, lo, hi, open_lo):
+        b += 1
+    while b > a and not _on(b - 1, origin, sign, sub, lo, hi, open_lo):
+        b -= 1
+    return a, b
+
+
+@nb.njit(cache=True, inline="always")
+def _band(x, y, cy, sy, u0, u1, half_width, sub, rows, cols):
+    """``(i0, i1, j0, j1, every)``: the window of the sub-cells ``u0 <= u < u1, |v| < half_width``.
+
+    ``every``: each sub-cell of the window qualifies (a square heading: exactly the
+    sub-cells :func:`_local`'s test selects, as whole rows and columns); otherwise
+    (:func:`_rect`'s window) each must be tested.
+    """
+    if sy == 0.0:  # along the columns: u = dx * cy, v = dy * cy
+        j0, j1 = _span(cols, x, cy, sub, u0, u1, False)
+        i0, i1 = _span(rows, y, cy, sub, -half_width, half_width, True)
+        return i0, i1, j0, j1, True
+    if cy == 0.0:  # along the rows: u = dy * sy, v = dx * -sy
+        i0, i1 = _span(rows, y, sy, sub, u0, u1, False)
+        j0, j1 = _span(cols, x, -sy, sub, -half_width, half_width, True)
+        return i0, i1, j0, j1, True
+    i0, i1, j0, j1 = _rect(x, y, cy, sy, u0, u1, -half_width, half_width, sub, rows, cols)
+    return i0, i1, j0, j1, False
+
+
+@nb.njit(cache=True, inline="always")
 def body_window(x, y, yaw, sub, half_length, half_width, wing, rows, cols):
     """The window ``(i0, i1, j0, j1)`` :func:`stamp_body` visits for a body at ``(x, y, yaw)``."""
     cy, sy = cos_sin(yaw)
     side = half_width + sub
     return _rect(x, y, cy, sy, -half_length, half_length + wing, -side, side, sub, rows, cols)
+
+
+@nb.njit(cache=True, inline="always")
+def _fill(mask, along, a0, a1, b0, b1):
+    """Mark ``u`` indices ``[a0, a1)`` by ``v`` indices ``[b0, b1)`` (``along``: u on columns)."""
+    if along:
+        mask[b0:b1, a0:a1] = True
+    else:
+        mask[a0:a1, b0:b1] = True
 
 
 @nb.njit(cache=True, inline="always")
@@ -638,6 +710,21 @@ def stamp_body(mask, x, y, yaw, sub, half_length, half_width, wings_on, wing):
     cy, sy = cos_sin(yaw)
     ahead = half_length + wing
     side = half_width + sub
+    if sy == 0.0 or cy == 0.0:  # square: whole rows and columns (see _band)
+        along = sy == 0.0  # u along the columns
+        if along:
+            nu, u_at, u_sign, nv, v_at, v_sign = cols, x, cy, rows, y, cy
+        else:
+            nu, u_at, u_sign, nv, v_at, v_sign = rows, y, sy, cols, x, -sy
+        a0, a1 = _span(nu, u_at, u_sign, sub, -half_length, half_length, True)
+        b0, b1 = _span(nv, v_at, v_sign, sub, -half_width, half_width, True)
+        _fill(mask, along, a0, a1, b0, b1)
+        if wings_on:
+            a0, a1 = _span(nu, u_at, u_sign, sub, half_length, ahead, False)
+            for sign in (v_sign, -v_sign):  # each side: half_width <= |v| < side
+                b0, b1 = _span(nv, v_at, sign, sub, half_width, side, False)
+                _fill(mask, along, a0, a1, b0, b1)
+        return
     i0, i1, j0, j1 = _rect(x, y, cy, sy, -half_length, ahead, -side, side, sub, rows, cols)
     for i in range(i0, i1):
         for j in range(j0, j1):
@@ -894,15 +981,20 @@ def band_ground(fine, x, y, yaw, sub, near, far, half_width):
     """
     rows, cols = fine.shape
     cy, sy = cos_sin(yaw)
-    i0, i1, j0, j1 = _rect(x, y, cy, sy, near, far, -half_width, half_width, sub, rows, cols)
+    i0, i1, j0, j1, every = _band(x, y, cy, sy, near, far, half_width, sub, rows, cols)
     total = 0
     n = 0
+    if every:
+        for i in range(i0, i1):
+            total += fine[i, j0:j1].sum()
+        return total, (i1 - i0) * (j1 - j0)
     for i in range(i0, i1):
         for j in range(j0, j1):
             u, v = _local(i, j, sub, x, y, cy, sy)
-            if abs(v) < half_width and near <= u < far:
-                total += fine[i, j]
-                n += 1
+            if abs(v) >= half_width or u < near or u >= far:
+                continue
+            total += fine[i, j]
+            n += 1
     return total, n
 
 
@@ -944,15 +1036,14 @@ def volume_above(fine, x, y, yaw, sub, front, half_width, reach, edge):
     """
     rows, cols = fine.shape
     cy, sy = cos_sin(yaw)
-    i0, i1, j0, j1 = _rect(
-        x, y, cy, sy, front, front + reach, -half_width, half_width, sub, rows, cols
-    )
+    i0, i1, j0, j1, every = _band(x, y, cy, sy, front, front + reach, half_width, sub, rows, cols)
     volume = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
-            u, v = _local(i, j, sub, x, y, cy, sy)
-            if abs(v) >= half_width or u < front or u >= front + reach:
-                continue
+            if not every:
+                u, v = _local(i, j, sub, x, y, cy, sy)
+                if abs(v) >= half_width or u < front or u >= front + reach:
+                    continue
             above = fine[i, j] - edge
             if above > 0:
                 volume += above
@@ -994,33 +1085,30 @@ def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedg
     """
     rows, cols = fine.shape
     cy, sy = cos_sin(yaw)
-    i0, i1, j0, j1 = _rect(
-        x, y, cy, sy, front, front + sub, -half_width, half_width, sub, rows, cols
-    )
+    i0, i1, j0, j1, every = _band(x, y, cy, sy, front, front + sub, half_width, sub, rows, cols)
     cut_total = 0
     cut_n = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
-            u, v = _local(i, j, sub, x, y, cy, sy)
-            if abs(v) >= half_width or u < front or u >= front + sub:
-                continue
+            if not every:
+                u, v = _local(i, j, sub, x, y, cy, sy)
+                if abs(v) >= half_width or u < front or u >= front + sub:
+                    continue
             cut_total += firm_above(fine[i, j], loose[i, j], edge)
             cut_n += 1
     depth = cut_total / cut_n if cut_n else 0.0
     length = depth * wedge
     far = length if length > reach else reach
-    i0, i1, j0, j1 = _rect(
-        x, y, cy, sy, front, front + far, -half_width, half_width, sub, rows, cols
-    )
+    i0, i1, j0, j1, every = _band(x, y, cy, sy, front, front + far, half_width, sub, rows, cols)
     over = 0
     beyond = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
-            u, v = _local(i, j, sub, x, y, cy, sy)
-            if abs(v) >= half_width or u < front or u >= front + far:
-                continue
             pile = pile_above(fine[i, j], loose[i, j], edge)
             if pile == 0:
+                continue
+            u, v = _local(i, j, sub, x, y, cy, sy)
+            if not every and (abs(v) >= half_width or u < front or u >= front + far):
                 continue
             if u < front + length:
                 over += pile
