@@ -813,21 +813,22 @@ def relax(fine, loose, blocked, max_diff, passes):
 
 
 @nb.njit(cache=True, inline="always")
-def _push(stack, queued, top, i, j, window, first):
+def _push(stack, queued, top, i, j, window):
     """Queue sub-cell ``(i, j)`` on ``stack`` unless it is queued already; the new top.
 
     An entry holds ``i << 32 | j`` (shifts, not a division by the columns, to read it back).
-    ``window`` (``i0, i1, j0, j1``) and ``first``: the sub-cells of the window that come
-    before the ``first``-th in row-major order count as queued (:func:`relax_local`).
+    ``window`` (``i0, j0, j1, a, b``): the sub-cells of rows ``i0..a`` and columns
+    ``[j0, j1)`` that come before ``(a, b)`` in row-major order count as queued
+    (:func:`relax_local`).
     """
-    i0, i1, j0, j1 = window
-    if i0 <= i < i1 and j0 <= j < j1 and (i - i0) * (j1 - j0) + (j - j0) < first:
+    if queued[i, j]:
         return top
-    if not queued[i, j]:
-        queued[i, j] = True
-        stack[top] = (i << 32) | j
-        top += 1
-    return top
+    i0, j0, j1, a, b = window
+    if i0 <= i and j0 <= j < j1 and (i < a or (i == a and j < b)):
+        return top
+    queued[i, j] = True
+    stack[top] = (i << 32) | j
+    return top + 1
 
 
 @nb.njit(cache=True, inline="always")
@@ -894,7 +895,6 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
     are: a robot's sub-step checks some 90 and moves soil at one or two.
     """
     rows, cols = fine.shape
-    window = (i0, i1, j0, j1)
     moved = 0
     low = 0xFFFFFFFF
     r0 = touched[0]
@@ -905,7 +905,7 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
         for b in range(j1 - 1, j0 - 1, -1):
             if blocked[a, b] or not _steep_at(fine, blocked, max_diff, a, b):
                 continue
-            first = (a - i0) * (j1 - j0) + (b - j0)
+            window = (i0, j0, j1, a, b)
             queued[a, b] = True
             stack[0] = (a << 32) | b
             top = 1
@@ -923,8 +923,8 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
                         r1 = max(r1, i, i + 1)
                         c0 = min(c0, j, j)
                         c1 = max(c1, j, j)
-                        top = _push(stack, queued, top, i, j, window, first)
-                        top = _push(stack, queued, top, i + 1, j, window, first)
+                        top = _push(stack, queued, top, i, j, window)
+                        top = _push(stack, queued, top, i + 1, j, window)
                 if i >= 1:
                     t = _settle_pair(fine, loose, blocked, max_diff, i, j, i - 1, j)
                     if t > 0:
@@ -933,8 +933,8 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
                         r1 = max(r1, i, i - 1)
                         c0 = min(c0, j, j)
                         c1 = max(c1, j, j)
-                        top = _push(stack, queued, top, i, j, window, first)
-                        top = _push(stack, queued, top, i - 1, j, window, first)
+                        top = _push(stack, queued, top, i, j, window)
+                        top = _push(stack, queued, top, i - 1, j, window)
                 if j + 1 < cols:
                     t = _settle_pair(fine, loose, blocked, max_diff, i, j, i, j + 1)
                     if t > 0:
@@ -943,8 +943,8 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
                         r1 = max(r1, i, i)
                         c0 = min(c0, j, j)
                         c1 = max(c1, j, j + 1)
-                        top = _push(stack, queued, top, i, j, window, first)
-                        top = _push(stack, queued, top, i, j + 1, window, first)
+                        top = _push(stack, queued, top, i, j, window)
+                        top = _push(stack, queued, top, i, j + 1, window)
                 if j >= 1:
                     t = _settle_pair(fine, loose, blocked, max_diff, i, j, i, j - 1)
                     if t > 0:
@@ -953,8 +953,8 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
                         r1 = max(r1, i, i)
                         c0 = min(c0, j, j - 1)
                         c1 = max(c1, j, j)
-                        top = _push(stack, queued, top, i, j, window, first)
-                        top = _push(stack, queued, top, i, j - 1, window, first)
+                        top = _push(stack, queued, top, i, j, window)
+                        top = _push(stack, queued, top, i, j - 1, window)
     touched[0] = r0
     touched[1] = r1
     touched[2] = c0
