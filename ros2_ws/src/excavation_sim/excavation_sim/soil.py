@@ -664,6 +664,19 @@ def _span(count, origin, sign, sub, lo, hi, open_lo):
 
 
 @nb.njit(cache=True, inline="always")
+def _axes(x, y, cy, sy, rows, cols):
+    """A square heading's axes: ``(along, nu, u_at, u_sign, nv, v_at, v_sign)``.
+
+    ``along``: ``u`` runs along the columns (``sy == 0``: ``u = dx * cy``, ``v = dy * cy``),
+    else along the rows (``u = dy * sy``, ``v = dx * -sy``); each axis's index count,
+    origin and sign as :func:`_span` takes them.
+    """
+    if sy == 0.0:
+        return True, cols, x, cy, rows, y, cy
+    return False, rows, y, sy, cols, x, -sy
+
+
+@nb.njit(cache=True, inline="always")
 def _band(x, y, cy, sy, u0, u1, half_width, sub, rows, cols):
     """``(i0, i1, j0, j1, every)``: the window of the sub-cells ``u0 <= u < u1, |v| < half_width``.
 
@@ -671,14 +684,13 @@ def _band(x, y, cy, sy, u0, u1, half_width, sub, rows, cols):
     sub-cells :func:`_local`'s test selects, as whole rows and columns); otherwise
     (:func:`_rect`'s window) each must be tested.
     """
-    if sy == 0.0:  # along the columns: u = dx * cy, v = dy * cy
-        j0, j1 = _span(cols, x, cy, sub, u0, u1, False)
-        i0, i1 = _span(rows, y, cy, sub, -half_width, half_width, True)
-        return i0, i1, j0, j1, True
-    if cy == 0.0:  # along the rows: u = dy * sy, v = dx * -sy
-        i0, i1 = _span(rows, y, sy, sub, u0, u1, False)
-        j0, j1 = _span(cols, x, -sy, sub, -half_width, half_width, True)
-        return i0, i1, j0, j1, True
+    if sy == 0.0 or cy == 0.0:
+        along, nu, u_at, u_sign, nv, v_at, v_sign = _axes(x, y, cy, sy, rows, cols)
+        a0, a1 = _span(nu, u_at, u_sign, sub, u0, u1, False)
+        b0, b1 = _span(nv, v_at, v_sign, sub, -half_width, half_width, True)
+        if along:
+            return b0, b1, a0, a1, True
+        return a0, a1, b0, b1, True
     i0, i1, j0, j1 = _rect(x, y, cy, sy, u0, u1, -half_width, half_width, sub, rows, cols)
     return i0, i1, j0, j1, False
 
@@ -711,11 +723,7 @@ def stamp_body(mask, x, y, yaw, sub, half_length, half_width, wings_on, wing):
     ahead = half_length + wing
     side = half_width + sub
     if sy == 0.0 or cy == 0.0:  # square: whole rows and columns (see _band)
-        along = sy == 0.0  # u along the columns
-        if along:
-            nu, u_at, u_sign, nv, v_at, v_sign = cols, x, cy, rows, y, cy
-        else:
-            nu, u_at, u_sign, nv, v_at, v_sign = rows, y, sy, cols, x, -sy
+        along, nu, u_at, u_sign, nv, v_at, v_sign = _axes(x, y, cy, sy, rows, cols)
         a0, a1 = _span(nu, u_at, u_sign, sub, -half_length, half_length, True)
         b0, b1 = _span(nv, v_at, v_sign, sub, -half_width, half_width, True)
         _fill(mask, along, a0, a1, b0, b1)
@@ -991,10 +999,9 @@ def band_ground(fine, x, y, yaw, sub, near, far, half_width):
     for i in range(i0, i1):
         for j in range(j0, j1):
             u, v = _local(i, j, sub, x, y, cy, sy)
-            if abs(v) >= half_width or u < near or u >= far:
-                continue
-            total += fine[i, j]
-            n += 1
+            if abs(v) < half_width and near <= u < far:
+                total += fine[i, j]
+                n += 1
     return total, n
 
 
