@@ -25,14 +25,31 @@ from pathlib import Path
 
 import numpy as np
 
+from excavation_common.errors import FieldError
 from excavation_common.files import replace_marked, write_text_atomic
 from excavation_common.limits import int_in
+from excavation_common.loaders import load_json
 from excavation_sim.soil import soil_arg
 
 CONTROLLERS = ("genomes/best.json", "hand-coded")
 BLUEPRINT = "default:1"
 MIN_CORRELATION = 0.9
 STALL_FACTOR = 2.0
+# a trial file's fields and their types (``run_one`` writes them)
+FIELDS = {
+    "soil": str,
+    "controller": str,
+    "robots": int,
+    "seed": int,
+    "scenario": int,
+    "steps": int,
+    "fitness": float,
+    "stuck_events": int,
+}
+
+
+class TrialFileError(FieldError):
+    """A trial file under ``DIR/trials`` that is not one ``run`` wrote."""
 
 
 def slug(soil: str) -> str:
@@ -196,9 +213,29 @@ def write_section(path: Path, table: str) -> None:
     replace_marked(path, table, MARK, END)
 
 
+def load_trial(path: Path) -> dict:
+    """One trial file, its fields checked (:data:`FIELDS`).
+
+    Raises:
+        TrialFileError: Naming the file and the field that is missing or of another type.
+    """
+    row = load_json(path, TrialFileError)
+    if not isinstance(row, dict):
+        raise TrialFileError(path, "<json>", type(row).__name__, "expected an object")
+    for name, kind in FIELDS.items():
+        value = row.get(name)
+        ok = isinstance(value, kind) and not isinstance(value, bool)
+        if kind is float:
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            ok = ok and math.isfinite(value)
+        if not ok:
+            raise TrialFileError(path, name, value, f"expected {kind.__name__}")
+    return row
+
+
 def load_rows(out: Path) -> list[dict]:
-    """Every finished trial under ``DIR/trials``."""
-    return [json.loads(p.read_text()) for p in sorted((out / "trials").glob("*.json"))]
+    """Every finished trial under ``DIR/trials`` (:func:`load_trial`)."""
+    return [load_trial(p) for p in sorted((out / "trials").glob("*.json"))]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -211,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int_in(0, 2**31 - 1), default=100)
     p.add_argument("--steps", type=int_in(1, 100_000), default=100)
     p.add_argument("--robots", type=int_in(1, 16), default=2)
-    p.add_argument("--controllers", nargs="+", default=list(CONTROLLERS))
+    p.add_argument("--controllers", nargs="+", choices=CONTROLLERS, default=list(CONTROLLERS))
     p.add_argument("--domain", type=int_in(0, 101), default=100, help="ROS domain id")
     p.add_argument("--write", type=Path, metavar="MD", help="put every soil's table into MD")
     args = p.parse_args(argv)
@@ -233,11 +270,15 @@ def main(argv: list[str] | None = None) -> int:
             row = run_one(args.soil, controller, args.robots, i, args)
             path = args.out / "trials" / trial_name(args.soil, controller, args.robots, i)
             write_text_atomic(path, json.dumps(row, indent=1) + "\n")
-    text = report(load_rows(args.out), args.soil)
+    try:
+        rows = load_rows(args.out)
+    except TrialFileError as e:
+        p.exit(2, f"{p.prog}: error: {e}\n")
+    text = report(rows, args.soil)
     write_text_atomic(args.out / f"agreement-{slug(args.soil)}.md", text)
     print(text)
     if args.write:
-        write_section(args.write, combined(load_rows(args.out)))
+        write_section(args.write, combined(rows))
     return 0
 
 

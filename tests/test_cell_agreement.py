@@ -1,0 +1,161 @@
+"""The offline physical world against ``dynamics``: the issue's tolerances, checked.
+
+The continuous trials through ``dynamics`` are recorded under
+``docs/figures/cell-agreement/trials`` (``python -m excavation_field.cell_agreement run``);
+these tests run the offline world on the same scenarios now, so any change to the offline
+world that moves it away from ``dynamics`` fails here. One system test runs a recorded trial
+again and gets its numbers back, so the records stay those of today's ``dynamics``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+from excavation_field import cell_agreement as ca
+
+TRIALS = Path("docs/figures/cell-agreement")
+
+# (soil, controller) -> which tolerances hold today; the others are pending
+# (docs/world-model.md, "The offline physical world": measured against dynamics)
+CASES = [
+    ("physical:dome", "genomes/best.json", ("correlation", "stalls")),
+    ("physical:dome", "hand-coded", ("stalls",)),
+    ("physical", "genomes/best.json", ("stalls",)),
+    ("physical", "hand-coded", ("stalls",)),
+]
+
+
+def agreement(soil: str, controller: str) -> ca.Agreement:
+    """The agreement of ``controller`` on ``soil`` over the recorded trials."""
+    rows = [r for r in ca.load_rows(TRIALS) if r["controller"] == controller]
+    (found,) = ca.compare(rows, soil)
+    return found
+
+
+@pytest.mark.parametrize(("soil", "controller", "holds"), CASES)
+def test_the_offline_world_keeps_the_agreement_it_has(soil, controller, holds):
+    """Over the 20 recorded scenarios: the stall counts within a factor of two everywhere,
+    the fitness correlation at least 0.9 where the docs say it is."""
+    a = agreement(soil, controller)
+    assert a.scenarios == 20
+    checks = a.check()
+    for name in holds:
+        assert checks[name], (name, a)
+    # the means stay close even where the per-scenario correlation does not
+    assert abs(a.fitness_offline - a.fitness_dynamics) <= 0.015
+
+
+@pytest.mark.pending
+@pytest.mark.parametrize(
+    ("soil", "controller"),
+    [(s, c) for s, c, holds in CASES if "correlation" not in holds],
+)
+def test_the_fitness_correlates_with_dynamics_for_every_controller(soil, controller):
+    """The issue's tolerance for every soil and controller (pending: docs/world-model.md,
+    "The offline physical world", says where and why the offline world parts)."""
+    assert agreement(soil, controller).check()["correlation"]
+
+
+def test_the_tolerances_are_the_issues():
+    """Correlation at least 0.9; stalls within a factor of two either way."""
+    base = dict(controller="c", scenarios=20, fitness_dynamics=0.2, fitness_offline=0.2)
+    assert ca.Agreement(correlation=0.9, u1_dynamics=10, u1_offline=20, **base).check() == {
+        "correlation": True,
+        "stalls": True,
+    }
+    a = ca.Agreement(correlation=0.899, u1_dynamics=10, u1_offline=4.9, **base)
+    assert a.check() == {"correlation": False, "stalls": False}
+    assert a.stall_ratio == pytest.approx(0.49)
+    none = ca.Agreement(correlation=math.nan, u1_dynamics=0, u1_offline=1, **base)
+    assert none.stall_ratio == math.inf and not any(none.check().values())
+
+
+def test_rows_that_match_the_offline_world_correlate_perfectly():
+    """``compare`` pairs each scenario's row with the offline world's run of it."""
+    fit, u1 = ca.offline("physical:dome", "hand-coded", 2, [0, 1, 2, 3], 100, 20)
+    rows = [
+        {
+            "soil": "physical:dome",
+            "controller": "hand-coded",
+            "robots": 2,
+            "seed": 100,
+            "scenario": i,
+            "steps": 20,
+            "fitness": float(f),
+            "stuck_events": int(u),
+        }
+        for i, (f, u) in enumerate(zip(fit, u1, strict=True))
+    ]
+    rows.reverse()  # compare sorts by scenario
+    (a,) = ca.compare(rows, "physical:dome")
+    assert a.scenarios == 4
+    assert a.fitness_dynamics == a.fitness_offline
+    assert a.u1_dynamics == a.u1_offline
+    if fit.std():
+        assert a.correlation == pytest.approx(1.0)
+    assert ca.compare(rows[:1], "physical:dome") == []  # one scenario: nothing to correlate
+
+
+def test_report_writes_the_table_and_the_docs_section(tmp_path, capsys):
+    """``report`` over recorded trials: the soil's table, and ``--write`` fills the marked
+    section of a document, leaving the rest of it alone."""
+    out = tmp_path / "agreement"
+    (out / "trials").mkdir(parents=True)
+    for p in sorted((TRIALS / "trials").glob("physical-dome-genome-*.json")):
+        shutil.copy(p, out / "trials" / p.name)
+    doc = tmp_path / "doc.md"
+    doc.write_text(f"before\n{ca.MARK}\nold\n{ca.END}\nafter\n")
+    argv = ["report", "--out", str(out), "--soil", "physical:dome", "--write", str(doc)]
+    assert ca.main(argv) == 0
+    table = (out / "agreement-physical-dome.md").read_text()
+    assert "| genomes/best.json | 20 |" in table
+    assert "correlation, stalls |" in table
+    text = doc.read_text()
+    assert text.startswith("before\n") and text.endswith("after\n") and "old" not in text
+    assert "| `physical:dome` | genomes/best.json | 20 |" in text
+    assert "| genomes/best.json | 20 |" in capsys.readouterr().out
+
+
+def test_an_unknown_controller_is_refused(capsys):
+    with pytest.raises(SystemExit):
+        ca.main(["run", "--out", "x", "--controllers", "genomes/nope.json"])
+    assert "--controllers" in capsys.readouterr().err
+
+
+def test_a_trial_file_without_its_fields_is_named(tmp_path, capsys):
+    (tmp_path / "trials").mkdir()
+    bad = tmp_path / "trials" / "physical-dome-hand-n2-s0.json"
+    bad.write_text(json.dumps({"soil": "physical:dome"}))
+    with pytest.raises(ca.TrialFileError, match=r"physical-dome-hand-n2-s0\.json.*controller"):
+        ca.load_rows(tmp_path)
+    bad.write_text("{")
+    with pytest.raises(ca.TrialFileError, match=r"physical-dome-hand-n2-s0\.json"):
+        ca.load_rows(tmp_path)
+    row = json.loads((TRIALS / "trials" / bad.name).read_text())
+    bad.write_text(json.dumps({**row, "fitness": "0.2"}))
+    with pytest.raises(ca.TrialFileError, match="fitness = '0.2': expected float"):
+        ca.load_rows(tmp_path)
+    bad.write_text(json.dumps({**row, "robots": True}))
+    with pytest.raises(ca.TrialFileError, match="robots = True"):
+        ca.load_rows(tmp_path)
+    bad.write_text(json.dumps([row]))
+    with pytest.raises(SystemExit) as stop:
+        ca.main(["report", "--out", str(tmp_path)])
+    assert stop.value.code == 2
+    assert "expected an object" in capsys.readouterr().err
+
+
+@pytest.mark.system
+def test_a_recorded_trial_runs_again_to_its_record(domain):
+    """``dynamics`` (exact: no slip or noise) gives a recorded trial's numbers again."""
+    name = ca.trial_name("physical:dome", "genomes/best.json", 2, 14)
+    record = json.loads((TRIALS / "trials" / name).read_text())
+    args = SimpleNamespace(steps=record["steps"], seed=record["seed"], domain=domain)
+    row = ca.run_one(record["soil"], record["controller"], record["robots"], 14, args)
+    for key in ("fitness", "stuck_events", "slips"):
+        assert row[key] == record[key], key
