@@ -15,6 +15,7 @@ import shutil
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from excavation_field import cell_agreement as ca
 
@@ -159,3 +160,33 @@ def test_a_recorded_trial_runs_again_to_its_record(domain):
     row = ca.run_one(record["soil"], record["controller"], record["robots"], 14, args)
     for key in ("fitness", "stuck_events", "slips"):
         assert row[key] == record[key], key
+
+
+def test_sensitivity_correlates_the_world_with_itself_nudged(tmp_path, capsys):
+    """Every parameter the soil sets, up and down; a zero ``blade_limit`` is not nudged;
+    the table is written and printed."""
+    rows = ca.sensitivity("physical", "hand-coded", 2, 4, 100, 20, 0.01)
+    names = [r[0] for r in rows]
+    assert names == [n for n in ca.NUDGED if n != "blade_limit" for _ in range(2)]
+    assert [r[1] for r in rows[:2]] == [1.01, 0.99]
+    assert all(math.isnan(r) or -1 <= r <= 1 for _, _, r in rows)
+    argv = ["sensitivity", "--out", str(tmp_path), "--soil", "physical:dome"]
+    argv += ["--controllers", "hand-coded", "--scenarios", "3", "--steps", "10"]
+    assert ca.main(argv) == 0
+    text = (tmp_path / "sensitivity-physical-dome.md").read_text()
+    assert "| hand-coded | `blade_limit` |" in text and "1 +- 0.01" in text
+    assert text in capsys.readouterr().out
+
+
+def test_correlation_of_equal_and_flat_scores():
+    a = np.array([0.1, 0.2, 0.3])
+    assert ca.correlation(a, a.copy()) == 1.0
+    assert ca.correlation(a, -a) == pytest.approx(-1.0)
+    assert math.isnan(ca.correlation(a, np.full(3, 0.2)))
+
+
+def test_a_nudge_outside_its_range_is_refused(capsys):
+    for bad in ("0", "nan", "x", "0.6"):
+        with pytest.raises(SystemExit):
+            ca.main(["sensitivity", "--out", "x", "--nudge", bad])
+        assert "--nudge" in capsys.readouterr().err

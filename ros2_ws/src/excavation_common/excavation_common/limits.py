@@ -69,3 +69,19 @@ def int_in(low: int, high: int) -> Callable[[str], int]:
 
     parse.__name__ = f"integer {low}..{high}"
     return parse
+
+
+def float_in(low: float, high: float) -> Callable[[str], float]:
+    """An ``argparse`` type: a finite number in ``low..high``, else a message naming the range."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not low <= value <= high:  # NaN fails this too
+            raise argparse.ArgumentTypeError(f"{value} is outside {low}..{high} (the limit)")
+        return value
+
+    parse.__name__ = f"number {low}..{high}"
+    return parse

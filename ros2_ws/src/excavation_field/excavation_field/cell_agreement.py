@@ -27,7 +27,7 @@ import numpy as np
 
 from excavation_common.errors import FieldError
 from excavation_common.files import replace_marked, write_text_atomic
-from excavation_common.limits import int_in
+from excavation_common.limits import float_in, int_in
 from excavation_common.loaders import load_json
 from excavation_sim.soil import soil_arg
 
@@ -110,6 +110,78 @@ def offline(soil: str, controller: str, robots: int, scenarios: list[int], seed:
     return scores[pick], counters[pick, C_REFUSED] + counters[pick, C_STALLS]
 
 
+# the presets' physical parameters that ``sensitivity`` nudges (blade_limit where it is set)
+NUDGED = (
+    "density",
+    "friction_angle",
+    "blade_friction_angle",
+    "repose_angle",
+    "robot_mass",
+    "blade_limit",
+)
+
+
+def correlation(a: np.ndarray, b: np.ndarray) -> float:
+    """Pearson's r of two score vectors: 1 where they are equal, NaN where one is flat."""
+    if np.array_equal(a, b):
+        return 1.0
+    if not np.ptp(a) or not np.ptp(b):
+        return math.nan
+    return float(np.corrcoef(a, b)[0, 1])
+
+
+def sensitivity(
+    soil: str, controller: str, robots: int, scenarios: int, seed: int, steps: int, nudge: float
+) -> list[tuple[str, float, float]]:
+    """How well the offline world agrees with itself: ``(parameter, factor, r)``.
+
+    Each parameter of :data:`NUDGED` set in ``soil`` is scaled by ``1 + nudge`` and
+    ``1 - nudge`` in turn, and the fitness over the scenarios correlated with the unchanged
+    world's. Where a nudge of a percent leaves r near 1, a low correlation against
+    ``dynamics`` is a systematic difference; where it does not, the tolerance sits near the
+    model's own noise floor for that controller.
+    """
+    from excavation_sim.soil import SoilParams
+
+    params = SoilParams(soil=soil).resolved()
+    scen = list(range(scenarios))
+    base, _ = offline(soil, controller, robots, scen, seed, steps)
+    out = []
+    for name in NUDGED:
+        value = getattr(params, name)
+        if not value:
+            continue
+        for factor in (1 + nudge, 1 - nudge):
+            fit, _ = offline(
+                f"{soil},{name}={value * factor!r}", controller, robots, scen, seed, steps
+            )
+            out.append((name, factor, correlation(base, fit)))
+    return out
+
+
+def sensitivity_report(soil: str, args) -> str:
+    """``sensitivity-SOIL.md``: each controller's correlations with itself, nudged."""
+    lines = [
+        f"# The offline world against itself, each parameter nudged: `{soil}`",
+        "",
+        f"Written by `python -m excavation_field.cell_agreement sensitivity`: {args.robots} "
+        f"robots, {args.steps} steps, scenarios 0-{args.scenarios - 1} of seed {args.seed}; "
+        f"the fitness correlation with the unchanged world, each parameter scaled by "
+        f"1 +- {args.nudge}.",
+        "",
+        "| controller | parameter | r, up | r, down |",
+        "|---|---|---:|---:|",
+    ]
+    for controller in args.controllers:
+        rows = sensitivity(
+            soil, controller, args.robots, args.scenarios, args.seed, args.steps, args.nudge
+        )
+        for i in range(0, len(rows), 2):
+            (name, _, up), (_, _, down) = rows[i], rows[i + 1]
+            lines.append(f"| {controller} | `{name}` | {up:.3f} | {down:.3f} |")
+    return "\n".join(lines) + "\n"
+
+
 @dataclass(frozen=True)
 class Agreement:
     """One controller's comparison over the scenarios both worlds ran."""
@@ -149,7 +221,7 @@ def compare(rows: list[dict], soil: str) -> list[Agreement]:
         scen = [r["scenario"] for r in mine]
         fit, u1 = offline(soil, controller, first["robots"], scen, first["seed"], first["steps"])
         dyn = np.array([r["fitness"] for r in mine])
-        corr = float(np.corrcoef(dyn, fit)[0, 1]) if dyn.std() and fit.std() else math.nan
+        corr = correlation(dyn, fit)
         out.append(
             Agreement(
                 controller,
@@ -241,7 +313,7 @@ def load_rows(out: Path) -> list[dict]:
 def main(argv: list[str] | None = None) -> int:
     """``python -m excavation_field.cell_agreement run|report``."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("what", choices=("run", "report"))
+    p.add_argument("what", choices=("run", "report", "sensitivity"))
     p.add_argument("--out", type=Path, required=True, help="directory (resumed)")
     p.add_argument("--soil", type=soil_arg, default="physical:dome")
     p.add_argument("--scenarios", type=int_in(2, 1000), default=20)
@@ -251,10 +323,22 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--controllers", nargs="+", choices=CONTROLLERS, default=list(CONTROLLERS))
     p.add_argument("--domain", type=int_in(0, 101), default=100, help="ROS domain id")
     p.add_argument("--write", type=Path, metavar="MD", help="put every soil's table into MD")
+    p.add_argument(
+        "--nudge",
+        type=float_in(0.0001, 0.5),
+        default=0.01,
+        help="sensitivity: each parameter scaled by 1 +- this",
+    )
     args = p.parse_args(argv)
     from excavation_common.signals import interrupt_on_sigint
 
     interrupt_on_sigint()
+    if args.what == "sensitivity":
+        text = sensitivity_report(args.soil, args)
+        args.out.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(args.out / f"sensitivity-{slug(args.soil)}.md", text)
+        print(text)
+        return 0
     if args.what == "run":
         os.environ["ROS_DOMAIN_ID"] = str(args.domain)
         from excavation_common.progress import tqdm
