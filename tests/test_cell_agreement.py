@@ -100,6 +100,12 @@ def test_rows_that_match_the_offline_world_correlate_perfectly():
     if fit.std():
         assert a.correlation == pytest.approx(1.0)
     assert ca.compare(rows[:1], "physical:dome") == []  # one scenario: nothing to correlate
+    mixed = [*rows[:3], {**rows[3], "seed": 200}]
+    with pytest.raises(ca.TrialFileError, match=r"seed = 100: the other trials .* have 200"):
+        ca.compare(mixed, "physical:dome")
+    twice = [*rows[:3], rows[0]]
+    with pytest.raises(ca.TrialFileError, match="scenario .* twice"):
+        ca.compare(twice, "physical:dome")
 
 
 def test_report_writes_the_table_and_the_docs_section(tmp_path, capsys):

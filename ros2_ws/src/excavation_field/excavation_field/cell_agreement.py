@@ -218,7 +218,24 @@ def compare(rows: list[dict], soil: str) -> list[Agreement]:
         if len(mine) < 2:
             continue
         first = mine[0]
+        for r in mine:
+            for key in ("robots", "seed", "steps"):
+                if r[key] != first[key]:
+                    raise TrialFileError(
+                        trial_name(soil, controller, r["robots"], r["scenario"]),
+                        key,
+                        r[key],
+                        f"the other trials of {soil} and {controller} have {first[key]} "
+                        "(one directory per seed, team and horizon)",
+                    )
         scen = [r["scenario"] for r in mine]
+        if len(set(scen)) != len(scen):
+            raise TrialFileError(
+                trial_name(soil, controller, first["robots"], first["scenario"]),
+                "scenario",
+                scen,
+                "a scenario is there twice",
+            )
         fit, u1 = offline(soil, controller, first["robots"], scen, first["seed"], first["steps"])
         dyn = np.array([r["fitness"] for r in mine])
         corr = correlation(dyn, fit)
@@ -356,9 +373,9 @@ def main(argv: list[str] | None = None) -> int:
             write_text_atomic(path, json.dumps(row, indent=1) + "\n")
     try:
         rows = load_rows(args.out)
+        text = report(rows, args.soil)
     except TrialFileError as e:
         p.exit(2, f"{p.prog}: error: {e}\n")
-    text = report(rows, args.soil)
     write_text_atomic(args.out / f"agreement-{slug(args.soil)}.md", text)
     print(text)
     if args.write:
