@@ -374,12 +374,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         rows = load_rows(args.out)
         text = report(rows, args.soil)
+        section = combined(rows) if args.write else ""
     except TrialFileError as e:
         p.exit(2, f"{p.prog}: error: {e}\n")
     write_text_atomic(args.out / f"agreement-{slug(args.soil)}.md", text)
     print(text)
     if args.write:
-        write_section(args.write, combined(rows))
+        write_section(args.write, section)
     return 0
 
 
