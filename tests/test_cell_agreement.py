@@ -196,3 +196,15 @@ def test_a_nudge_outside_its_range_is_refused(capsys):
         with pytest.raises(SystemExit):
             ca.main(["sensitivity", "--out", "x", "--nudge", bad])
         assert "--nudge" in capsys.readouterr().err
+
+
+def test_the_correlation_interval_is_seeded_and_brackets_r():
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=20)
+    b = a + rng.normal(scale=0.5, size=20)
+    low, high = ca.correlation_interval(a, b)
+    assert (low, high) == ca.correlation_interval(a, b)  # the same table every time
+    assert low < ca.correlation(a, b) < high <= 1.0
+    assert (low, high) != ca.correlation_interval(a, b, seed=1)
+    flat = np.zeros(20)
+    assert all(math.isnan(v) for v in ca.correlation_interval(a, flat))
