@@ -194,6 +194,12 @@ def test_correlation_of_equal_and_flat_scores():
     assert math.isnan(ca.correlation(a, np.full(3, 0.2)))
 
 
+def test_sensitivity_refuses_the_grid(capsys):
+    with pytest.raises(SystemExit):
+        ca.main(["sensitivity", "--out", "x", "--soil", "grid"])
+    assert "no physical parameters" in capsys.readouterr().err
+
+
 def test_a_nudge_outside_its_range_is_refused(capsys):
     for bad in ("0", "nan", "x", "0.6"):
         with pytest.raises(SystemExit):

@@ -11,7 +11,13 @@ the U1 events (a move refused or stalled: the offline world's refusals plus stal
 the executors' stuck events in ``dynamics``).
 
 The tolerances (the physical-evaluator issue): fitness correlation at least 0.9 over 20
-scenarios, stall counts within a factor of two; :func:`check` says which hold.
+scenarios, stall counts within a factor of two; :func:`check` says which hold. Each table
+gives the correlation's 95 % bootstrap interval over the scenarios.
+
+``python -m excavation_field.cell_agreement sensitivity --out DIR --soil SOIL``: the offline
+world against itself, each physical parameter scaled by ``1 +- --nudge`` (default 1 %),
+written to ``DIR/sensitivity-SOIL.md``: how much of a low correlation is the controller's
+own sensitivity rather than the model's difference.
 """
 
 from __future__ import annotations
@@ -379,6 +385,8 @@ def main(argv: list[str] | None = None) -> int:
 
     interrupt_on_sigint()
     if args.what == "sensitivity":
+        if not args.soil.startswith("physical"):
+            p.error(f"sensitivity: --soil {args.soil} has no physical parameters to nudge")
         text = sensitivity_report(args.soil, args)
         args.out.mkdir(parents=True, exist_ok=True)
         write_text_atomic(args.out / f"sensitivity-{slug(args.soil)}.md", text)
