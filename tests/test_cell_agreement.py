@@ -29,6 +29,8 @@ CASES = [
     ("", "physical:dome", "hand-coded", ("stalls",)),
     ("", "physical", "genomes/best.json", ("stalls",)),
     ("", "physical", "hand-coded", ("stalls",)),
+    ("", "physical:lunar", "genomes/best.json", ("correlation", "stalls")),
+    ("", "physical:lunar", "hand-coded", ("correlation", "stalls")),
     ("holdout", "physical:dome", "genomes/best.json", ("stalls",)),
     ("holdout", "physical:dome", "hand-coded", ("stalls",)),
 ]
