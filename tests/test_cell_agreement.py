@@ -83,34 +83,36 @@ def test_the_tolerances_are_the_issues():
 
 def test_rows_that_match_the_offline_world_correlate_perfectly():
     """``compare`` pairs each scenario's row with the offline world's run of it."""
-    fit, u1 = ca.offline("physical:dome", "hand-coded", 2, [0, 1, 2, 3], 100, 20)
+    fit, u1 = ca.offline("physical", "hand-coded", 2, list(range(6)), 100, 40)
+    assert np.ptp(fit) > 0  # the scenarios differ, so the pairing below is tested
     rows = [
         {
-            "soil": "physical:dome",
+            "soil": "physical",
             "controller": "hand-coded",
             "robots": 2,
             "seed": 100,
             "scenario": i,
-            "steps": 20,
-            "fitness": float(f),
+            "steps": 40,
+            "fitness": float(2 * f + 1),  # another scale: r is computed, not the shortcut
             "stuck_events": int(u),
         }
         for i, (f, u) in enumerate(zip(fit, u1, strict=True))
     ]
     rows.reverse()  # compare sorts by scenario
-    (a,) = ca.compare(rows, "physical:dome")
-    assert a.scenarios == 4
-    assert a.fitness_dynamics == a.fitness_offline
+    (a,) = ca.compare(rows, "physical")
+    assert a.scenarios == 6
+    assert a.fitness_dynamics == pytest.approx(2 * a.fitness_offline + 1)
     assert a.u1_dynamics == a.u1_offline
-    if fit.std():
-        assert a.correlation == pytest.approx(1.0)
-    assert ca.compare(rows[:1], "physical:dome") == []  # one scenario: nothing to correlate
-    mixed = [*rows[:3], {**rows[3], "seed": 200}]
-    with pytest.raises(ca.TrialFileError, match=r"seed = 100: the other trials .* have 200"):
-        ca.compare(mixed, "physical:dome")
-    twice = [*rows[:3], rows[0]]
-    with pytest.raises(ca.TrialFileError, match="scenario .* twice"):
-        ca.compare(twice, "physical:dome")
+    assert a.correlation == pytest.approx(1.0)
+    swapped = [{**r, "scenario": 5 - r["scenario"]} for r in rows]
+    assert ca.compare(swapped, "physical")[0].correlation < 0.99  # paired by scenario
+    assert ca.compare(rows[:1], "physical") == []  # one scenario: nothing to correlate
+    mixed = [{**rows[0], "seed": 200}, *rows[1:]]
+    with pytest.raises(ca.TrialFileError, match=r"n2-s5\.json: seed = 200: the other .* have 100"):
+        ca.compare(mixed, "physical")
+    twice = [*rows, {**rows[2], "path": "again.json"}]
+    with pytest.raises(ca.TrialFileError, match="again.json: scenario = 3: this scenario has"):
+        ca.compare(twice, "physical")
 
 
 def test_report_writes_the_table_and_the_docs_section(tmp_path, capsys):
@@ -155,11 +157,37 @@ def test_a_trial_file_without_its_fields_is_named(tmp_path, capsys):
     bad.write_text(json.dumps({**row, "robots": True}))
     with pytest.raises(ca.TrialFileError, match="robots = True"):
         ca.load_rows(tmp_path)
+    for field, value in (("scenario", -1), ("robots", 0), ("controller", "genomes/x.json")):
+        bad.write_text(json.dumps({**row, field: value}))
+        with pytest.raises(ca.TrialFileError, match=f"{field} = "):
+            ca.load_rows(tmp_path)
     bad.write_text(json.dumps([row]))
     with pytest.raises(SystemExit) as stop:
         ca.main(["report", "--out", str(tmp_path)])
     assert stop.value.code == 2
     assert "expected an object" in capsys.readouterr().err
+    assert not list(tmp_path.glob("agreement-*.md"))  # nothing written
+
+
+def test_run_refuses_a_directory_of_another_seed_or_horizon(tmp_path, capsys):
+    """Trial files are named by soil, controller, team and scenario: a run of another seed
+    or horizon into the same directory would take them for its own."""
+    (tmp_path / "trials").mkdir()
+    name = ca.trial_name("physical:dome", "hand-coded", 2, 0)
+    shutil.copy(TRIALS / "trials" / name, tmp_path / "trials" / name)
+    for flags in (["--seed", "200"], ["--steps", "300"]):
+        with pytest.raises(SystemExit) as stop:
+            ca.main(["run", "--out", str(tmp_path), "--soil", "physical:dome", *flags])
+        assert stop.value.code == 2
+        assert "holds trials of seed 100 and 100 steps" in capsys.readouterr().err
+
+
+def test_sensitivity_names_a_nudge_past_a_limit(tmp_path, capsys):
+    argv = ["sensitivity", "--out", str(tmp_path), "--soil", "physical,repose_angle=79.5"]
+    with pytest.raises(SystemExit) as stop:
+        ca.main([*argv, "--nudge", "0.05", "--scenarios", "2", "--steps", "2"])
+    assert stop.value.code == 2
+    assert "repose_angle" in capsys.readouterr().err
 
 
 @pytest.mark.system
@@ -176,11 +204,13 @@ def test_a_recorded_trial_runs_again_to_its_record(domain):
 def test_sensitivity_correlates_the_world_with_itself_nudged(tmp_path, capsys):
     """Every parameter the soil sets, up and down; a zero ``blade_limit`` is not nudged;
     the table is written and printed."""
-    rows = ca.sensitivity("physical", "hand-coded", 2, 4, 100, 20, 0.01)
+    rows = ca.sensitivity("physical", "hand-coded", 2, 20, 100, 100, 0.01)
     names = [r[0] for r in rows]
     assert names == [n for n in ca.NUDGED if n != "blade_limit" for _ in range(2)]
     assert [r[1] for r in rows[:2]] == [1.01, 0.99]
-    assert all(math.isnan(r) or -1 <= r <= 1 for _, _, r in rows)
+    assert all(-1 <= r <= 1 for _, _, r in rows)
+    # the nudges are taken: 1 % less repose changes the hand-coded rules' scores
+    assert min(r for _, _, r in rows) < 0.99
     argv = ["sensitivity", "--out", str(tmp_path), "--soil", "physical:dome"]
     argv += ["--controllers", "hand-coded", "--scenarios", "3", "--steps", "10"]
     assert ca.main(argv) == 0
@@ -194,6 +224,8 @@ def test_correlation_of_equal_and_flat_scores():
     assert ca.correlation(a, a.copy()) == 1.0
     assert ca.correlation(a, -a) == pytest.approx(-1.0)
     assert math.isnan(ca.correlation(a, np.full(3, 0.2)))
+    flat = np.full(3, 0.2)
+    assert math.isnan(ca.correlation(flat, flat.copy()))  # nothing moved: no agreement shown
 
 
 def test_sensitivity_refuses_the_grid(capsys):

@@ -26,6 +26,7 @@ import argparse
 import json
 import math
 import os
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,7 +36,7 @@ from excavation_common.errors import FieldError
 from excavation_common.files import replace_marked, write_text_atomic
 from excavation_common.limits import float_in, int_in
 from excavation_common.loaders import load_json
-from excavation_sim.soil import soil_arg
+from excavation_sim.soil import SoilError, soil_arg
 
 CONTROLLERS = ("genomes/best.json", "hand-coded")
 BLUEPRINT = "default:1"
@@ -52,6 +53,16 @@ FIELDS = {
     "fitness": float,
     "stuck_events": int,
 }
+
+
+# the integer fields' ranges (as ``run`` accepts them)
+RANGES = (
+    ("robots", 1, 16),
+    ("seed", 0, 2**31 - 1),
+    ("scenario", 0, 999),
+    ("steps", 1, 100_000),
+    ("stuck_events", 0, 10**9),
+)
 
 
 class TrialFileError(FieldError):
@@ -128,11 +139,11 @@ NUDGED = (
 
 
 def correlation(a: np.ndarray, b: np.ndarray) -> float:
-    """Pearson's r of two score vectors: 1 where they are equal, NaN where one is flat."""
-    if np.array_equal(a, b):
-        return 1.0
+    """Pearson's r of two score vectors: NaN where either is flat, 1 where they are equal."""
     if not np.ptp(a) or not np.ptp(b):
         return math.nan
+    if np.array_equal(a, b):
+        return 1.0
     return float(np.corrcoef(a, b)[0, 1])
 
 
@@ -246,25 +257,27 @@ def compare(rows: list[dict], soil: str) -> list[Agreement]:
         )
         if len(mine) < 2:
             continue
-        first = mine[0]
-        for r in mine:
-            for key in ("robots", "seed", "steps"):
-                if r[key] != first[key]:
+        for key in ("robots", "seed", "steps"):
+            common, _ = Counter(r[key] for r in mine).most_common(1)[0]
+            for r in mine:
+                if r[key] != common:
                     raise TrialFileError(
-                        trial_name(soil, controller, r["robots"], r["scenario"]),
+                        r.get("path", trial_name(soil, controller, r["robots"], r["scenario"])),
                         key,
                         r[key],
-                        f"the other trials of {soil} and {controller} have {first[key]} "
+                        f"the other trials of {soil} and {controller} have {common} "
                         "(one directory per seed, team and horizon)",
                     )
+        first = mine[0]
         scen = [r["scenario"] for r in mine]
-        if len(set(scen)) != len(scen):
-            raise TrialFileError(
-                trial_name(soil, controller, first["robots"], first["scenario"]),
-                "scenario",
-                scen,
-                "a scenario is there twice",
-            )
+        for a, b in zip(mine, mine[1:], strict=False):
+            if a["scenario"] == b["scenario"]:
+                raise TrialFileError(
+                    b.get("path", trial_name(soil, controller, b["robots"], b["scenario"])),
+                    "scenario",
+                    b["scenario"],
+                    "this scenario has another trial file",
+                )
         fit, u1 = offline(soil, controller, first["robots"], scen, first["seed"], first["steps"])
         dyn = np.array([r["fitness"] for r in mine])
         corr = correlation(dyn, fit)
@@ -353,7 +366,12 @@ def load_trial(path: Path) -> dict:
             ok = ok and math.isfinite(value)
         if not ok:
             raise TrialFileError(path, name, value, f"expected {kind.__name__}")
-    return row
+    if row["controller"] not in CONTROLLERS:
+        raise TrialFileError(path, "controller", row["controller"], f"not one of {CONTROLLERS}")
+    for name, low, high in RANGES:
+        if not low <= row[name] <= high:
+            raise TrialFileError(path, name, row[name], f"outside {low}..{high}")
+    return {**row, "path": str(path)}
 
 
 def load_rows(out: Path) -> list[dict]:
@@ -362,7 +380,10 @@ def load_rows(out: Path) -> list[dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m excavation_field.cell_agreement run|report``."""
+    """``python -m excavation_field.cell_agreement run|report|sensitivity``.
+
+    ``report`` takes the seed, team and horizon from the trials it finds.
+    """
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("what", choices=("run", "report", "sensitivity"))
     p.add_argument("--out", type=Path, required=True, help="directory (resumed)")
@@ -387,12 +408,26 @@ def main(argv: list[str] | None = None) -> int:
     if args.what == "sensitivity":
         if not args.soil.startswith("physical"):
             p.error(f"sensitivity: --soil {args.soil} has no physical parameters to nudge")
-        text = sensitivity_report(args.soil, args)
+        try:
+            text = sensitivity_report(args.soil, args)
+        except SoilError as e:
+            p.error(f"sensitivity: {e}")
         args.out.mkdir(parents=True, exist_ok=True)
         write_text_atomic(args.out / f"sensitivity-{slug(args.soil)}.md", text)
         print(text)
         return 0
     if args.what == "run":
+        try:
+            existing = load_rows(args.out)
+        except TrialFileError as e:
+            p.exit(2, f"{p.prog}: error: {e}\n")
+        for r in existing:
+            same = r["soil"] == args.soil and r["robots"] == args.robots
+            if same and (r["seed"], r["steps"]) != (args.seed, args.steps):
+                p.error(
+                    f"--out {args.out} holds trials of seed {r['seed']} and {r['steps']} steps "
+                    f"({r['path']}): give seed {args.seed} at {args.steps} steps another --out"
+                )
         os.environ["ROS_DOMAIN_ID"] = str(args.domain)
         from excavation_common.progress import tqdm
 
