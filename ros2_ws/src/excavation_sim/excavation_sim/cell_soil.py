@@ -81,6 +81,7 @@ from excavation_sim.soil import (
     cut,
     dig_wheels,
     firm_above,
+    on_field,
     pile_above,
     relax_local,
     stamp_body,
@@ -152,8 +153,9 @@ class SoilArrays(NamedTuple):
             (negative: short of it, after a stall).
         near_u, near_fine, near_loose: ``float64`` / ``int64 [fine.size]``: the sub-cells
             a blade meets, for the force control's search (scratch for :func:`_blade_force`).
-        stamped: ``float64 [n, 5]`` each robot's ``(x, y, yaw, down, active)`` as ``blocked``
-            last marked it (NaN: not marked; scratch for :func:`_mask`).
+        stamped: ``float64 [n, 9]`` each robot's ``(x, y, yaw, down, active)`` as ``blocked``
+            last marked it, then that body's window ``(i0, i1, j0, j1)`` (NaN: not marked;
+            scratch for :func:`_mask`).
     """
 
     fine: np.ndarray
@@ -257,7 +259,7 @@ def new_soil(shape, n_robots, physics):
         np.zeros(fine.shape, dtype=np.bool_),
         np.zeros(4, dtype=np.int64),
         np.zeros(n_robots, dtype=np.int64),
-        np.full((n_robots, 5), np.nan),
+        np.full((n_robots, 9), np.nan),
         np.zeros(fine.size),
         np.zeros(fine.size, dtype=np.int64),
         np.zeros(fine.size, dtype=np.int64),
@@ -322,6 +324,12 @@ def _unchanged(soil, active, k):
     )  # fmt: skip
 
 
+@nb.njit(cache=True, inline="always")
+def _window(st, k):
+    """The window :func:`_mask` stored for robot k's body when it last stamped it."""
+    return int(st[k, 5]), int(st[k, 6]), int(st[k, 7]), int(st[k, 8])
+
+
 @nb.njit(cache=True, _nrt=False)
 def _mask(soil, active):
     """Mark the sub-cells under the bodies (and lowered blades' end plates) as blocked.
@@ -329,6 +337,8 @@ def _mask(soil, active):
     The same mask as :func:`excavation_sim.soil.body_mask` (a union of the bodies'
     stamps), updated where bodies changed since the last call: a changed body's old window
     is cleared, then it and every body whose window meets a cleared one are stamped again.
+    Each body's window is computed once, when it is stamped (``stamped[:, 5:]``): a body
+    that did not change still stands in it.
     """
     ph = soil.physics
     cell = ph[X_CELL]
@@ -347,9 +357,7 @@ def _mask(soil, active):
     cleared = 0
     for k in range(n):
         if changed >> k & 1 and st[k, 4] == 1.0:
-            i0, i1, j0, j1 = body_window(
-                st[k, 0], st[k, 1], st[k, 2], sub, cell, cell, wing, rows, cols
-            )
+            i0, i1, j0, j1 = _window(st, k)
             mask[i0:i1, j0:j1] = False
             cleared |= 1 << k
     for m in range(n):
@@ -357,15 +365,10 @@ def _mask(soil, active):
             continue
         again = changed >> m & 1 == 1
         if not again and cleared:
-            bodies = soil.bodies
-            a0, a1, b0, b1 = body_window(
-                bodies[m, 0], bodies[m, 1], bodies[m, 2], sub, cell, cell, wing, rows, cols
-            )  # fmt: skip
+            a0, a1, b0, b1 = _window(st, m)  # unchanged: where it was stamped
             for k in range(n):
                 if cleared >> k & 1:
-                    i0, i1, j0, j1 = body_window(
-                        st[k, 0], st[k, 1], st[k, 2], sub, cell, cell, wing, rows, cols
-                    )  # fmt: skip
+                    i0, i1, j0, j1 = _window(st, k)
                     if a0 < i1 and i0 < a1 and b0 < j1 and j0 < b1:
                         again = True
                         break
@@ -374,13 +377,21 @@ def _mask(soil, active):
                 mask, soil.bodies[m, 0], soil.bodies[m, 1], soil.bodies[m, 2], sub, cell, cell,
                 soil.down[m], wing,
             )  # fmt: skip
+    bodies = soil.bodies
     for k in range(n):
         if changed >> k & 1:
-            st[k, 0] = soil.bodies[k, 0]
-            st[k, 1] = soil.bodies[k, 1]
-            st[k, 2] = soil.bodies[k, 2]
+            st[k, 0] = bodies[k, 0]
+            st[k, 1] = bodies[k, 1]
+            st[k, 2] = bodies[k, 2]
             st[k, 3] = 1.0 if soil.down[k] else 0.0
             st[k, 4] = 1.0 if active[k] else 0.0
+            i0, i1, j0, j1 = body_window(
+                bodies[k, 0], bodies[k, 1], bodies[k, 2], sub, cell, cell, wing, rows, cols
+            )  # fmt: skip
+            st[k, 5] = i0
+            st[k, 6] = i1
+            st[k, 7] = j0
+            st[k, 8] = j1
 
 
 @nb.njit(cache=True, inline="always")
@@ -447,7 +458,7 @@ def _refresh(soil, heights, r0, r1, c0, c1):
             total = 0
             for a in range(s):
                 for b in range(s):
-                    total += soil.fine[r * s + a, c * s + b]
+                    total += on_field(soil.fine, r * s + a, c * s + b)
             soil.sums[r, c] = total
             soil.means[r, c] = total / per_cell
             heights[r, c] = (2 * total + per_cell) // (2 * per_cell)
@@ -511,11 +522,12 @@ def _load_force(ph, depth, over, beyond):
 
 
 @nb.njit(cache=True, _nrt=False)
-def _gather(soil, x, y, yaw, edge):
-    """Store the sub-cells :func:`excavation_sim.soil.blade_load` reads at ``edge``.
+def _gather(soil, x, y, yaw, depth):
+    """Store the sub-cells :func:`excavation_sim.soil.blade_load` reads at an edge.
 
+    ``depth``: the cut depth ``blade_load`` gave there (it sets how far ahead it reads).
     Their ``u`` (m ahead), heights and loose soil go to ``near_*``; returns how many. An
-    edge at or above ``edge`` reads a subset of them (:func:`_near_force`).
+    edge at or above that edge reads a subset of them (:func:`_near_force`).
     """
     ph = soil.physics
     cell = ph[X_CELL]
@@ -523,9 +535,6 @@ def _gather(soil, x, y, yaw, edge):
     reach = ph[X_REACH]
     front = cell
     half_width = cell
-    depth, _, _ = blade_load(
-        soil.fine, soil.loose, x, y, yaw, sub, cell, cell, reach, edge, ph[X_WEDGE_Q]
-    )
     length = depth * ph[X_WEDGE_Q]
     far = length if length > reach else reach
     rows, cols = soil.fine.shape
@@ -538,8 +547,8 @@ def _gather(soil, x, y, yaw, edge):
             if not every and (abs(v) >= half_width or u < front or u >= front + far):
                 continue
             soil.near_u[m] = u
-            soil.near_fine[m] = soil.fine[i, j]
-            soil.near_loose[m] = soil.loose[i, j]
+            soil.near_fine[m] = on_field(soil.fine, i, j)
+            soil.near_loose[m] = on_field(soil.loose, i, j)
             m += 1
     return m
 
@@ -590,16 +599,21 @@ def _blade_force(soil, robots, k):
     x = soil.bodies[k, 0]
     y = soil.bodies[k, 1]
     yaw = soil.bodies[k, 2]
-    force = force_at(soil, x, y, yaw, _edge(soil, k))
+    base = _edge(soil, k)
+    cell = ph[X_CELL]
+    depth, over, beyond = blade_load(
+        soil.fine, soil.loose, x, y, yaw, ph[X_SUB], cell, cell, ph[X_REACH], base, ph[X_WEDGE_Q]
+    )  # fmt: skip
+    force = _load_force(ph, depth, over, beyond)  # force_at's
     limit = ph[X_BLADE_LIMIT]
     if ph[X_FORCE_CONTROL] != 0 and limit > 0.0 and force > limit:
         # the blade's force control lifts the edge until the force is within its limit
         # (Soil.relief: bisection on whole quanta up to 8 units)
         # (the probes read the sub-cells the blade meets at its edge, stored once)
-        base = _edge(soil, k)
-        m = _gather(soil, x, y, yaw, base) if ph[X_REACH] >= ph[X_SUB] else -1
+        m = _gather(soil, x, y, yaw, depth) if ph[X_REACH] >= ph[X_SUB] else -1
         low = 0
         high = 8 * int(ph[X_Q])
+        at_high = math.nan  # the probe at ``high`` once one was taken there
         while high - low > 1:
             mid = (low + high) // 2
             if m >= 0:
@@ -608,10 +622,13 @@ def _blade_force(soil, robots, k):
                 probe = force_at(soil, x, y, yaw, base + mid)
             if probe <= limit:
                 high = mid
+                at_high = probe
             else:
                 low = mid
         soil.lift[k] += high
-        if m >= 0:
+        if not math.isnan(at_high):
+            force = at_high
+        elif m >= 0:
             force = _near_force(soil, m, _edge(soil, k))
         else:
             force = force_at(soil, x, y, yaw, _edge(soil, k))

@@ -829,7 +829,7 @@ def _push(stack, queued, top, i, j, window):
     ``[j0, j1)`` that come before ``(a, b)`` in row-major order count as queued
     (:func:`relax_local`).
     """
-    if queued[i, j]:
+    if on_field(queued, i, j):
         return top
     i0, j0, j1, a, b = window
     if i0 <= i and j0 <= j < j1 and (i < a or (i == a and j < b)):
@@ -846,15 +846,15 @@ def _settle_pair(fine, loose, blocked, max_diff, i, j, ni, nj):
     Returns the quanta moved (0: none; a move is at least one quantum). ``blocked[ni, nj]``
     is read only where the slope is too steep (it decides nothing elsewhere).
     """
-    diff = fine[i, j] - fine[ni, nj]
+    diff = on_field(fine, i, j) - on_field(fine, ni, nj)
     if diff > max_diff:
-        if blocked[ni, nj]:
+        if on_field(blocked, ni, nj):
             return 0
         t = (diff - max_diff + 1) // 2
         _move(fine, loose, i, j, ni, nj, t)
         return t
     if -diff > max_diff:
-        if blocked[ni, nj]:
+        if on_field(blocked, ni, nj):
             return 0
         t = (-diff - max_diff + 1) // 2
         _move(fine, loose, ni, nj, i, j, t)
@@ -863,9 +863,21 @@ def _settle_pair(fine, loose, blocked, max_diff, i, j, ni, nj):
 
 
 @nb.njit(cache=True, inline="always")
+def on_field(a, i, j):
+    """``a[i, j]`` where ``0 <= i, j`` is known (the caller checked the bounds).
+
+    Read through unsigned indices, numba adds no wraparound for negative ones, so the hot
+    loops load whole rows at once instead of one guarded element at a time.
+    """
+    return a[np.uint64(i), np.uint64(j)]
+
+
+@nb.njit(cache=True, inline="always")
 def _steep(fine, blocked, max_diff, i, j, ni, nj):
     """Whether :func:`_settle_pair` would move soil between ``(i, j)`` and ``(ni, nj)``."""
-    return abs(fine[i, j] - fine[ni, nj]) > max_diff and not blocked[ni, nj]
+    return abs(on_field(fine, i, j) - on_field(fine, ni, nj)) > max_diff and not on_field(
+        blocked, ni, nj
+    )
 
 
 @nb.njit(cache=True, inline="always")
@@ -911,7 +923,7 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
     c1 = touched[3]
     for a in range(i1 - 1, i0 - 1, -1):
         for b in range(j1 - 1, j0 - 1, -1):
-            if blocked[a, b] or not _steep_at(fine, blocked, max_diff, a, b):
+            if on_field(blocked, a, b) or not _steep_at(fine, blocked, max_diff, a, b):
                 continue
             window = (i0, j0, j1, a, b)
             queued[a, b] = True
@@ -1051,7 +1063,7 @@ def volume_above(fine, x, y, yaw, sub, front, half_width, reach, edge):
                 u, v = _local(i, j, sub, x, y, cy, sy)
                 if abs(v) >= half_width or u < front or u >= front + reach:
                     continue
-            above = fine[i, j] - edge
+            above = on_field(fine, i, j) - edge
             if above > 0:
                 volume += above
     return volume
@@ -1101,7 +1113,7 @@ def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedg
                 u, v = _local(i, j, sub, x, y, cy, sy)
                 if abs(v) >= half_width or u < front or u >= front + sub:
                     continue
-            cut_total += firm_above(fine[i, j], loose[i, j], edge)
+            cut_total += firm_above(on_field(fine, i, j), on_field(loose, i, j), edge)
             cut_n += 1
     depth = cut_total / cut_n if cut_n else 0.0
     length = depth * wedge
@@ -1111,7 +1123,7 @@ def blade_load(fine, loose, x, y, yaw, sub, front, half_width, reach, edge, wedg
     beyond = 0
     for i in range(i0, i1):
         for j in range(j0, j1):
-            pile = pile_above(fine[i, j], loose[i, j], edge)
+            pile = pile_above(on_field(fine, i, j), on_field(loose, i, j), edge)
             if pile == 0:
                 continue
             u, v = _local(i, j, sub, x, y, cy, sy)
