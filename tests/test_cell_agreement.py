@@ -137,6 +137,19 @@ def test_report_writes_the_table_and_the_docs_section(tmp_path, capsys):
     assert "| genomes/best.json | 20 |" in capsys.readouterr().out
 
 
+def test_the_options_take_what_a_trial_file_may_hold(capsys):
+    """One table of ranges feeds both the trial files' checks and ``run``'s options."""
+    for flag, field in (("--robots", "robots"), ("--seed", "seed"), ("--steps", "steps")):
+        low, high = ca.RANGES[field]
+        for bad in (low - 1, high + 1):
+            with pytest.raises(SystemExit):
+                ca.main(["run", "--out", "x", flag, str(bad)])
+            assert flag in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # a scenario index past the files' range
+        ca.main(["run", "--out", "x", "--scenarios", str(ca.RANGES["scenario"][1] + 2)])
+    assert "--scenarios" in capsys.readouterr().err
+
+
 def test_an_unknown_controller_is_refused(capsys):
     with pytest.raises(SystemExit):
         ca.main(["run", "--out", "x", "--controllers", "genomes/nope.json"])

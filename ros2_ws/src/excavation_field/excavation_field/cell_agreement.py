@@ -55,14 +55,14 @@ FIELDS = {
 }
 
 
-# the integer fields' ranges (as ``run`` accepts them)
-RANGES = (
-    ("robots", 1, 16),
-    ("seed", 0, 2**31 - 1),
-    ("scenario", 0, 999),
-    ("steps", 1, 100_000),
-    ("stuck_events", 0, 10**9),
-)
+# the integer fields' ranges: what a trial file may hold and what ``run``'s options take
+RANGES = {
+    "robots": (1, 16),
+    "seed": (0, 2**31 - 1),
+    "scenario": (0, 999),
+    "steps": (1, 100_000),
+    "stuck_events": (0, 10**9),
+}
 
 
 class TrialFileError(FieldError):
@@ -247,6 +247,11 @@ class Agreement:
         }
 
 
+def _where(row: dict, soil: str, controller: str) -> str:
+    """A trial row's file (its path, or the name ``run`` gives it)."""
+    return row.get("path", trial_name(soil, controller, row["robots"], row["scenario"]))
+
+
 def compare(rows: list[dict], soil: str) -> list[Agreement]:
     """Each controller's agreement over the trials of ``soil`` in ``rows``."""
     out = []
@@ -262,7 +267,7 @@ def compare(rows: list[dict], soil: str) -> list[Agreement]:
             for r in mine:
                 if r[key] != common:
                     raise TrialFileError(
-                        r.get("path", trial_name(soil, controller, r["robots"], r["scenario"])),
+                        _where(r, soil, controller),
                         key,
                         r[key],
                         f"the other trials of {soil} and {controller} have {common} "
@@ -273,7 +278,7 @@ def compare(rows: list[dict], soil: str) -> list[Agreement]:
         for a, b in zip(mine, mine[1:], strict=False):
             if a["scenario"] == b["scenario"]:
                 raise TrialFileError(
-                    b.get("path", trial_name(soil, controller, b["robots"], b["scenario"])),
+                    _where(b, soil, controller),
                     "scenario",
                     b["scenario"],
                     "this scenario has another trial file",
@@ -368,7 +373,7 @@ def load_trial(path: Path) -> dict:
             raise TrialFileError(path, name, value, f"expected {kind.__name__}")
     if row["controller"] not in CONTROLLERS:
         raise TrialFileError(path, "controller", row["controller"], f"not one of {CONTROLLERS}")
-    for name, low, high in RANGES:
+    for name, (low, high) in RANGES.items():
         if not low <= row[name] <= high:
             raise TrialFileError(path, name, row[name], f"outside {low}..{high}")
     return {**row, "path": str(path)}
@@ -388,10 +393,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("what", choices=("run", "report", "sensitivity"))
     p.add_argument("--out", type=Path, required=True, help="directory (resumed)")
     p.add_argument("--soil", type=soil_arg, default="physical:dome")
-    p.add_argument("--scenarios", type=int_in(2, 1000), default=20)
-    p.add_argument("--seed", type=int_in(0, 2**31 - 1), default=100)
-    p.add_argument("--steps", type=int_in(1, 100_000), default=100)
-    p.add_argument("--robots", type=int_in(1, 16), default=2)
+    p.add_argument("--scenarios", type=int_in(2, RANGES["scenario"][1] + 1), default=20)
+    p.add_argument("--seed", type=int_in(*RANGES["seed"]), default=100)
+    p.add_argument("--steps", type=int_in(*RANGES["steps"]), default=100)
+    p.add_argument("--robots", type=int_in(*RANGES["robots"]), default=2)
     p.add_argument("--controllers", nargs="+", choices=CONTROLLERS, default=list(CONTROLLERS))
     p.add_argument("--domain", type=int_in(0, 101), default=100, help="ROS domain id")
     p.add_argument("--write", type=Path, metavar="MD", help="put every soil's table into MD")
