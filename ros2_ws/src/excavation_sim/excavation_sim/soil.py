@@ -866,8 +866,9 @@ def _settle_pair(fine, loose, blocked, max_diff, i, j, ni, nj):
 def on_field(a, i, j):
     """``a[i, j]`` where ``0 <= i, j`` is known (the caller checked the bounds).
 
-    Read through unsigned indices, numba adds no wraparound for negative ones, so the hot
-    loops load whole rows at once instead of one guarded element at a time.
+    Read through unsigned indices, numba adds no wraparound for negative ones: the hot
+    loops lose a test and a select per read, and short rows load as plain vectors (the
+    rounded heights' refresh had gathered each one). The value is ``a[i, j]``'s.
     """
     return a[np.uint64(i), np.uint64(j)]
 
