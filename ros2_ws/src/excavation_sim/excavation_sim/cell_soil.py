@@ -337,8 +337,8 @@ def _mask(soil, active):
     The same mask as :func:`excavation_sim.soil.body_mask` (a union of the bodies'
     stamps), updated where bodies changed since the last call: a changed body's old window
     is cleared, then it and every body whose window meets a cleared one are stamped again.
-    Each body's window is computed once, when it is stamped (``stamped[:, 5:]``): a body
-    that did not change still stands in it.
+    Each active body's window is computed once, when it is stamped (``stamped[:, 5:]``): a
+    body that did not change still stands in it.
     """
     ph = soil.physics
     cell = ph[X_CELL]
@@ -385,6 +385,8 @@ def _mask(soil, active):
             st[k, 2] = bodies[k, 2]
             st[k, 3] = 1.0 if soil.down[k] else 0.0
             st[k, 4] = 1.0 if active[k] else 0.0
+            if not active[k]:
+                continue  # not stamped: its window is never read
             i0, i1, j0, j1 = body_window(
                 bodies[k, 0], bodies[k, 1], bodies[k, 2], sub, cell, cell, wing, rows, cols
             )  # fmt: skip
@@ -489,16 +491,24 @@ def _measure(soil, robots, k):
             soil.lift[k] = 0
 
 
+@nb.njit(cache=True, inline="always")
+def _load(soil, x, y, yaw, edge):
+    """``(depth, force)``: the blade's cut depth (quanta) and force (N) at an edge.
+
+    :func:`excavation_sim.soil.blade_load` with the soil's constants, then its force.
+    """
+    ph = soil.physics
+    cell = ph[X_CELL]
+    depth, over, beyond = blade_load(
+        soil.fine, soil.loose, x, y, yaw, ph[X_SUB], cell, cell, ph[X_REACH], edge, ph[X_WEDGE_Q]
+    )  # fmt: skip
+    return depth, _load_force(ph, depth, over, beyond)
+
+
 @nb.njit(cache=True, _nrt=False)
 def force_at(soil, x, y, yaw, edge):
     """The blade's force (N) at ``(x, y, yaw)`` with its edge at ``edge`` quanta."""
-    ph = soil.physics
-    cell = ph[X_CELL]
-    sub = ph[X_SUB]
-    depth, over, beyond = blade_load(
-        soil.fine, soil.loose, x, y, yaw, sub, cell, cell, ph[X_REACH], edge, ph[X_WEDGE_Q]
-    )
-    return _load_force(ph, depth, over, beyond)
+    return _load(soil, x, y, yaw, edge)[1]
 
 
 @nb.njit(cache=True, inline="always")
@@ -600,11 +610,7 @@ def _blade_force(soil, robots, k):
     y = soil.bodies[k, 1]
     yaw = soil.bodies[k, 2]
     base = _edge(soil, k)
-    cell = ph[X_CELL]
-    depth, over, beyond = blade_load(
-        soil.fine, soil.loose, x, y, yaw, ph[X_SUB], cell, cell, ph[X_REACH], base, ph[X_WEDGE_Q]
-    )  # fmt: skip
-    force = _load_force(ph, depth, over, beyond)  # force_at's
+    depth, force = _load(soil, x, y, yaw, base)
     limit = ph[X_BLADE_LIMIT]
     if ph[X_FORCE_CONTROL] != 0 and limit > 0.0 and force > limit:
         # the blade's force control lifts the edge until the force is within its limit
