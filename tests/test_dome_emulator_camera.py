@@ -220,6 +220,43 @@ def test_the_emulated_sensors_take_the_newest_truth_not_a_queue(ros):
             assert sub.qos_profile.depth == 1, sub.topic_name
 
 
+def test_the_emulated_sensors_keep_their_truth_through_bad_messages(ros):
+    """A non-finite pose or a height map of the wrong size or type changes nothing the
+    sensors render; the node says what was wrong (on ``/diagnostics``), and a good height
+    map clears it. The camera and the laser share this feed (:class:`TruthFeed`)."""
+    from dome_emulator.camera_node import CameraNode
+    from dome_emulator.laser_node import LaserNode
+    from geometry_msgs.msg import PoseWithCovarianceStamped
+
+    from excavation_common.messages import grid_to_image
+
+    for kind in (CameraNode, LaserNode):
+        node = ros.add(kind(context=ros.context))
+        feed, truth = node.feed, node.core.truth
+        assert feed.truth is truth and feed.heights_topic == "/truth/worksite/height_map"
+        good = PoseWithCovarianceStamped()
+        good.pose.pose.position.x, good.pose.pose.position.y = 1.0, 2.0
+        good.pose.pose.orientation.w = 1.0
+        feed.on_pose(0, good)
+        assert truth.poses[0] == (1.0, 2.0, 0.0) and feed.problem == ""
+        bad = PoseWithCovarianceStamped()
+        bad.pose.pose.position.x = math.nan
+        feed.on_pose(0, bad)
+        assert truth.poses[0] == (1.0, 2.0, 0.0)
+        assert "robot_0" in feed.problem and "finite" in feed.problem
+        rows, cols = truth.rows, truth.cols
+        heights = np.full((rows, cols), 0.1, dtype=np.float32)
+        feed.on_heights(grid_to_image(heights, "32FC1"))
+        assert feed.problem == "" and truth.heights[0, 0] == pytest.approx(0.1)
+        feed.on_heights(grid_to_image(np.zeros((rows + 1, cols), np.float32), "32FC1"))
+        assert "/truth/worksite/height_map" in feed.problem and "shape" in feed.problem
+        feed.on_heights(grid_to_image(np.zeros((rows, cols), np.uint8), "mono8"))
+        assert "/truth/worksite/height_map" in feed.problem
+        assert truth.heights.shape == (rows, cols) and truth.heights[0, 0] == pytest.approx(0.1)
+        feed.on_heights(grid_to_image(heights * 2, "32FC1"))
+        assert feed.problem == "" and truth.heights[0, 0] == pytest.approx(0.2)
+
+
 CONFIG = Path(__file__).resolve().parents[1] / "ros2_ws/src/excavation_bringup/config"
 SITE, SIM_SITE = CONFIG / "site_rehearsal.yaml", CONFIG / "site_sim.yaml"
 

@@ -26,7 +26,6 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.time import Time
@@ -41,12 +40,8 @@ from dome_emulator.camera import (
     Waiting,
     yuv422_message,
 )
-from dome_emulator.errors import TruthError
-from dome_emulator.truth import yaw_of
-from excavation_common.messages import MessageError, image_to_grid
+from dome_emulator.truth_feed import TruthFeed
 from excavation_common.ros import (
-    LATCHED,
-    LATEST_STATE,
     SENSOR_DATA,
     declare_params,
     diagnostics,
@@ -62,7 +57,6 @@ class CameraNode(Node):
         super().__init__("camera", **kwargs)
         self.params = p = declare_params(self, CameraEmulatorParams)
         self.core = CameraCore(p)
-        self.problem = ""
         self.waiting = ""
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         if p.encoding == JPEG:
@@ -73,39 +67,11 @@ class CameraNode(Node):
             self.image_pub = self.create_publisher(Image, "image_raw", SENSOR_DATA)
         self.info_pub = self.create_publisher(CameraInfo, "camera_info", SENSOR_DATA)
         self.info = self.core.camera_info()
-        prefix = p.truth_prefix.rstrip("/")
-        for k in range(p.robots):
-            self.create_subscription(
-                PoseWithCovarianceStamped,
-                f"{prefix}/robot_{k}/pose",
-                lambda m, k=k: self.on_pose(k, m),
-                LATEST_STATE,
-            )
-        self.heights_topic = f"{prefix}/worksite/height_map"
-        self.create_subscription(Image, self.heights_topic, self.on_heights, LATCHED)
+        self.feed = TruthFeed(self, self.core.truth, p.truth_prefix, p.robots)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.pending: list[object] = []  # the one-shot timers of frames in their latency
         self.create_timer(1.0 / p.frame_rate, self.capture, clock=self.steady)
         self.create_timer(p.diagnostics_period, self.publish_diagnostics)
-
-    def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
-        """Robot k's pose in the world."""
-        pos, q = msg.pose.pose.position, msg.pose.pose.orientation
-        try:
-            self.core.truth.set_pose(k, pos.x, pos.y, yaw_of(q.x, q.y, q.z, q.w), f"robot_{k}")
-        except TruthError as exc:
-            self.problem = str(exc)
-
-    def on_heights(self, msg: Image) -> None:
-        """The world's height map (metres)."""
-        try:
-            grid = image_to_grid(msg, "32FC1", self.heights_topic)
-            self.core.truth.set_heights(grid, self.heights_topic)
-        except (MessageError, TruthError) as exc:
-            self.problem = str(exc)
-            self.get_logger().warning(self.problem, throttle_duration_sec=5.0)
-            return
-        self.problem = ""
 
     def capture(self) -> None:
         """Capture a frame of the truth; publish it now or after the latency."""
@@ -165,11 +131,11 @@ class CameraNode(Node):
         c = self.core
         if self.waiting:
             level, message = DiagnosticStatus.WARN, f"waiting for the world: {self.waiting}"
-        elif self.problem:
-            level, message = DiagnosticStatus.WARN, self.problem
+        elif self.feed.problem:
+            level, message = DiagnosticStatus.WARN, self.feed.problem
         elif c.truth.heights is None:
             level = DiagnosticStatus.WARN
-            message = f"no height map on {self.heights_topic} yet: rendering a flat floor"
+            message = f"no height map on {self.feed.heights_topic} yet: rendering a flat floor"
         else:
             level, message = DiagnosticStatus.OK, f"{c.frames} frames"
         values = {

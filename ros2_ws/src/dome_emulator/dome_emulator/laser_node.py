@@ -24,19 +24,14 @@ from __future__ import annotations
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.time import Time
-from sensor_msgs.msg import Image, JointState, LaserScan
+from sensor_msgs.msg import JointState, LaserScan
 
-from dome_emulator.errors import TruthError
 from dome_emulator.laser import LaserCore, LaserEmulatorParams, MountState, Scan
-from dome_emulator.truth import yaw_of
-from excavation_common.messages import MessageError, image_to_grid
+from dome_emulator.truth_feed import TruthFeed
 from excavation_common.ros import (
-    LATCHED,
-    LATEST_STATE,
     SENSOR_DATA,
     declare_params,
     diagnostics,
@@ -51,43 +46,14 @@ class LaserNode(Node):
         super().__init__("laser", **kwargs)
         self.params = p = declare_params(self, LaserEmulatorParams)
         self.core = LaserCore(p, self.get_clock().now().nanoseconds)
-        self.problem = ""
         self.scan_pub = self.create_publisher(LaserScan, "scan", SENSOR_DATA)
         self.mount_pub = self.create_publisher(JointState, "laser_mount/joint_states", SENSOR_DATA)
-        prefix = p.truth_prefix.rstrip("/")
-        for k in range(p.robots):
-            self.create_subscription(
-                PoseWithCovarianceStamped,
-                f"{prefix}/robot_{k}/pose",
-                lambda m, k=k: self.on_pose(k, m),
-                LATEST_STATE,
-            )
-        self.heights_topic = f"{prefix}/worksite/height_map"
-        self.create_subscription(Image, self.heights_topic, self.on_heights, LATCHED)
+        self.feed = TruthFeed(self, self.core.truth, p.truth_prefix, p.robots)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         period = min(p.scan_period, 1.0 / p.mount_rate)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(period, self.step, clock=steady)
         self.create_timer(p.diagnostics_period, self.publish_diagnostics)
-
-    def on_pose(self, k: int, msg: PoseWithCovarianceStamped) -> None:
-        """Robot k's pose in the world (its footprint is raised in the scans)."""
-        pos, q = msg.pose.pose.position, msg.pose.pose.orientation
-        try:
-            self.core.truth.set_pose(k, pos.x, pos.y, yaw_of(q.x, q.y, q.z, q.w), f"robot_{k}")
-        except TruthError as exc:
-            self.problem = str(exc)
-
-    def on_heights(self, msg: Image) -> None:
-        """The world's height map (metres)."""
-        try:
-            grid = image_to_grid(msg, "32FC1", self.heights_topic)
-            self.core.truth.set_heights(grid, self.heights_topic)
-        except (MessageError, TruthError) as exc:
-            self.problem = str(exc)
-            self.get_logger().warning(self.problem, throttle_duration_sec=5.0)
-            return
-        self.problem = ""
 
     def step(self) -> None:
         """Send every scan and mount state the device has finished by now."""
@@ -124,11 +90,11 @@ class LaserNode(Node):
     def publish_diagnostics(self) -> None:
         """OK while scans go out; WARN without a height map or with a bad one."""
         c = self.core
-        if self.problem:
-            level, message = DiagnosticStatus.WARN, self.problem
+        if self.feed.problem:
+            level, message = DiagnosticStatus.WARN, self.feed.problem
         elif c.truth.heights is None:
             level = DiagnosticStatus.WARN
-            message = f"no height map on {self.heights_topic} yet: the mount nods, no scans"
+            message = f"no height map on {self.feed.heights_topic} yet: the mount nods, no scans"
         else:
             level, message = DiagnosticStatus.OK, f"{c.scans} scans"
         values = {
