@@ -267,6 +267,23 @@ def run_episode(world, steps, program, trace):
     _run_steps(world, steps, program, work, trace)
 
 
+@nb.njit(cache=True, inline="always")
+def _start_world(start, s, n_robots, heights, robots, active, rng):
+    """Scenario ``s`` of ``start`` in the reused arrays, as a :class:`WorldArrays`.
+
+    ``n_robots`` > 0: only the first ``n_robots`` robots are active (0 keeps the scenario's).
+    """
+    world = WorldArrays(heights, start.zones, start.goal, robots, active, rng, start.params[s])
+    world.heights[:] = start.heights[s]
+    world.robots[:] = start.robots[s]
+    world.active[:] = start.active[s]
+    if n_robots > 0:
+        for k in range(robots.shape[0]):
+            world.active[k] = k < n_robots
+    world.rng[0] = start.rng[s]
+    return world
+
+
 @nb.njit(cache=True)
 def run_scenarios(start, steps, program, n_robots, scores):
     """Score one program on every scenario of ``start``; ``scores[s]`` gets the final fitness.
@@ -282,14 +299,7 @@ def run_scenarios(start, steps, program, n_robots, scores):
     rng = np.empty(1, dtype=np.uint64)
     no_trace = np.zeros(0)
     for s in range(start.heights.shape[0]):
-        world = WorldArrays(heights, start.zones, start.goal, robots, active, rng, start.params[s])
-        world.heights[:] = start.heights[s]
-        world.robots[:] = start.robots[s]
-        world.active[:] = start.active[s]
-        if n_robots > 0:
-            for k in range(n):
-                world.active[k] = k < n_robots
-        world.rng[0] = start.rng[s]
+        world = _start_world(start, s, n_robots, heights, robots, active, rng)
         _run_steps(world, steps, program, work, no_trace)
         scores[s] = fitness(world.heights, world.zones, world.goal)
 
@@ -368,14 +378,7 @@ def run_physical_scenarios(start, physics, steps, program, n_robots, scores, cou
     soil = cell_soil.new_soil((rows, cols), n, physics[0].copy())
     no_trace = np.zeros(0)
     for s in range(start.heights.shape[0]):
-        world = WorldArrays(heights, start.zones, start.goal, robots, active, rng, start.params[s])
-        world.heights[:] = start.heights[s]
-        world.robots[:] = start.robots[s]
-        world.active[:] = start.active[s]
-        if n_robots > 0:
-            for k in range(n):
-                world.active[k] = k < n_robots
-        world.rng[0] = start.rng[s]
+        world = _start_world(start, s, n_robots, heights, robots, active, rng)
         soil.physics[:] = physics[s]
         cell_soil.reset(soil, world.heights, world.robots, world.active)
         _run_physical_steps(world, soil, steps, program, work, no_trace)
