@@ -774,11 +774,14 @@ def _move(fine, loose, i, j, ti, tj, amount):
     The top of a sub-cell is its loose soil first (``loose`` counts the quanta of each
     sub-cell a blade, a slope or a wheel has moved, lying over the firm ground the site
     started with); what arrives is loose. ``0 <= loose <= fine`` holds where it held.
+    Both sub-cells lie on the field (every caller checks), so it reads and writes through
+    :func:`on_field` and :func:`set_on_field`.
     """
-    fine[i, j] -= amount
-    fine[ti, tj] += amount
-    loose[i, j] -= amount if amount < loose[i, j] else loose[i, j]
-    loose[ti, tj] += amount
+    set_on_field(fine, i, j, on_field(fine, i, j) - amount)
+    set_on_field(fine, ti, tj, on_field(fine, ti, tj) + amount)
+    held = on_field(loose, i, j)
+    set_on_field(loose, i, j, held - (amount if amount < held else held))
+    set_on_field(loose, ti, tj, on_field(loose, ti, tj) + amount)
 
 
 @nb.njit(cache=True)
@@ -834,7 +837,7 @@ def _push(stack, queued, top, i, j, window):
     i0, j0, j1, a, b = window
     if i0 <= i and j0 <= j < j1 and (i < a or (i == a and j < b)):
         return top
-    queued[i, j] = True
+    set_on_field(queued, i, j, True)
     stack[top] = (i << 32) | j
     return top + 1
 
@@ -871,6 +874,12 @@ def on_field(a, i, j):
     rounded heights' refresh had gathered each one). The value is ``a[i, j]``'s.
     """
     return a[np.uint64(i), np.uint64(j)]
+
+
+@nb.njit(cache=True, inline="always")
+def set_on_field(a, i, j, value):
+    """``a[i, j] = value`` where ``0 <= i, j`` is known (:func:`on_field`'s write)."""
+    a[np.uint64(i), np.uint64(j)] = value
 
 
 @nb.njit(cache=True, inline="always")
@@ -934,7 +943,7 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
                 top -= 1
                 i = stack[top] >> 32
                 j = stack[top] & low
-                queued[i, j] = False
+                set_on_field(queued, i, j, False)
                 # the neighbours in the order below, above, right, left
                 if i + 1 < rows:
                     t = _settle_pair(fine, loose, blocked, max_diff, i, j, i + 1, j)
