@@ -222,8 +222,9 @@ def test_the_emulated_sensors_take_the_newest_truth_not_a_queue(ros):
 
 def test_the_emulated_sensors_keep_their_truth_through_bad_messages(ros):
     """A non-finite pose or a height map of the wrong size or type changes nothing the
-    sensors render; the node says what was wrong (on ``/diagnostics``), and a good height
-    map clears it. The camera and the laser share this feed (:class:`TruthFeed`)."""
+    sensors render; the feed keeps what was wrong (what the node's ``/diagnostics`` WARN
+    says), and a good height map clears it. The camera and the laser share this feed
+    (:class:`TruthFeed`)."""
     from dome_emulator.camera_node import CameraNode
     from dome_emulator.laser_node import LaserNode
     from geometry_msgs.msg import PoseWithCovarianceStamped

@@ -154,8 +154,9 @@ class SoilArrays(NamedTuple):
         near_u, near_fine, near_loose: ``float64`` / ``int64 [fine.size]``: the sub-cells
             a blade meets, for the force control's search (scratch for :func:`_blade_force`).
         stamped: ``float64 [n, 9]`` each robot's ``(x, y, yaw, down, active)`` as ``blocked``
-            last marked it, then that body's window ``(i0, i1, j0, j1)`` (NaN: not marked;
-            scratch for :func:`_mask`).
+            last marked it, then that body's window ``(i0, i1, j0, j1)`` when it was last
+            stamped (read only while it is active; NaN: never stamped; scratch for
+            :func:`_mask`).
     """
 
     fine: np.ndarray

@@ -923,6 +923,10 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
     one taken count as queued (:func:`_push`), and a sub-cell with no slope to settle,
     which would change nothing, is passed over with one test of its four neighbours. Most
     are: a robot's sub-step checks some 90 and moves soil at one or two.
+
+    The window must lie on the field (``0 <= i0 <= i1 <= rows``, likewise the columns;
+    callers clip it): the walk reads and writes through :func:`on_field` and
+    :func:`set_on_field`, which do not wrap negative indices.
     """
     rows, cols = fine.shape
     moved = 0
@@ -936,7 +940,7 @@ def relax_local(fine, loose, blocked, max_diff, i0, i1, j0, j1, stack, queued, t
             if on_field(blocked, a, b) or not _steep_at(fine, blocked, max_diff, a, b):
                 continue
             window = (i0, j0, j1, a, b)
-            queued[a, b] = True
+            set_on_field(queued, a, b, True)
             stack[0] = (a << 32) | b
             top = 1
             while top > 0:
