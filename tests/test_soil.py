@@ -266,8 +266,8 @@ def test_end_plates_keep_more_of_a_pushed_pile():
 
 @settings(max_examples=300, deadline=None)
 @given(
-    x=st.floats(-0.5, 4.5),
-    y=st.floats(-0.5, 4.5),
+    x=st.floats(-1.5, 7.0),  # the field: 4-6.7 m; a rectangle may lie wholly off it
+    y=st.floats(-1.5, 7.0),
     yaw=st.one_of(st.sampled_from([0.0, math.pi / 2, -math.pi / 2, math.pi]), st.floats(-4, 4)),
     u0=st.floats(-0.6, 0.6),
     length=st.floats(0.0, 0.8),
@@ -279,11 +279,13 @@ def test_a_kernels_window_holds_every_sub_cell_its_rectangle_holds(
 ):
     """The kernels visit only ``_rect``'s window: it must hold every sub-cell whose centre
     lies in the robot's rectangle (tested against all sub-cells of the field), and for a
-    robot square to the grid nothing else."""
+    robot square to the grid nothing else. It lies on the field (``0 <= i0 <= i1 <=
+    rows``), even for a rectangle off it: a negative end would make a slice wrap."""
     rows = cols = 80
     cy, sy = cos_sin(yaw)
     u1 = u0 + length
     i0, i1, j0, j1 = _rect(x, y, cy, sy, u0, u1, -half_width, half_width, sub, rows, cols)
+    assert 0 <= i0 <= i1 <= rows and 0 <= j0 <= j1 <= cols
     inside = set()
     for i in range(rows):
         for j in range(cols):
@@ -387,8 +389,8 @@ def test_the_avalanche_settles_as_a_plain_worklist_does(
 
 @settings(max_examples=300, deadline=None)
 @given(
-    x=st.floats(-0.5, 4.5),
-    y=st.floats(-0.5, 4.5),
+    x=st.floats(-1.5, 7.0),  # the field: 4-6.7 m; a rectangle may lie wholly off it
+    y=st.floats(-1.5, 7.0),
     aligned=st.booleans(),
     yaw=st.sampled_from(SQUARE),
     u0=st.floats(-0.6, 0.6),

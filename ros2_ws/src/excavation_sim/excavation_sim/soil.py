@@ -608,10 +608,12 @@ def _rect(x, y, cy, sy, u0, u1, v0, v1, sub, rows, cols):
         y0 = min(y0, py)
         y1 = max(y1, py)
     # sub-cell i's centre is (i + 0.5) * sub
-    i0 = max(int(math.ceil(y0 / sub - 0.5 - _SPARE)), 0)
-    i1 = min(int(math.floor(y1 / sub - 0.5 + _SPARE)) + 1, rows)
-    j0 = max(int(math.ceil(x0 / sub - 0.5 - _SPARE)), 0)
-    j1 = min(int(math.floor(x1 / sub - 0.5 + _SPARE)) + 1, cols)
+    # clipped so that 0 <= i0 <= i1 <= rows (likewise the columns): a rectangle wholly off
+    # the field gives an empty window, never a negative end (a slice would wrap)
+    i0 = min(max(int(math.ceil(y0 / sub - 0.5 - _SPARE)), 0), rows)
+    i1 = max(min(int(math.floor(y1 / sub - 0.5 + _SPARE)) + 1, rows), i0)
+    j0 = min(max(int(math.ceil(x0 / sub - 0.5 - _SPARE)), 0), cols)
+    j1 = max(min(int(math.floor(x1 / sub - 0.5 + _SPARE)) + 1, cols), j0)
     return i0, i1, j0, j1
 
 
